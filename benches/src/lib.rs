@@ -1,0 +1,1 @@
+//! Criterion benchmarks live in `main.rs`; this crate has no library code.

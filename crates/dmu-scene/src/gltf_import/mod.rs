@@ -1,0 +1,389 @@
+//! glTF 2.0 import (.gltf with external or data-URI buffers, .glb).
+//!
+//! The `gltf` crate parses the JSON; buffers, accessors and the node graph are
+//! read here with every reference checked, so a broken file gives an error naming
+//! the element at fault and never a panic. Node transforms are read a second time
+//! as f64, because the `gltf` crate keeps them in f32, which cannot hold a
+//! millimetre offset of 1e7.
+
+mod accessor;
+mod buffers;
+
+use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use glam::{DAffine3, DMat4, DQuat, DVec3, Vec3};
+use gltf::json::{self, mesh::Mode, mesh::Semantic, validation::Checked};
+use rayon::prelude::*;
+use serde::Deserialize;
+
+use self::accessor::{Data, read_indices, read_vectors};
+use self::buffers::{invalid, load_buffers, resolve_views, split_container};
+use crate::chunking::{ChunkedMesh, MeshData, chunk_mesh, compute_normals};
+use crate::error::ImportError;
+use crate::ids::{MaterialId, MeshId, NodeId};
+use crate::scene::{Scene, SceneBuilder};
+
+/// Required extensions dmu reads. Material, texture and light extensions change
+/// only shading that dmu does not draw (it shows base colours), so geometry is
+/// complete without them.
+pub const SUPPORTED_REQUIRED: &[&str] = &[
+    "KHR_mesh_quantization",
+    "EXT_meshopt_compression",
+    "KHR_materials_pbrSpecularGlossiness",
+    "KHR_materials_unlit",
+    "KHR_materials_emissive_strength",
+    "KHR_materials_ior",
+    "KHR_materials_specular",
+    "KHR_materials_transmission",
+    "KHR_materials_volume",
+    "KHR_materials_clearcoat",
+    "KHR_materials_sheen",
+    "KHR_materials_iridescence",
+    "KHR_materials_anisotropy",
+    "KHR_materials_dispersion",
+    "KHR_materials_variants",
+    "KHR_texture_transform",
+    "KHR_texture_basisu",
+    "EXT_texture_webp",
+    "KHR_lights_punctual",
+];
+
+/// Import settings.
+#[derive(Clone, Copy)]
+pub struct ImportOptions<'a> {
+    /// Maximum triangles per chunk.
+    pub chunk_triangles: u32,
+    /// Called with (meshes done, meshes total) from worker threads.
+    pub progress: Option<&'a (dyn Fn(usize, usize) + Sync)>,
+}
+
+impl std::fmt::Debug for ImportOptions<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ImportOptions").field("chunk_triangles", &self.chunk_triangles).finish_non_exhaustive()
+    }
+}
+
+impl Default for ImportOptions<'_> {
+    fn default() -> Self {
+        Self { chunk_triangles: crate::DEFAULT_CHUNK_TRIANGLES, progress: None }
+    }
+}
+
+/// What an import skipped or repaired, for reports.
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct ImportReport {
+    /// Primitives of mode POINTS, skipped.
+    pub point_primitives_skipped: usize,
+    /// Primitives of mode LINES, LINE_LOOP or LINE_STRIP, skipped.
+    pub line_primitives_skipped: usize,
+    /// Triangle primitives with no NORMAL (or a non-finite one), given computed normals.
+    pub primitives_with_computed_normals: usize,
+    /// Meshes referenced by no node in the scene (not imported as parts).
+    pub unused_meshes: usize,
+}
+
+/// Imports a .gltf or .glb file.
+pub fn import_gltf(path: &Path, options: &ImportOptions<'_>) -> Result<(Scene, ImportReport), ImportError> {
+    let bytes = std::fs::read(path).map_err(|source| ImportError::Io { path: path.to_owned(), source })?;
+    let name = path.file_stem().map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned());
+    import_gltf_slice(&bytes, path.parent(), &name, options)
+}
+
+/// Imports glTF from memory; `base_dir` resolves external buffer files.
+pub fn import_gltf_slice(
+    bytes: &[u8],
+    base_dir: Option<&Path>,
+    default_name: &str,
+    options: &ImportOptions<'_>,
+) -> Result<(Scene, ImportReport), ImportError> {
+    let (json_bytes, blob) = split_container(bytes)?;
+    let root: json::Root =
+        serde_json::from_slice(json_bytes).map_err(|e| ImportError::Malformed { message: format!("JSON: {e}") })?;
+    let transforms: RawTransforms =
+        serde_json::from_slice(json_bytes).map_err(|e| ImportError::Malformed { message: format!("JSON: {e}") })?;
+    if let Some(name) = root.extensions_required.iter().find(|e| !SUPPORTED_REQUIRED.contains(&e.as_str())) {
+        return Err(ImportError::UnsupportedExtension { name: name.clone() });
+    }
+    let buffers = load_buffers(&root, blob, base_dir)?;
+    let views = resolve_views(&root, &buffers)?;
+    let data = Data { root: &root, views: &views };
+
+    let scene_index = match root.scene {
+        Some(s) => Some(s.value()),
+        None if root.scenes.is_empty() => None,
+        None => Some(0),
+    };
+    let scene_json = scene_index
+        .map(|s| root.scenes.get(s).ok_or_else(|| invalid(format!("scene {s} does not exist"))))
+        .transpose()?;
+    let name = scene_json.and_then(|s| s.name.clone()).unwrap_or_else(|| default_name.to_owned());
+    let mut builder = SceneBuilder::new(name, options.chunk_triangles);
+
+    for (i, m) in root.materials.iter().enumerate() {
+        let name = m.name.clone().unwrap_or_else(|| format!("material{i}"));
+        builder.add_material(name, base_color(m));
+    }
+    let default_material = MaterialId::from_index(root.materials.len());
+    builder.add_material("default", [0.8, 0.8, 0.8, 1.0]);
+
+    let mut report = ImportReport::default();
+    let used = used_meshes(&root, &transforms, scene_json)?;
+    let done = AtomicUsize::new(0);
+    let total = used.iter().filter(|&&u| u).count();
+    let meshes: Vec<Option<(ChunkedMesh, ImportReport)>> = root
+        .meshes
+        .par_iter()
+        .enumerate()
+        .map(|(m, mesh)| {
+            if !used[m] {
+                return Ok(None);
+            }
+            let decoded = decode_mesh(&data, m, mesh, default_material, options.chunk_triangles)?;
+            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+            if let Some(progress) = options.progress {
+                progress(n, total);
+            }
+            Ok(Some(decoded))
+        })
+        .collect::<Result<_, ImportError>>()?;
+    let mut mesh_ids = vec![None; meshes.len()];
+    for (m, decoded) in meshes.into_iter().enumerate() {
+        match decoded {
+            Some((chunked, r)) => {
+                report.point_primitives_skipped += r.point_primitives_skipped;
+                report.line_primitives_skipped += r.line_primitives_skipped;
+                report.primitives_with_computed_normals += r.primitives_with_computed_normals;
+                mesh_ids[m] = Some(builder.add_chunked_mesh(chunked));
+            }
+            None => report.unused_meshes += 1,
+        }
+    }
+    add_nodes(&root, &transforms, scene_json, &mesh_ids, &mut builder)?;
+    Ok((builder.finish(), report))
+}
+
+fn base_color(m: &json::Material) -> [f32; 4] {
+    // Specular-glossiness files keep their colour in diffuseFactor.
+    let spec_gloss = m
+        .extensions
+        .as_ref()
+        .and_then(|e| e.others.get("KHR_materials_pbrSpecularGlossiness"))
+        .and_then(|e| e.get("diffuseFactor"))
+        .and_then(|v| serde_json::from_value::<[f32; 4]>(v.clone()).ok());
+    let c = spec_gloss.unwrap_or(m.pbr_metallic_roughness.base_color_factor.0);
+    c.map(|v| if v.is_finite() { v.clamp(0.0, 1.0) } else { 1.0 })
+}
+
+/// The node transforms as f64 (the `gltf` crate holds them as f32).
+#[derive(Deserialize)]
+struct RawTransforms {
+    #[serde(default)]
+    nodes: Vec<RawNode>,
+}
+
+#[derive(Deserialize)]
+struct RawNode {
+    matrix: Option<[f64; 16]>,
+    translation: Option<[f64; 3]>,
+    rotation: Option<[f64; 4]>,
+    scale: Option<[f64; 3]>,
+}
+
+impl RawNode {
+    fn local(&self, index: usize) -> Result<DAffine3, ImportError> {
+        let m = if let Some(m) = self.matrix {
+            DAffine3::from_mat4(DMat4::from_cols_array(&m))
+        } else {
+            let t = self.translation.map_or(DVec3::ZERO, DVec3::from_array);
+            let r = self.rotation.map_or(DQuat::IDENTITY, |q| DQuat::from_array(q).normalize());
+            let s = self.scale.map_or(DVec3::ONE, DVec3::from_array);
+            DAffine3::from_scale_rotation_translation(s, r, t)
+        };
+        if m.is_finite() { Ok(m) } else { Err(invalid(format!("nodes[{index}]: transform is not finite"))) }
+    }
+}
+
+/// The root nodes of the imported scene: the chosen scene's, or every parentless
+/// node when the file has no scene (a CAD viewer shows what is there).
+fn root_nodes(root: &json::Root, scene: Option<&json::Scene>) -> Vec<usize> {
+    match scene {
+        Some(s) => s.nodes.iter().map(|n| n.value()).collect(),
+        None => {
+            let mut has_parent = vec![false; root.nodes.len()];
+            for n in &root.nodes {
+                for c in n.children.iter().flatten() {
+                    if let Some(p) = has_parent.get_mut(c.value()) {
+                        *p = true;
+                    }
+                }
+            }
+            (0..root.nodes.len()).filter(|&i| !has_parent[i]).collect()
+        }
+    }
+}
+
+/// Walks the node graph once, checking references, cycles and shared children,
+/// and calls `visit(node, parent_slot)` parents first.
+fn walk_nodes(
+    root: &json::Root,
+    scene: Option<&json::Scene>,
+    mut visit: impl FnMut(usize, Option<usize>) -> Result<(), ImportError>,
+) -> Result<(), ImportError> {
+    let mut seen = vec![false; root.nodes.len()];
+    let mut stack: Vec<(usize, Option<usize>)> = root_nodes(root, scene).into_iter().rev().map(|n| (n, None)).collect();
+    while let Some((n, parent)) = stack.pop() {
+        let node = root.nodes.get(n).ok_or_else(|| invalid(format!("node {n} does not exist")))?;
+        if std::mem::replace(&mut seen[n], true) {
+            return Err(invalid(format!("nodes[{n}] is reached twice: the node graph has a cycle or a shared child")));
+        }
+        visit(n, parent)?;
+        for c in node.children.iter().flatten().rev() {
+            stack.push((c.value(), Some(n)));
+        }
+    }
+    Ok(())
+}
+
+fn used_meshes(root: &json::Root, raw: &RawTransforms, scene: Option<&json::Scene>) -> Result<Vec<bool>, ImportError> {
+    if raw.nodes.len() != root.nodes.len() {
+        return Err(invalid("node list read twice with different lengths"));
+    }
+    let mut used = vec![false; root.meshes.len()];
+    walk_nodes(root, scene, |n, _| {
+        if let Some(m) = root.nodes[n].mesh {
+            *used.get_mut(m.value()).ok_or_else(|| invalid(format!("nodes[{n}].mesh: mesh {} does not exist", m.value())))? = true;
+        }
+        Ok(())
+    })?;
+    Ok(used)
+}
+
+fn add_nodes(
+    root: &json::Root,
+    raw: &RawTransforms,
+    scene: Option<&json::Scene>,
+    mesh_ids: &[Option<MeshId>],
+    builder: &mut SceneBuilder,
+) -> Result<(), ImportError> {
+    let mut ids: Vec<Option<NodeId>> = vec![None; root.nodes.len()];
+    walk_nodes(root, scene, |n, parent| {
+        let node = &root.nodes[n];
+        let parent_id = parent.and_then(|p| ids[p]).unwrap_or(SceneBuilder::ROOT);
+        let world = builder.node_world(parent_id) * raw.nodes[n].local(n)?;
+        let mesh_index = node.mesh.map(|m| m.value());
+        let name = node.name.clone().unwrap_or_else(|| {
+            // Stable names from file indices: unnamed instances of a named mesh keep
+            // the mesh's name.
+            match mesh_index.and_then(|m| root.meshes[m].name.as_ref()) {
+                Some(mesh_name) => format!("{mesh_name}.{n}"),
+                None => format!("node{n}"),
+            }
+        });
+        let id = builder.add_node(parent_id, name, world);
+        ids[n] = Some(id);
+        if let Some(mesh) = mesh_index.and_then(|m| mesh_ids[m]) {
+            builder.add_part(id, mesh);
+        }
+        Ok(())
+    })
+}
+
+/// Decodes and chunks one mesh; its primitives become material groups.
+fn decode_mesh(
+    data: &Data<'_>,
+    m: usize,
+    mesh: &json::Mesh,
+    default_material: MaterialId,
+    chunk_triangles: u32,
+) -> Result<(ChunkedMesh, ImportReport), ImportError> {
+    let mesh_name = mesh.name.clone().unwrap_or_else(|| format!("mesh{m}"));
+    let mut out = MeshData { name: mesh_name.clone(), ..MeshData::default() };
+    let mut report = ImportReport::default();
+    for (p, prim) in mesh.primitives.iter().enumerate() {
+        let mode = match prim.mode {
+            Checked::Valid(mode) => mode,
+            Checked::Invalid => return Err(invalid(format!("meshes[{m}].primitives[{p}].mode is invalid"))),
+        };
+        match mode {
+            Mode::Points => {
+                report.point_primitives_skipped += 1;
+                continue;
+            }
+            Mode::Lines | Mode::LineLoop | Mode::LineStrip => {
+                report.line_primitives_skipped += 1;
+                continue;
+            }
+            Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan => {}
+        }
+        let attribute = |s: Semantic| prim.attributes.get(&Checked::Valid(s)).map(|a| a.value());
+        let pos_accessor = attribute(Semantic::Positions)
+            .ok_or_else(|| invalid(format!("meshes[{m}].primitives[{p}] has no POSITION attribute")))?;
+        let positions: Vec<Vec3> = read_vectors::<3>(data, pos_accessor)?.into_iter().map(Vec3::from_array).collect();
+        if let Some(vertex) = positions.iter().position(|v| !v.is_finite()) {
+            return Err(ImportError::NonFinitePosition {
+                mesh: m,
+                mesh_name,
+                primitive: p,
+                accessor: pos_accessor,
+                vertex,
+            });
+        }
+        let (list, index_accessor) = match prim.indices {
+            Some(a) => (read_indices(data, a.value())?, Some(a.value())),
+            None => ((0..positions.len() as u32).collect(), None),
+        };
+        if let Some(position) = list.iter().position(|&i| i as usize >= positions.len()) {
+            return Err(ImportError::IndexOutOfRange {
+                mesh: m,
+                mesh_name,
+                primitive: p,
+                accessor: index_accessor.unwrap_or(pos_accessor),
+                position,
+                index: list[position],
+                vertex_count: positions.len(),
+            });
+        }
+        let indices = triangulate(mode, &list);
+        let normals = match attribute(Semantic::Normals) {
+            Some(a) => {
+                let n: Vec<Vec3> = read_vectors::<3>(data, a)?.into_iter().map(Vec3::from_array).collect();
+                if n.len() != positions.len() {
+                    return Err(invalid(format!(
+                        "meshes[{m}].primitives[{p}]: NORMAL has {} elements, POSITION {}",
+                        n.len(),
+                        positions.len()
+                    )));
+                }
+                n.iter().all(|v| v.is_finite()).then_some(n)
+            }
+            None => None,
+        };
+        let normals = normals.unwrap_or_else(|| {
+            report.primitives_with_computed_normals += 1;
+            compute_normals(&positions, &indices)
+        });
+        let material = match prim.material {
+            Some(mat) if mat.value() < data.root.materials.len() => MaterialId::from_index(mat.value()),
+            Some(mat) => return Err(invalid(format!("meshes[{m}].primitives[{p}].material {} does not exist", mat.value()))),
+            None => default_material,
+        };
+        out.push_primitive(&positions, &normals, &indices, material);
+    }
+    Ok((chunk_mesh(&out, chunk_triangles), report))
+}
+
+/// Turns a strip or fan into a triangle list (glTF 2.0 spec 3.7.2.1 winding), and
+/// drops the incomplete tail of a list.
+fn triangulate(mode: Mode, list: &[u32]) -> Vec<u32> {
+    match mode {
+        Mode::TriangleStrip => (0..list.len().saturating_sub(2))
+            .flat_map(|i| {
+                let (a, b, c) = (list[i], list[i + 1], list[i + 2]);
+                if i % 2 == 0 { [a, b, c] } else { [b, a, c] }
+            })
+            .collect(),
+        Mode::TriangleFan => (1..list.len().saturating_sub(1)).flat_map(|i| [list[0], list[i], list[i + 1]]).collect(),
+        _ => list[..list.len() - list.len() % 3].to_vec(),
+    }
+}

@@ -1,0 +1,9 @@
+//! Built-in sample models, generated in memory and deterministic by seed.
+
+mod grid;
+mod plant;
+mod rng;
+
+pub use grid::grid;
+pub use plant::{PlantOptions, plant};
+pub use rng::Rng;

@@ -1,0 +1,503 @@
+//! The scene: product structure, parts, chunked part-local geometry, materials.
+
+use std::ops::Range;
+
+use dmu_geom::{Aabb3d, Aabb3f};
+use glam::{DAffine3, Vec3};
+use serde::{Deserialize, Serialize};
+
+use crate::chunking::{ChunkedMesh, MeshData, chunk_mesh};
+use crate::error::SceneError;
+use crate::ids::{ChunkId, MaterialId, MeshId, NodeId, PartId};
+
+/// Default maximum triangles per chunk.
+pub const DEFAULT_CHUNK_TRIANGLES: u32 = 2048;
+
+/// A material: a name and a base colour (linear RGBA, as glTF's `baseColorFactor`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Material {
+    /// Name, unique or not.
+    pub name: String,
+    /// Linear RGBA in `[0, 1]`.
+    pub base_color: [f32; 4],
+}
+
+/// A node of the assembly tree (product structure).
+#[derive(Clone, Debug, PartialEq)]
+pub struct AssemblyNode {
+    /// Name; importers give unnamed nodes stable generated names.
+    pub name: String,
+    /// Parent node; `None` only for the root (node 0).
+    pub parent: Option<NodeId>,
+    /// Children in file order.
+    pub children: Vec<NodeId>,
+    /// Absolute world transform, f64: CAD coordinates far from the origin keep their
+    /// millimetres. Stored absolutely, never accumulated, so moves are reversible bit
+    /// for bit; moving a node does not move its children.
+    pub world: DAffine3,
+    /// The part this node instances, if it owns geometry.
+    pub part: Option<PartId>,
+}
+
+/// A part: a node that owns geometry, i.e. one instance of a mesh.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Part {
+    /// The assembly node of this part (its name, path and world transform).
+    pub node: NodeId,
+    /// The part-local geometry, possibly shared with other parts.
+    pub mesh: MeshId,
+    /// Hidden parts are skipped by picking and drawing.
+    pub hidden: bool,
+}
+
+/// Part-local geometry, f32, in chunks. Each chunk's vertices and triangles are
+/// contiguous and its indices count from its first vertex.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mesh {
+    /// Name.
+    pub name: String,
+    /// Local positions, chunk after chunk.
+    pub positions: Vec<Vec3>,
+    /// Unit normals, parallel to `positions`.
+    pub normals: Vec<Vec3>,
+    /// Chunk-local indices, three per triangle.
+    pub indices: Vec<u32>,
+    /// This mesh's chunks, a contiguous range of the scene's chunks.
+    pub chunks: Range<u32>,
+    /// Local box of all positions (empty for a mesh without triangles).
+    pub bounds: Aabb3f,
+    /// Triangles of zero area: kept, and counted.
+    pub degenerate_triangles: u32,
+}
+
+impl Mesh {
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> u64 {
+        (self.indices.len() / 3) as u64
+    }
+
+    /// The chunk ids of this mesh.
+    pub fn chunk_ids(&self) -> impl ExactSizeIterator<Item = ChunkId> + use<> {
+        self.chunks.clone().map(ChunkId)
+    }
+}
+
+/// A chunk: a spatially compact run of one mesh's triangles with one material.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Chunk {
+    /// The mesh it belongs to.
+    pub mesh: MeshId,
+    /// Material of all its triangles.
+    pub material: MaterialId,
+    /// Triangle range in the mesh (index positions divided by three).
+    pub triangles: Range<u32>,
+    /// Vertex range in the mesh; the chunk's indices are relative to its start.
+    pub vertices: Range<u32>,
+    /// Local box of its vertices.
+    pub bounds: Aabb3f,
+}
+
+impl Chunk {
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> u32 {
+        self.triangles.end - self.triangles.start
+    }
+}
+
+/// A whole product: assembly tree, parts, meshes, chunks, materials.
+///
+/// Built through [`SceneBuilder`]; afterwards only part transforms and visibility
+/// change, so the geometry invariants checked by [`Scene::validate`] hold for life.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    name: String,
+    nodes: Vec<AssemblyNode>,
+    parts: Vec<Part>,
+    meshes: Vec<Mesh>,
+    chunks: Vec<Chunk>,
+    materials: Vec<Material>,
+}
+
+impl Scene {
+    /// The scene's name (the root node's name).
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+    /// Assembly nodes; index 0 is the root.
+    pub fn nodes(&self) -> &[AssemblyNode] {
+        &self.nodes
+    }
+    /// Parts, indexed by [`PartId`].
+    pub fn parts(&self) -> &[Part] {
+        &self.parts
+    }
+    /// Meshes, indexed by [`MeshId`].
+    pub fn meshes(&self) -> &[Mesh] {
+        &self.meshes
+    }
+    /// Chunks, indexed by [`ChunkId`].
+    pub fn chunks(&self) -> &[Chunk] {
+        &self.chunks
+    }
+    /// Materials, indexed by [`MaterialId`].
+    pub fn materials(&self) -> &[Material] {
+        &self.materials
+    }
+    /// One node.
+    pub fn node(&self, id: NodeId) -> &AssemblyNode {
+        &self.nodes[id.index()]
+    }
+    /// One part.
+    pub fn part(&self, id: PartId) -> &Part {
+        &self.parts[id.index()]
+    }
+    /// One mesh.
+    pub fn mesh(&self, id: MeshId) -> &Mesh {
+        &self.meshes[id.index()]
+    }
+    /// One chunk.
+    pub fn chunk(&self, id: ChunkId) -> &Chunk {
+        &self.chunks[id.index()]
+    }
+    /// A part's geometry.
+    pub fn part_mesh(&self, id: PartId) -> &Mesh {
+        self.mesh(self.part(id).mesh)
+    }
+    /// A part's name (its node's name).
+    pub fn part_name(&self, id: PartId) -> &str {
+        &self.node(self.part(id).node).name
+    }
+    /// A part's world transform.
+    pub fn part_world(&self, id: PartId) -> DAffine3 {
+        self.node(self.part(id).node).world
+    }
+    /// Sets a part's absolute world transform (nothing accumulates).
+    ///
+    /// # Panics
+    /// When the transform is not finite: callers validate user input first.
+    pub fn set_part_world(&mut self, id: PartId, world: DAffine3) {
+        assert!(world.is_finite(), "part {id}: non-finite transform");
+        let node = self.part(id).node;
+        self.nodes[node.index()].world = world;
+    }
+    /// Shows or hides a part.
+    pub fn set_part_hidden(&mut self, id: PartId, hidden: bool) {
+        self.parts[id.index()].hidden = hidden;
+    }
+    /// Iterates the part ids.
+    pub fn part_ids(&self) -> impl ExactSizeIterator<Item = PartId> + use<> {
+        (0..self.parts.len() as u32).map(PartId)
+    }
+
+    /// The part's place in the product structure: node names from the root's child
+    /// down to the part, joined by `/`.
+    pub fn part_path(&self, id: PartId) -> String {
+        self.node_path(self.part(id).node)
+    }
+
+    /// A node's path: names from below the root down to the node, joined by `/`.
+    pub fn node_path(&self, id: NodeId) -> String {
+        let mut names = Vec::new();
+        let mut at = Some(id);
+        while let Some(n) = at {
+            let node = self.node(n);
+            if node.parent.is_some() {
+                names.push(node.name.as_str());
+            }
+            at = node.parent;
+        }
+        names.reverse();
+        names.join("/")
+    }
+
+    /// Depth of the assembly tree: 0 for a root alone, 1 when parts hang from the root.
+    pub fn assembly_depth(&self) -> usize {
+        let mut depth = vec![0usize; self.nodes.len()];
+        // Nodes are stored parents first (the builder only links to existing nodes).
+        for (i, node) in self.nodes.iter().enumerate() {
+            if let Some(p) = node.parent {
+                depth[i] = depth[p.index()] + 1;
+            }
+        }
+        depth.into_iter().max().unwrap_or(0)
+    }
+
+    /// Triangles over all parts (instances counted each time).
+    pub fn triangle_count(&self) -> u64 {
+        self.parts.iter().map(|p| self.mesh(p.mesh).triangle_count()).sum()
+    }
+
+    /// Triangles stored once per mesh (instancing not expanded).
+    pub fn unique_triangle_count(&self) -> u64 {
+        self.meshes.iter().map(Mesh::triangle_count).sum()
+    }
+
+    /// Chunk instances over all parts: what the tree holds.
+    pub fn chunk_instance_count(&self) -> u64 {
+        self.parts.iter().map(|p| self.mesh(p.mesh).chunks.len() as u64).sum()
+    }
+
+    /// Degenerate (zero-area) triangles over all parts.
+    pub fn degenerate_triangle_count(&self) -> u64 {
+        self.parts.iter().map(|p| u64::from(self.mesh(p.mesh).degenerate_triangles)).sum()
+    }
+
+    /// A part's world box: its mesh's local box through its f64 world transform.
+    pub fn part_world_bounds(&self, id: PartId) -> Aabb3d {
+        self.part_mesh(id).bounds.transformed(&self.part_world(id))
+    }
+
+    /// A chunk's world box when instanced by `part`.
+    pub fn chunk_world_bounds(&self, part: PartId, chunk: ChunkId) -> Aabb3d {
+        self.chunk(chunk).bounds.transformed(&self.part_world(part))
+    }
+
+    /// World box of every part (hidden ones too).
+    pub fn world_bounds(&self) -> Aabb3d {
+        self.part_ids().map(|p| self.part_world_bounds(p)).fold(Aabb3d::EMPTY, Aabb3d::union)
+    }
+
+    /// The three local vertex positions of a chunk's triangle `t` (mesh-relative index).
+    pub fn triangle_local(&self, mesh: MeshId, chunk: ChunkId, t: u32) -> [Vec3; 3] {
+        let m = self.mesh(mesh);
+        let c = self.chunk(chunk);
+        let base = c.vertices.start as usize;
+        let i = 3 * t as usize;
+        [0, 1, 2].map(|k| m.positions[base + m.indices[i + k] as usize])
+    }
+
+    /// Finds a part by name, by `#id`, or by its full path. Fails when nothing or
+    /// more than one part matches, listing the candidates.
+    pub fn find_part(&self, key: &str) -> Result<PartId, SceneError> {
+        if let Some(num) = key.strip_prefix('#') {
+            return match num.parse::<u32>() {
+                Ok(i) if (i as usize) < self.parts.len() => Ok(PartId(i)),
+                _ => Err(SceneError::UnknownPart { key: key.to_owned() }),
+            };
+        }
+        let by_name: Vec<PartId> = self.part_ids().filter(|&p| self.part_name(p) == key).collect();
+        let matches = if by_name.is_empty() && key.contains('/') {
+            self.part_ids().filter(|&p| self.part_path(p) == key).collect()
+        } else {
+            by_name
+        };
+        match matches.as_slice() {
+            [one] => Ok(*one),
+            [] => Err(SceneError::UnknownPart { key: key.to_owned() }),
+            many => Err(SceneError::AmbiguousPart {
+                key: key.to_owned(),
+                candidates: many.iter().take(8).map(|&p| format!("{p} {}", self.part_path(p))).collect(),
+                count: many.len(),
+            }),
+        }
+    }
+
+    /// Checks every structural invariant; tests call it after each mutation.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        let fail = |what: String| Err(SceneError::Invalid { what });
+        if self.nodes.first().is_none_or(|r| r.parent.is_some()) {
+            return fail("node 0 must be the root".into());
+        }
+        for (i, node) in self.nodes.iter().enumerate() {
+            if i > 0 && node.parent.is_none_or(|p| p.index() >= i) {
+                return fail(format!("node {i} must have a parent stored before it"));
+            }
+            for c in &node.children {
+                if self.nodes.get(c.index()).and_then(|c| c.parent) != Some(NodeId(i as u32)) {
+                    return fail(format!("node {i}: child {c} does not name it as parent"));
+                }
+            }
+            if let Some(p) = node.parent
+                && !self.nodes[p.index()].children.contains(&NodeId(i as u32))
+            {
+                return fail(format!("node {i} missing from its parent's children"));
+            }
+            if !node.world.is_finite() {
+                return fail(format!("node {i}: non-finite world transform"));
+            }
+            if let Some(part) = node.part
+                && self.parts.get(part.index()).map(|p| p.node) != Some(NodeId(i as u32))
+            {
+                return fail(format!("node {i}: part {part} does not point back"));
+            }
+        }
+        for (i, part) in self.parts.iter().enumerate() {
+            if self.nodes.get(part.node.index()).and_then(|n| n.part) != Some(PartId(i as u32)) {
+                return fail(format!("part {i}: node {} does not point back", part.node));
+            }
+            if part.mesh.index() >= self.meshes.len() {
+                return fail(format!("part {i}: mesh {} out of range", part.mesh));
+            }
+        }
+        let mut next_chunk = 0u32;
+        for (m, mesh) in self.meshes.iter().enumerate() {
+            if mesh.chunks.start != next_chunk || mesh.chunks.end as usize > self.chunks.len() {
+                return fail(format!("mesh {m}: chunk range {:?} not contiguous", mesh.chunks));
+            }
+            next_chunk = mesh.chunks.end;
+            if mesh.normals.len() != mesh.positions.len() || mesh.indices.len() % 3 != 0 {
+                return fail(format!("mesh {m}: attribute lengths disagree"));
+            }
+            let (mut tri, mut vert, mut bounds) = (0u32, 0u32, Aabb3f::EMPTY);
+            for c in mesh.chunk_ids() {
+                let chunk = self.chunk(c);
+                if chunk.mesh != MeshId(m as u32) || chunk.material.index() >= self.materials.len() {
+                    return fail(format!("chunk {c}: wrong mesh or material"));
+                }
+                if chunk.triangles.start != tri || chunk.vertices.start != vert {
+                    return fail(format!("chunk {c}: ranges not contiguous"));
+                }
+                (tri, vert) = (chunk.triangles.end, chunk.vertices.end);
+                let verts = chunk.vertices.end - chunk.vertices.start;
+                let idx = &mesh.indices[3 * chunk.triangles.start as usize..3 * chunk.triangles.end as usize];
+                if let Some(bad) = idx.iter().find(|&&i| i >= verts) {
+                    return fail(format!("chunk {c}: index {bad} >= {verts} vertices"));
+                }
+                let pos = &mesh.positions[chunk.vertices.start as usize..chunk.vertices.end as usize];
+                if chunk.bounds != Aabb3f::from_points(pos.iter().copied()) {
+                    return fail(format!("chunk {c}: box does not fit its vertices"));
+                }
+                bounds = bounds.union(chunk.bounds);
+            }
+            if tri as usize * 3 != mesh.indices.len() || vert as usize != mesh.positions.len() {
+                return fail(format!("mesh {m}: chunks do not cover the mesh"));
+            }
+            if bounds != mesh.bounds {
+                return fail(format!("mesh {m}: box is not the union of its chunks"));
+            }
+        }
+        if next_chunk as usize != self.chunks.len() {
+            return fail("chunks not owned by any mesh".into());
+        }
+        Ok(())
+    }
+}
+
+/// Builds a [`Scene`]: materials, nodes (parents before children), meshes, parts.
+#[derive(Debug)]
+pub struct SceneBuilder {
+    scene: Scene,
+    chunk_triangles: u32,
+}
+
+impl SceneBuilder {
+    /// A scene with a root node named `name` at the identity transform.
+    pub fn new(name: impl Into<String>, chunk_triangles: u32) -> Self {
+        assert!(chunk_triangles > 0, "chunk_triangles must be positive");
+        let name = name.into();
+        Self {
+            scene: Scene {
+                nodes: vec![AssemblyNode {
+                    name: name.clone(),
+                    parent: None,
+                    children: Vec::new(),
+                    world: DAffine3::IDENTITY,
+                    part: None,
+                }],
+                name,
+                parts: Vec::new(),
+                meshes: Vec::new(),
+                chunks: Vec::new(),
+                materials: Vec::new(),
+            },
+            chunk_triangles,
+        }
+    }
+
+    /// The root node.
+    pub const ROOT: NodeId = NodeId(0);
+
+    /// The chunk size this builder splits meshes with.
+    pub fn chunk_triangles(&self) -> u32 {
+        self.chunk_triangles
+    }
+
+    /// Adds a material.
+    pub fn add_material(&mut self, name: impl Into<String>, base_color: [f32; 4]) -> MaterialId {
+        self.scene.materials.push(Material { name: name.into(), base_color });
+        MaterialId::from_index(self.scene.materials.len() - 1)
+    }
+
+    /// Number of materials so far.
+    pub fn material_count(&self) -> usize {
+        self.scene.materials.len()
+    }
+
+    /// Adds a node under `parent` with an absolute world transform.
+    pub fn add_node(&mut self, parent: NodeId, name: impl Into<String>, world: DAffine3) -> NodeId {
+        let id = NodeId::from_index(self.scene.nodes.len());
+        self.scene.nodes[parent.index()].children.push(id);
+        self.scene.nodes.push(AssemblyNode {
+            name: name.into(),
+            parent: Some(parent),
+            children: Vec::new(),
+            world,
+            part: None,
+        });
+        id
+    }
+
+    /// The world transform of a node added earlier.
+    pub fn node_world(&self, id: NodeId) -> DAffine3 {
+        self.scene.nodes[id.index()].world
+    }
+
+    /// Chunks and adds a mesh (see [`chunk_mesh`]).
+    pub fn add_mesh(&mut self, mesh: &MeshData) -> MeshId {
+        let chunked = chunk_mesh(mesh, self.chunk_triangles);
+        self.add_chunked_mesh(chunked)
+    }
+
+    /// Adds a mesh chunked beforehand, e.g. on a rayon worker.
+    pub fn add_chunked_mesh(&mut self, mesh: ChunkedMesh) -> MeshId {
+        let id = MeshId::from_index(self.scene.meshes.len());
+        let first = self.scene.chunks.len() as u32;
+        let mut bounds = Aabb3f::EMPTY;
+        for c in mesh.chunks {
+            assert!(c.material.index() < self.scene.materials.len(), "unknown material {}", c.material);
+            bounds = bounds.union(c.bounds);
+            self.scene.chunks.push(Chunk {
+                mesh: id,
+                material: c.material,
+                triangles: c.triangles,
+                vertices: c.vertices,
+                bounds: c.bounds,
+            });
+        }
+        self.scene.meshes.push(Mesh {
+            name: mesh.name,
+            positions: mesh.positions,
+            normals: mesh.normals,
+            indices: mesh.indices,
+            chunks: first..self.scene.chunks.len() as u32,
+            bounds,
+            degenerate_triangles: mesh.degenerate_triangles,
+        });
+        id
+    }
+
+    /// Makes `node` a part instancing `mesh`.
+    ///
+    /// # Panics
+    /// When the node already has a part.
+    pub fn add_part(&mut self, node: NodeId, mesh: MeshId) -> PartId {
+        assert!(mesh.index() < self.scene.meshes.len(), "unknown mesh {mesh}");
+        let id = PartId::from_index(self.scene.parts.len());
+        let slot = &mut self.scene.nodes[node.index()].part;
+        assert!(slot.is_none(), "node {node} already has a part");
+        *slot = Some(id);
+        self.scene.parts.push(Part { node, mesh, hidden: false });
+        id
+    }
+
+    /// Triangles over the parts added so far.
+    pub fn triangle_count(&self) -> u64 {
+        self.scene.triangle_count()
+    }
+
+    /// The finished scene.
+    pub fn finish(self) -> Scene {
+        debug_assert_eq!(self.scene.validate(), Ok(()));
+        self.scene
+    }
+}
