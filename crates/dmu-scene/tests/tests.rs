@@ -1,1 +1,3 @@
-
+mod import;
+mod real_models;
+mod support;

@@ -2,19 +2,17 @@
 //! type, normalized and quantized (KHR_mesh_quantization) data, sparse storage.
 //! Every offset is bounds-checked; nothing here can panic on a broken file.
 
-use std::borrow::Cow;
-
 use gltf::json::accessor::{ComponentType, Type};
 use gltf::json::validation::Checked;
 use gltf::json::{self, Index};
 
-use super::buffers::invalid;
+use super::buffers::{Bytes, invalid};
 use crate::error::ImportError;
 
 /// Resolved file data that accessors read from.
 pub(super) struct Data<'a> {
     pub root: &'a json::Root,
-    pub views: &'a [Cow<'a, [u8]>],
+    pub views: &'a [Bytes<'a>],
 }
 
 fn component_size(c: ComponentType) -> usize {
@@ -69,7 +67,10 @@ impl<'a> Strided<'a> {
     ) -> Result<Self, ImportError> {
         let v = view.value();
         let json_view = data.root.buffer_views.get(v).ok_or_else(|| invalid(format!("{}: bufferView {v} does not exist", what())))?;
-        let bytes: &'a [u8] = &data.views[v];
+        let bytes: &'a [u8] = match &data.views[v] {
+            Ok(bytes) => bytes,
+            Err(e) => return Err(invalid(format!("{} reads {e}", what()))),
+        };
         let stride = json_view.byte_stride.map_or(elem, |s| s.0);
         if stride < elem {
             return Err(invalid(format!("{}: byteStride {stride} is smaller than the element ({elem} bytes)", what())));

@@ -9,6 +9,7 @@ use gltf::json;
 
 use crate::error::ImportError;
 
+/// An `Invalid` error with its description.
 pub(super) fn invalid(what: impl Into<String>) -> ImportError {
     ImportError::Invalid { what: what.into() }
 }
@@ -48,13 +49,13 @@ pub(super) fn split_container(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>), Im
     Ok((json.ok_or_else(|| malformed("no JSON chunk"))?, bin))
 }
 
+/// A buffer or buffer view's bytes, or why they cannot be had. Errors wait until
+/// an accessor the import needs reads them: a file may carry unused broken parts.
+pub(super) type Bytes<'a> = Result<Cow<'a, [u8]>, String>;
+
 /// Loads every buffer: the GLB BIN chunk, data URIs and files next to the glTF.
 /// Buffers that exist only as an EXT_meshopt_compression fallback are left empty.
-pub(super) fn load_buffers<'a>(
-    root: &json::Root,
-    blob: Option<&'a [u8]>,
-    base_dir: Option<&Path>,
-) -> Result<Vec<Cow<'a, [u8]>>, ImportError> {
+pub(super) fn load_buffers<'a>(root: &json::Root, blob: Option<&'a [u8]>, base_dir: Option<&Path>) -> Vec<Bytes<'a>> {
     root.buffers
         .iter()
         .enumerate()
@@ -63,27 +64,26 @@ pub(super) fn load_buffers<'a>(
             let data: Cow<'a, [u8]> = match buffer.uri.as_deref() {
                 None if i == 0 && blob.is_some() => Cow::Borrowed(blob.unwrap_or_default()),
                 None if is_meshopt_fallback(buffer) => return Ok(Cow::Borrowed(&[][..])),
-                None => return Err(invalid(format!("buffers[{i}] has no uri and there is no GLB BIN chunk"))),
+                None => return Err(format!("buffers[{i}] has no data (no uri, and no GLB BIN chunk)")),
                 Some(uri) if uri.starts_with("data:") => {
                     let (_, payload) = uri
                         .split_once(";base64,")
-                        .ok_or_else(|| invalid(format!("buffers[{i}].uri is a data URI without base64")))?;
+                        .ok_or_else(|| format!("buffers[{i}].uri is a data URI without base64"))?;
                     Cow::Owned(
                         base64::engine::general_purpose::STANDARD
                             .decode(payload)
-                            .map_err(|e| invalid(format!("buffers[{i}].uri: bad base64: {e}")))?,
+                            .map_err(|e| format!("buffers[{i}].uri: bad base64: {e}"))?,
                     )
                 }
                 Some(uri) => {
-                    let dir = base_dir.ok_or_else(|| {
-                        invalid(format!("buffers[{i}] refers to file {uri:?} but the glTF was not read from a file"))
-                    })?;
+                    let dir = base_dir
+                        .ok_or_else(|| format!("buffers[{i}] refers to file {uri:?} but the glTF was not read from a file"))?;
                     let path = dir.join(percent_decode(uri));
-                    Cow::Owned(std::fs::read(&path).map_err(|source| ImportError::Io { path, source })?)
+                    Cow::Owned(std::fs::read(&path).map_err(|e| format!("buffers[{i}]: cannot read {}: {e}", path.display()))?)
                 }
             };
             if data.len() < declared {
-                return Err(invalid(format!("buffers[{i}] declares {declared} bytes but holds {}", data.len())));
+                return Err(format!("buffers[{i}] declares {declared} bytes but holds {}", data.len()));
             }
             Ok(data)
         })
@@ -121,10 +121,7 @@ fn percent_decode(uri: &str) -> String {
 }
 
 /// The bytes of every buffer view, bounds-checked, with meshopt views decoded.
-pub(super) fn resolve_views<'a>(
-    root: &json::Root,
-    buffers: &'a [Cow<'a, [u8]>],
-) -> Result<Vec<Cow<'a, [u8]>>, ImportError> {
+pub(super) fn resolve_views<'a>(root: &json::Root, buffers: &'a [Bytes<'a>]) -> Vec<Bytes<'a>> {
     root.buffer_views
         .iter()
         .enumerate()
@@ -136,13 +133,17 @@ pub(super) fn resolve_views<'a>(
             let offset = view.byte_offset.map_or(0, |o| o.0 as usize);
             slice(buffers, view.buffer.value(), offset, view.byte_length.0 as usize)
                 .map(Cow::Borrowed)
-                .map_err(|e| invalid(format!("bufferViews[{i}]: {e}")))
+                .map_err(|e| format!("bufferViews[{i}]: {e}"))
         })
         .collect()
 }
 
-fn slice<'a>(buffers: &'a [Cow<'a, [u8]>], buffer: usize, offset: usize, len: usize) -> Result<&'a [u8], String> {
-    let data = buffers.get(buffer).ok_or_else(|| format!("buffer {buffer} does not exist"))?;
+fn slice<'a>(buffers: &'a [Bytes<'a>], buffer: usize, offset: usize, len: usize) -> Result<&'a [u8], String> {
+    let data = match buffers.get(buffer) {
+        Some(Ok(data)) => data,
+        Some(Err(e)) => return Err(e.clone()),
+        None => return Err(format!("buffer {buffer} does not exist")),
+    };
     offset
         .checked_add(len)
         .and_then(|end| data.get(offset..end))
@@ -151,8 +152,8 @@ fn slice<'a>(buffers: &'a [Cow<'a, [u8]>], buffer: usize, offset: usize, len: us
 
 /// Decodes one EXT_meshopt_compression buffer view (modes ATTRIBUTES, TRIANGLES,
 /// INDICES; filters OCTAHEDRAL, QUATERNION, EXPONENTIAL).
-fn decode_meshopt(view: usize, ext: &serde_json::Value, buffers: &[Cow<'_, [u8]>]) -> Result<Vec<u8>, ImportError> {
-    let bad = |m: &str| invalid(format!("bufferViews[{view}].extensions.EXT_meshopt_compression: {m}"));
+fn decode_meshopt(view: usize, ext: &serde_json::Value, buffers: &[Bytes<'_>]) -> Result<Vec<u8>, String> {
+    let bad = |m: &str| format!("bufferViews[{view}].extensions.EXT_meshopt_compression: {m}");
     let field = |k: &str| ext.get(k).and_then(serde_json::Value::as_u64).map(|v| v as usize);
     let buffer = field("buffer").ok_or_else(|| bad("missing buffer"))?;
     let offset = field("byteOffset").unwrap_or(0);

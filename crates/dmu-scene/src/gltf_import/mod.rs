@@ -98,15 +98,31 @@ pub fn import_gltf_slice(
     options: &ImportOptions<'_>,
 ) -> Result<(Scene, ImportReport), ImportError> {
     let (json_bytes, blob) = split_container(bytes)?;
-    let root: json::Root =
-        serde_json::from_slice(json_bytes).map_err(|e| ImportError::Malformed { message: format!("JSON: {e}") })?;
-    let transforms: RawTransforms =
-        serde_json::from_slice(json_bytes).map_err(|e| ImportError::Malformed { message: format!("JSON: {e}") })?;
+    let malformed = |e: serde_json::Error| ImportError::Malformed { message: format!("JSON: {e}") };
+    let mut value: serde_json::Value = serde_json::from_slice(json_bytes).map_err(malformed)?;
+    // Node transforms first, as f64 from the untouched numbers.
+    let transforms = RawTransforms::deserialize(&value).map_err(malformed)?;
+    integral_floats_to_integers(&mut value);
+    // dmu shows geometry and base colours only: sections it never reads are dropped
+    // before typed parsing, so their schema quirks (e.g. an animation target
+    // without a node, valid since KHR_animation_pointer) cannot fail an import.
+    if let Some(top) = value.as_object_mut() {
+        for unused in ["animations", "skins", "cameras", "images", "textures", "samplers"] {
+            top.remove(unused);
+        }
+        // `scene.nodes` is optional in the spec but required by the `gltf` crate.
+        for scene in top.get_mut("scenes").and_then(|s| s.as_array_mut()).into_iter().flatten() {
+            if let Some(scene) = scene.as_object_mut() {
+                scene.entry("nodes").or_insert_with(|| serde_json::json!([]));
+            }
+        }
+    }
+    let root = json::Root::deserialize(&value).map_err(malformed)?;
     if let Some(name) = root.extensions_required.iter().find(|e| !SUPPORTED_REQUIRED.contains(&e.as_str())) {
         return Err(ImportError::UnsupportedExtension { name: name.clone() });
     }
-    let buffers = load_buffers(&root, blob, base_dir)?;
-    let views = resolve_views(&root, &buffers)?;
+    let buffers = load_buffers(&root, blob, base_dir);
+    let views = resolve_views(&root, &buffers);
     let data = Data { root: &root, views: &views };
 
     let scene_index = match root.scene {
@@ -161,6 +177,22 @@ pub fn import_gltf_slice(
     }
     add_nodes(&root, &transforms, scene_json, &mesh_ids, &mut builder)?;
     Ok((builder.finish(), report))
+}
+
+/// JSON has one number type: `1.0` is a valid glTF integer (the validator accepts
+/// it), but the `gltf` crate's serde types refuse it. Integral floats become
+/// integers; fields that want floats accept integers.
+fn integral_floats_to_integers(v: &mut serde_json::Value) {
+    match v {
+        serde_json::Value::Number(n) if n.is_f64() => {
+            if let Some(f) = n.as_f64().filter(|f| f.fract() == 0.0 && f.abs() < 9.0e15) {
+                *n = if f < 0.0 { (f as i64).into() } else { (f as u64).into() };
+            }
+        }
+        serde_json::Value::Array(a) => a.iter_mut().for_each(integral_floats_to_integers),
+        serde_json::Value::Object(o) => o.values_mut().for_each(integral_floats_to_integers),
+        _ => {}
+    }
 }
 
 fn base_color(m: &json::Material) -> [f32; 4] {
