@@ -1,1 +1,66 @@
-fn main() {}
+//! dmu's criterion benchmarks. CI compiles them (`cargo bench --no-run`); run
+//! them by hand: `cargo bench -p dmu-benches`. `DMU_BENCH_TRIANGLES` sets the
+//! plant size (default 10M, the size the foundation issue reports).
+
+use std::hint::black_box;
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use dmu_scene::samples::{PlantOptions, plant};
+use dmu_scene::{ImportOptions, export_gltf, import_gltf};
+
+fn plant_triangles() -> u64 {
+    std::env::var("DMU_BENCH_TRIANGLES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(10_000_000)
+}
+
+/// Generation and glTF import throughput, in triangles per second.
+fn scene_io(c: &mut Criterion) {
+    let options = PlantOptions { triangles: plant_triangles(), ..PlantOptions::default() };
+    let scene = plant(&options);
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("plant.glb");
+    export_gltf(&scene, &path).expect("export");
+
+    let mut group = c.benchmark_group("scene_io");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(scene.triangle_count()));
+    group.bench_function(format!("generate_plant_{}", options.triangles), |b| b.iter(|| black_box(plant(&options))));
+    group.bench_function(format!("import_glb_plant_{}", options.triangles), |b| {
+        b.iter(|| black_box(import_gltf(&path, &ImportOptions::default()).expect("import")))
+    });
+    group.bench_function(format!("export_glb_plant_{}", options.triangles), |b| {
+        b.iter(|| export_gltf(&scene, &path).expect("export"))
+    });
+    group.finish();
+}
+
+/// Chunking cost per chunk size: the knob's time side (its effect on culling and
+/// picking is measured with the tree and renderer).
+fn chunking(c: &mut Criterion) {
+    let scene = plant(&PlantOptions { triangles: 1_000_000, ..PlantOptions::default() });
+    let big = scene.meshes().iter().max_by_key(|m| m.triangle_count()).expect("a mesh");
+    let mut data = dmu_scene::MeshData { name: big.name.clone(), ..Default::default() };
+    data.push_primitive(&big.positions, &big.normals, &remap_to_mesh(&scene, big), dmu_scene::MaterialId(0));
+    let mut group = c.benchmark_group("chunking");
+    group.throughput(Throughput::Elements(u64::from(data.triangle_count())));
+    for size in [256, 1024, 2048, 8192] {
+        group.bench_function(format!("chunk_mesh_{size}"), |b| b.iter(|| black_box(dmu_scene::chunk_mesh(&data, size))));
+    }
+    group.finish();
+}
+
+/// A mesh's chunk-local indices as mesh-wide indices.
+fn remap_to_mesh(scene: &dmu_scene::Scene, mesh: &dmu_scene::Mesh) -> Vec<u32> {
+    mesh.chunk_ids()
+        .flat_map(|c| {
+            let chunk = scene.chunk(c);
+            let base = chunk.vertices.start;
+            mesh.indices[3 * chunk.triangles.start as usize..3 * chunk.triangles.end as usize].iter().map(move |&i| i + base)
+        })
+        .collect()
+}
+
+criterion_group!(benches, scene_io, chunking);
+criterion_main!(benches);

@@ -1,1 +1,42 @@
-fn main() {}
+//! `dmu`: the command line of the dmu digital-mockup viewer.
+
+mod cmd_generate;
+mod cmd_info;
+mod load;
+mod units;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// dmu: walk, pick, move and clash-check massive CAD assemblies.
+///
+/// Commands that take a FILE read glTF 2.0 (.glb, .gltf); with no FILE they use the
+/// built-in procedural plant. Exit codes: 0 success, 2 error.
+#[derive(Debug, Parser)]
+#[command(name = "dmu", version, about, long_about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    Generate(cmd_generate::Args),
+    Info(cmd_info::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Generate(args) => cmd_generate::run(&args),
+        Command::Info(args) => cmd_info::run(&args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("dmu: error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}

@@ -1,1 +1,6 @@
+//! The one test binary of dmu-geom.
 
+mod aabb;
+mod frustum;
+mod ray_box;
+mod triangle;

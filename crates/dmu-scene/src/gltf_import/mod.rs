@@ -140,8 +140,11 @@ pub fn import_gltf_slice(
         let name = m.name.clone().unwrap_or_else(|| format!("material{i}"));
         builder.add_material(name, base_color(m));
     }
+    // A grey default only when some primitive names no material.
     let default_material = MaterialId::from_index(root.materials.len());
-    builder.add_material("default", [0.8, 0.8, 0.8, 1.0]);
+    if root.meshes.iter().flat_map(|m| &m.primitives).any(|p| p.material.is_none()) {
+        builder.add_material("default", [0.8, 0.8, 0.8, 1.0]);
+    }
 
     let mut report = ImportReport::default();
     let used = used_meshes(&root, &transforms, scene_json)?;

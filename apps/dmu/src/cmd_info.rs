@@ -1,0 +1,97 @@
+//! `dmu info`: what a model holds.
+
+use serde::Serialize;
+
+use crate::load::{ModelArgs, load};
+
+/// Print a model's size, structure and bounds.
+///
+/// Counts instanced geometry as drawn: `triangles` counts a mesh once per part that
+/// uses it, `unique_triangles` once.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    model: ModelArgs,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Serialize)]
+struct Bounds {
+    min: [f64; 3],
+    max: [f64; 3],
+}
+
+#[derive(Serialize)]
+struct Info {
+    source: String,
+    name: String,
+    parts: usize,
+    /// Mesh instances: one per part (compare with `meshes` for how much is shared).
+    instances: usize,
+    meshes: usize,
+    nodes: usize,
+    triangles: u64,
+    unique_triangles: u64,
+    vertices: u64,
+    chunks: usize,
+    chunk_instances: u64,
+    chunk_triangles: u32,
+    materials: usize,
+    assembly_depth: usize,
+    degenerate_triangles: u64,
+    bounds: Bounds,
+    import_ms: f64,
+    import_triangles_per_s: f64,
+    skipped: dmu_scene::ImportReport,
+}
+
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    let loaded = load(&args.model)?;
+    let s = &loaded.scene;
+    let b = s.world_bounds();
+    let (min, max) = if b.is_empty() { ([0.0; 3], [0.0; 3]) } else { (b.min.to_array(), b.max.to_array()) };
+    let info = Info {
+        source: loaded.source.as_ref().map_or_else(|| "built-in plant".into(), |p| p.display().to_string()),
+        name: s.name().to_owned(),
+        parts: s.parts().len(),
+        instances: s.parts().len(),
+        meshes: s.meshes().len(),
+        nodes: s.nodes().len(),
+        triangles: s.triangle_count(),
+        unique_triangles: s.unique_triangle_count(),
+        vertices: s.meshes().iter().map(|m| m.positions.len() as u64).sum(),
+        chunks: s.chunks().len(),
+        chunk_instances: s.chunk_instance_count(),
+        chunk_triangles: args.model.chunk_triangles,
+        materials: s.materials().len(),
+        assembly_depth: s.assembly_depth(),
+        degenerate_triangles: s.degenerate_triangle_count(),
+        bounds: Bounds { min, max },
+        import_ms: loaded.load_ms,
+        import_triangles_per_s: s.unique_triangle_count() as f64 / (loaded.load_ms / 1e3).max(1e-9),
+        skipped: loaded.report,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&info)?);
+        return Ok(());
+    }
+    println!("{} ({})", info.name, info.source);
+    println!("  parts           {:>14}   (meshes {}, nodes {})", info.parts, info.meshes, info.nodes);
+    println!("  triangles       {:>14}   (unique {}, degenerate {})", info.triangles, info.unique_triangles, info.degenerate_triangles);
+    println!("  chunks          {:>14}   (instances {}, at most {} triangles each)", info.chunks, info.chunk_instances, info.chunk_triangles);
+    println!("  materials       {:>14}", info.materials);
+    println!("  assembly depth  {:>14}", info.assembly_depth);
+    println!("  bounds min      {:?}", info.bounds.min);
+    println!("  bounds max      {:?}", info.bounds.max);
+    println!("  import          {:>11.1} ms   ({:.2} M triangles/s)", info.import_ms, info.import_triangles_per_s / 1e6);
+    let r = &info.skipped;
+    if r.point_primitives_skipped + r.line_primitives_skipped + r.unused_meshes + r.primitives_with_computed_normals > 0 {
+        println!(
+            "  skipped         points {}, lines {}, unused meshes {}; normals computed for {} primitives",
+            r.point_primitives_skipped, r.line_primitives_skipped, r.unused_meshes, r.primitives_with_computed_normals
+        );
+    }
+    Ok(())
+}

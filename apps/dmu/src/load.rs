@@ -1,0 +1,72 @@
+//! Opening the model a command works on: a file, or the built-in plant.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context as _, bail};
+use dmu_scene::{ImportOptions, ImportReport, Scene};
+use indicatif::{ProgressBar, ProgressStyle};
+
+/// Default size of the built-in plant when a command is given no file.
+pub const BUILTIN_PLANT_TRIANGLES: u64 = 2_000_000;
+
+/// A loaded model and how it was obtained.
+pub struct Loaded {
+    pub scene: Scene,
+    pub report: ImportReport,
+    /// The file, or `None` for the built-in plant.
+    pub source: Option<PathBuf>,
+    /// Wall time to import (or generate) it.
+    pub load_ms: f64,
+}
+
+/// Shared clap arguments for commands that open a model.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ModelArgs {
+    /// Model file (.glb or .gltf); the built-in plant when omitted.
+    pub file: Option<PathBuf>,
+    /// Maximum triangles per chunk (the unit of loading, drawing and picking).
+    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..))]
+    pub chunk_triangles: u32,
+}
+
+/// Opens the model: the file, or the built-in plant.
+pub fn load(args: &ModelArgs) -> anyhow::Result<Loaded> {
+    let start = Instant::now();
+    let (scene, report) = match &args.file {
+        Some(path) => import(path, args.chunk_triangles)?,
+        None => {
+            let options = dmu_scene::samples::PlantOptions {
+                triangles: BUILTIN_PLANT_TRIANGLES,
+                chunk_triangles: args.chunk_triangles,
+                ..Default::default()
+            };
+            (dmu_scene::samples::plant(&options), ImportReport::default())
+        }
+    };
+    Ok(Loaded { scene, report, source: args.file.clone(), load_ms: start.elapsed().as_secs_f64() * 1e3 })
+}
+
+fn import(path: &Path, chunk_triangles: u32) -> anyhow::Result<(Scene, ImportReport)> {
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+    if !matches!(ext.as_deref(), Some("glb" | "gltf")) {
+        bail!("{}: unknown file type (dmu reads .glb and .gltf)", path.display());
+    }
+    // A bar only for files big enough to take a while; indicatif hides it when
+    // stderr is not a terminal, so scripts see clean output.
+    let big = std::fs::metadata(path).map(|m| m.len() > 32 << 20).unwrap_or(false);
+    let bar = if big { ProgressBar::new(0) } else { ProgressBar::hidden() };
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} importing meshes {pos}/{len} [{bar:30}] {elapsed}")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    let progress = |done: usize, total: usize| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    };
+    let options = ImportOptions { chunk_triangles, progress: Some(&progress) };
+    let result = dmu_scene::import_gltf(path, &options).with_context(|| format!("importing {}", path.display()));
+    bar.finish_and_clear();
+    result
+}

@@ -1,1 +1,0 @@
-//! Criterion benchmarks live in `main.rs`; this crate has no library code.

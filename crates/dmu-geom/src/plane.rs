@@ -1,0 +1,45 @@
+//! Planes in world space, as half-space tests.
+
+use glam::{DVec3, DVec4};
+
+/// The plane of points `p` with `normal · p + d = 0`; the side the normal points to
+/// has positive signed distance. `normal` is unit length, except in
+/// [`Plane::ACCEPT_ALL`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Plane {
+    /// Unit normal (zero only in `ACCEPT_ALL`).
+    pub normal: DVec3,
+    /// Signed distance of the world origin from the plane.
+    pub d: f64,
+}
+
+impl Plane {
+    /// A pseudo-plane with every point at signed distance `1` on its positive side.
+    /// It stands in for a plane that does not exist, such as the far plane of an
+    /// infinite projection, so half-space tests need no special case.
+    pub const ACCEPT_ALL: Plane = Plane { normal: DVec3::ZERO, d: 1.0 };
+
+    /// The plane through `point` facing `normal` (any non-zero length).
+    ///
+    /// # Panics
+    /// When `normal` is zero or not finite.
+    pub fn from_point_normal(point: DVec3, normal: DVec3) -> Plane {
+        let normal = normal.try_normalize().expect("plane normal must be non-zero and finite");
+        Plane { normal, d: -normal.dot(point) }
+    }
+
+    /// The plane `n · p + d = 0` for `coefficients = (n, d)` of any scale, rescaled to
+    /// a unit normal; `None` when `n` is zero or anything is not finite.
+    pub fn normalized(coefficients: DVec4) -> Option<Plane> {
+        let normal = coefficients.truncate();
+        let inv_len = normal.length_recip();
+        let plane = Plane { normal: normal * inv_len, d: coefficients.w * inv_len };
+        (plane.normal.is_finite() && plane.d.is_finite() && plane.normal != DVec3::ZERO)
+            .then_some(plane)
+    }
+
+    /// Distance from the plane, positive on the side the normal points to.
+    pub fn signed_distance(&self, p: DVec3) -> f64 {
+        self.normal.dot(p) + self.d
+    }
+}

@@ -1,0 +1,158 @@
+//! Watertight ray/triangle intersection (Woop, Benthin, Wald 2013, "Watertight
+//! Ray/Triangle Intersection", JCGT 2(1)) and triangle measures.
+//!
+//! The ray is turned into the +z axis by a permutation and a shear, so every
+//! triangle is tested in 2D by three edge functions. An edge shared by two triangles
+//! is evaluated from the same projected vertices in both, with the operands swapped,
+//! which rounds to exactly the negated value: a ray can never slip between them.
+
+use glam::{DVec3, Vec3};
+
+use crate::{Ray3d, Ray3f};
+
+/// Where a ray meets a triangle: `ray.at(t)` equals `(1 - u - v) * v0 + u * v1 + v * v2`
+/// (up to rounding), with `u, v >= 0` and `u + v <= 1`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriHit<S> {
+    /// Ray parameter of the hit, in `[t_min, t_max]`.
+    pub t: S,
+    /// Barycentric weight of `v1`.
+    pub u: S,
+    /// Barycentric weight of `v2`.
+    pub v: S,
+}
+
+macro_rules! ray_tri_impl {
+    ($name:ident, $ray:ident, $vec:ty, $scalar:ty, $edge_exact:path, $is_degenerate:path) => {
+        /// A ray prepared for watertight triangle tests: the axis permutation and
+        /// shear are computed once per ray. Both faces are hit (no culling).
+        #[derive(Clone, Copy, Debug, PartialEq)]
+        pub struct $name {
+            origin: $vec,
+            /// `[kx, ky, kz]`: `kz` is the dominant axis of the direction; `kx` and `ky`
+            /// are swapped when it points backwards so the winding is kept.
+            axes: [usize; 3],
+            /// `(dir[kx] / dir[kz], dir[ky] / dir[kz], 1 / dir[kz])`.
+            shear: $vec,
+        }
+
+        impl $name {
+            /// Prepares `ray`. A zero direction is allowed and hits nothing.
+            pub fn new(ray: &$ray) -> Self {
+                let kz = ray.dir.abs().max_position();
+                let mut kx = (kz + 1) % 3;
+                let mut ky = (kx + 1) % 3;
+                if ray.dir[kz] < 0.0 {
+                    std::mem::swap(&mut kx, &mut ky);
+                }
+                let dz = ray.dir[kz];
+                Self {
+                    origin: ray.origin,
+                    axes: [kx, ky, kz],
+                    shear: <$vec>::new(ray.dir[kx] / dz, ray.dir[ky] / dz, 1.0 / dz),
+                }
+            }
+
+            /// The hit with triangle `(v0, v1, v2)` for `t` in `[t_min, t_max]`, either
+            /// face. A ray through an edge or a vertex hits every triangle sharing it
+            /// (at least one, never none). Degenerate (zero-area) triangles, rays in
+            /// the triangle's plane that meet no area, and non-finite results give
+            /// `None`; no NaN is ever returned.
+            pub fn hit(
+                &self,
+                v0: $vec,
+                v1: $vec,
+                v2: $vec,
+                t_min: $scalar,
+                t_max: $scalar,
+            ) -> Option<TriHit<$scalar>> {
+                let [kx, ky, kz] = self.axes;
+                let a = v0 - self.origin;
+                let b = v1 - self.origin;
+                let c = v2 - self.origin;
+                let (ax, ay) = (a[kx] - self.shear.x * a[kz], a[ky] - self.shear.y * a[kz]);
+                let (bx, by) = (b[kx] - self.shear.x * b[kz], b[ky] - self.shear.y * b[kz]);
+                let (cx, cy) = (c[kx] - self.shear.x * c[kz], c[ky] - self.shear.y * c[kz]);
+
+                // Edge functions of (b, c), (c, a), (a, b): `u` weighs `v0`.
+                let mut u = cx * by - cy * bx;
+                let mut v = ax * cy - ay * cx;
+                let mut w = bx * ay - by * ax;
+                // A zero may be a rounded tiny value; its true sign decides which of
+                // two neighbours owns the hit, so recompute exactly (the paper's
+                // double-precision fallback).
+                if u == 0.0 || v == 0.0 || w == 0.0 {
+                    u = $edge_exact(cx, by, cy, bx);
+                    v = $edge_exact(ax, cy, ay, cx);
+                    w = $edge_exact(bx, ay, by, ax);
+                }
+                if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+                    return None;
+                }
+                let det = u + v + w;
+                if det == 0.0 || !det.is_finite() {
+                    return None;
+                }
+                let t_scaled = u * (self.shear.z * a[kz])
+                    + v * (self.shear.z * b[kz])
+                    + w * (self.shear.z * c[kz]);
+                // Dividing rather than multiplying by `1 / det`: a subnormal `det`
+                // would make the reciprocal infinite and `0 * inf` a NaN.
+                let t = t_scaled / det;
+                let in_range = t.is_finite() && (t_min..=t_max).contains(&t);
+                // Exactly collinear vertices can still give a rounded non-zero `det`;
+                // checked last, on the rare hit path only.
+                if !in_range || $is_degenerate(v0, v1, v2) {
+                    return None;
+                }
+                Some(TriHit { t, u: v / det, v: w / det })
+            }
+        }
+    };
+}
+
+ray_tri_impl!(RayTriTest3f, Ray3f, Vec3, f32, edge_exact_f32, is_degenerate);
+ray_tri_impl!(RayTriTest3d, Ray3d, DVec3, f64, edge_exact_f64, is_degenerate_f64);
+
+/// `a * b - c * d` with the exact sign: f32 products are exact in f64, so only the
+/// final difference rounds, and rounding keeps the sign.
+fn edge_exact_f32(a: f32, b: f32, c: f32, d: f32) -> f32 {
+    (f64::from(a) * f64::from(b) - f64::from(c) * f64::from(d)) as f32
+}
+
+/// `a * b - c * d` with the exact sign where no wider type exists: Kahan's
+/// difference of products, whose relative error is at most two ulps.
+fn edge_exact_f64(a: f64, b: f64, c: f64, d: f64) -> f64 {
+    let cd = c * d;
+    let cd_error = (-c).mul_add(d, cd);
+    a.mul_add(b, -cd) + cd_error
+}
+
+/// The unnormalized normal `(v1 - v0) × (v2 - v0)` in f64. The edges of f32 vertices
+/// are exact in f64, and products of equal reals round equal, so a truly degenerate
+/// triangle gives exactly zero.
+fn cross_f64(v0: Vec3, v1: Vec3, v2: Vec3) -> DVec3 {
+    let (v0, v1, v2) = (v0.as_dvec3(), v1.as_dvec3(), v2.as_dvec3());
+    (v1 - v0).cross(v2 - v0)
+}
+
+fn is_degenerate_f64(v0: DVec3, v1: DVec3, v2: DVec3) -> bool {
+    (v1 - v0).cross(v2 - v0) == DVec3::ZERO
+}
+
+/// True when the triangle has zero area: coincident or collinear vertices. Exact for
+/// f32 vertices (computed in f64); such a triangle is never hit.
+pub fn is_degenerate(v0: Vec3, v1: Vec3, v2: Vec3) -> bool {
+    cross_f64(v0, v1, v2) == DVec3::ZERO
+}
+
+/// Unit normal of the front face (counter-clockwise `v0, v1, v2`); zero for a
+/// degenerate triangle. Computed in f64 so slivers keep an accurate direction.
+pub fn triangle_normal(v0: Vec3, v1: Vec3, v2: Vec3) -> Vec3 {
+    cross_f64(v0, v1, v2).normalize_or_zero().as_vec3()
+}
+
+/// Area of the triangle; zero for a degenerate one. Computed in f64.
+pub fn triangle_area(v0: Vec3, v1: Vec3, v2: Vec3) -> f32 {
+    (0.5 * cross_f64(v0, v1, v2).length()) as f32
+}

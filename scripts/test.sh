@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# The whole test suite, as CI runs it: installs what the tests need, then format,
+# lints, tests, benchmark compilation and docs. Run from anywhere.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+if command -v rustup >/dev/null 2>&1; then
+    rustup component add rustfmt clippy >/dev/null 2>&1 || true
+fi
+# Real models from Debian's archive (../shared/data holds the others).
+if ! scripts/fetch-testdata.sh; then
+    if [ "${CI:-}" = "true" ]; then
+        echo "error: could not fetch Debian test models" >&2
+        exit 1
+    fi
+    echo "warning: could not fetch Debian test models; those tests will print SKIPPED" >&2
+fi
+[ -d ../shared/data ] || echo "note: ../shared/data is absent; tests that read it will print SKIPPED" >&2
+
+set -x
+cargo fmt --all --check
+cargo clippy --workspace --all-targets --locked -- -D warnings
+cargo test --workspace --locked
+cargo bench --workspace --locked --no-run
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked
