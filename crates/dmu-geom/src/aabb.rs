@@ -47,25 +47,37 @@ macro_rules! aabb_impl {
             /// This box grown to hold `p`.
             #[must_use]
             pub fn grown(self, p: $vec) -> Self {
-                Self { min: self.min.min(p), max: self.max.max(p) }
+                Self {
+                    min: self.min.min(p),
+                    max: self.max.max(p),
+                }
             }
 
             /// The smallest box holding both.
             #[must_use]
             pub fn union(self, other: Self) -> Self {
-                Self { min: self.min.min(other.min), max: self.max.max(other.max) }
+                Self {
+                    min: self.min.min(other.min),
+                    max: self.max.max(other.max),
+                }
             }
 
             /// The overlap of both boxes (possibly empty).
             #[must_use]
             pub fn intersection(self, other: Self) -> Self {
-                Self { min: self.min.max(other.min), max: self.max.min(other.max) }
+                Self {
+                    min: self.min.max(other.min),
+                    max: self.max.min(other.max),
+                }
             }
 
             /// The box inflated by `margin` on every side.
             #[must_use]
             pub fn inflated(self, margin: $scalar) -> Self {
-                Self { min: self.min - <$vec>::splat(margin), max: self.max + <$vec>::splat(margin) }
+                Self {
+                    min: self.min - <$vec>::splat(margin),
+                    max: self.max + <$vec>::splat(margin),
+                }
             }
 
             /// Centre point; meaningless for the empty box.
@@ -97,7 +109,8 @@ macro_rules! aabb_impl {
             /// True when `other` lies entirely inside (or on the boundary of) this box.
             /// Every box contains the empty box.
             pub fn contains(&self, other: &Self) -> bool {
-                other.is_empty() || (self.min.cmple(other.min).all() && other.max.cmple(self.max).all())
+                other.is_empty()
+                    || (self.min.cmple(other.min).all() && other.max.cmple(self.max).all())
             }
 
             /// The eight corners (index bit 0 = x max, bit 1 = y max, bit 2 = z max).
@@ -125,7 +138,10 @@ aabb_impl!(Aabb3d, DVec3, f64);
 impl Aabb3f {
     /// This box widened to f64 (exact).
     pub fn as_dvec(&self) -> Aabb3d {
-        Aabb3d { min: self.min.as_dvec3(), max: self.max.as_dvec3() }
+        Aabb3d {
+            min: self.min.as_dvec3(),
+            max: self.max.as_dvec3(),
+        }
     }
 
     /// The world box of this local box under an f64 transform: tight for the box
@@ -136,8 +152,9 @@ impl Aabb3f {
 }
 
 impl Aabb3d {
-    /// The box enclosing this box after an affine transform (Arvo 1990): exact for
-    /// the transformed corners, with no corner enumeration.
+    /// The box enclosing this box after an affine transform (Arvo 1990), without
+    /// enumerating corners; padded by a few ulps so that it always encloses the
+    /// transformed corners despite rounding.
     pub fn transformed(&self, m: &DAffine3) -> Aabb3d {
         if self.is_empty() {
             return Aabb3d::EMPTY;
@@ -150,7 +167,15 @@ impl Aabb3d {
             a.x_axis.y.abs() * h.x + a.y_axis.y.abs() * h.y + a.z_axis.y.abs() * h.z,
             a.x_axis.z.abs() * h.x + a.y_axis.z.abs() * h.y + a.z_axis.z.abs() * h.z,
         );
-        Aabb3d { min: c - r, max: c + r }
+        // Rounding in the centre, the radius and the final sums can leave the box an
+        // ulp or two short of a transformed corner; pad outwards by a few ulps of
+        // the magnitudes involved so the box always encloses (trees and ray tests
+        // rely on it). Deterministic: the same transform gives the same box.
+        let pad = (c.abs() + r) * (8.0 * f64::EPSILON);
+        Aabb3d {
+            min: c - r - pad,
+            max: c + r + pad,
+        }
     }
 
     /// This box narrowed to f32, rounded outwards so the result still encloses it.

@@ -17,12 +17,21 @@ pub fn reverse_z_perspective(fov_y_rad: f64, aspect: f64, near: f64, far: Option
         fov_y_rad > 0.0 && fov_y_rad < std::f64::consts::PI,
         "vertical field of view must be in (0, pi) radians, got {fov_y_rad}"
     );
-    assert!(aspect > 0.0 && aspect.is_finite(), "aspect ratio must be positive, got {aspect}");
-    assert!(near > 0.0 && near.is_finite(), "near plane must be positive, got {near}");
+    assert!(
+        aspect > 0.0 && aspect.is_finite(),
+        "aspect ratio must be positive, got {aspect}"
+    );
+    assert!(
+        near > 0.0 && near.is_finite(),
+        "near plane must be positive, got {near}"
+    );
     match far {
         // Swapping near and far in a forward [0, 1] projection reverses the depth.
         Some(far) => {
-            assert!(far > near, "far plane {far} must lie beyond near plane {near}");
+            assert!(
+                far > near,
+                "far plane {far} must lie beyond near plane {near}"
+            );
             directx::perspective(fov_y_rad, aspect, far, near)
         }
         None => directx::perspective_infinite_reverse(fov_y_rad, aspect, near),

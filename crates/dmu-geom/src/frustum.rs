@@ -28,7 +28,7 @@ pub struct Frustum {
 
 impl Frustum {
     /// The frustum of a world-to-clip matrix with reverse-Z depth in `[0, 1]`
-    /// (wgpu/Vulkan clip space, depth 1 at the near plane, 0 at the far plane), by
+    /// (wgpu clip space, depth 1 at the near plane, 0 at the far plane), by
     /// Gribb and Hartmann's row combinations: a point is inside when its clip
     /// coordinates satisfy `|x| <= w`, `|y| <= w` and `0 <= z <= w`.
     ///
@@ -39,12 +39,16 @@ impl Frustum {
         debug_assert!(m.is_finite(), "view-projection matrix must be finite: {m}");
         let (x, y, z, w) = (m.row(0), m.row(1), m.row(2), m.row(3));
         let plane = |coefficients| Plane::normalized(coefficients).unwrap_or(Plane::ACCEPT_ALL);
-        Frustum { planes: [w + x, w - x, w + y, w - y, w - z, z].map(plane) }
+        Frustum {
+            planes: [w + x, w - x, w + y, w - y, w - z, z].map(plane),
+        }
     }
 
     /// True when `p` is inside or on the boundary.
     pub fn contains_point(&self, p: DVec3) -> bool {
-        self.planes.iter().all(|plane| plane.signed_distance(p) >= 0.0)
+        self.planes
+            .iter()
+            .all(|plane| plane.signed_distance(p) >= 0.0)
     }
 
     /// Classifies `aabb` with the p-vertex/n-vertex test: per plane, only the corner

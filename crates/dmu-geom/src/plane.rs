@@ -17,15 +17,23 @@ impl Plane {
     /// A pseudo-plane with every point at signed distance `1` on its positive side.
     /// It stands in for a plane that does not exist, such as the far plane of an
     /// infinite projection, so half-space tests need no special case.
-    pub const ACCEPT_ALL: Plane = Plane { normal: DVec3::ZERO, d: 1.0 };
+    pub const ACCEPT_ALL: Plane = Plane {
+        normal: DVec3::ZERO,
+        d: 1.0,
+    };
 
     /// The plane through `point` facing `normal` (any non-zero length).
     ///
     /// # Panics
     /// When `normal` is zero or not finite.
     pub fn from_point_normal(point: DVec3, normal: DVec3) -> Plane {
-        let normal = normal.try_normalize().expect("plane normal must be non-zero and finite");
-        Plane { normal, d: -normal.dot(point) }
+        let normal = normal
+            .try_normalize()
+            .expect("plane normal must be non-zero and finite");
+        Plane {
+            normal,
+            d: -normal.dot(point),
+        }
     }
 
     /// The plane `n · p + d = 0` for `coefficients = (n, d)` of any scale, rescaled to
@@ -33,7 +41,10 @@ impl Plane {
     pub fn normalized(coefficients: DVec4) -> Option<Plane> {
         let normal = coefficients.truncate();
         let inv_len = normal.length_recip();
-        let plane = Plane { normal: normal * inv_len, d: coefficients.w * inv_len };
+        let plane = Plane {
+            normal: normal * inv_len,
+            d: coefficients.w * inv_len,
+        };
         (plane.normal.is_finite() && plane.d.is_finite() && plane.normal != DVec3::ZERO)
             .then_some(plane)
     }

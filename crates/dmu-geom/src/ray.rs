@@ -37,7 +37,10 @@ impl Ray3d {
     /// vector, unnormalized so that `t` means the same point before and after.
     #[must_use]
     pub fn transformed(&self, m: &DAffine3) -> Ray3d {
-        Ray3d { origin: m.transform_point3(self.origin), dir: m.transform_vector3(self.dir) }
+        Ray3d {
+            origin: m.transform_point3(self.origin),
+            dir: m.transform_vector3(self.dir),
+        }
     }
 
     /// This world ray in the local frame of a part placed by `world` (local to world).
@@ -51,6 +54,9 @@ impl Ray3d {
     /// This ray narrowed to f32, for testing against part-local geometry. Take it to
     /// the local frame first: far from the world origin f32 has no precision left.
     pub fn as_f32(&self) -> Ray3f {
-        Ray3f { origin: self.origin.as_vec3(), dir: self.dir.as_vec3() }
+        Ray3f {
+            origin: self.origin.as_vec3(),
+            dir: self.dir.as_vec3(),
+        }
     }
 }

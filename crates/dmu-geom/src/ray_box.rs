@@ -16,7 +16,7 @@ macro_rules! ray_box_impl {
         /// that axis unconstrained: a ray running inside a face plane hits the box.
         #[derive(Clone, Copy, Debug, PartialEq)]
         pub struct $name {
-            ray: $ray,
+            origin: $vec,
             inv_dir: $vec,
         }
 
@@ -34,25 +34,23 @@ macro_rules! ray_box_impl {
 
             /// Prepares `ray` for slab tests.
             pub fn new(ray: &$ray) -> Self {
-                Self { ray: *ray, inv_dir: ray.dir.recip() }
-            }
-
-            /// The ray this test was built from.
-            pub fn ray(&self) -> &$ray {
-                &self.ray
+                Self {
+                    origin: ray.origin,
+                    inv_dir: ray.dir.recip(),
+                }
             }
 
             /// The parameter interval `(t_enter, t_exit)` where the ray is inside
             /// `aabb`, clipped to `[0, t_max]`; `None` when it misses. Boundaries count
             /// as inside: touching a face, an edge or a zero-extent box is a hit, with
             /// `t_enter == t_exit` possible. An origin inside the box gives
-            /// `t_enter = 0`. `Aabb::EMPTY` is never hit.
+            /// `t_enter = 0`. The `EMPTY` box is never hit.
             pub fn hit(&self, aabb: &$aabb, t_max: $scalar) -> Option<($scalar, $scalar)> {
                 let mut t_enter: $scalar = 0.0;
                 let mut t_exit = t_max;
                 for axis in 0..3 {
                     let inv = self.inv_dir[axis];
-                    let origin = self.ray.origin[axis];
+                    let origin = self.origin[axis];
                     // Choosing the near plane by the sign of the reciprocal (not by
                     // min/max of both distances) keeps each NaN on its own side.
                     let (near_plane, far_plane) = if inv.is_sign_negative() {

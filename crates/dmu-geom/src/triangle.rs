@@ -54,10 +54,10 @@ macro_rules! ray_tri_impl {
             }
 
             /// The hit with triangle `(v0, v1, v2)` for `t` in `[t_min, t_max]`, either
-            /// face. A ray through an edge or a vertex hits every triangle sharing it
-            /// (at least one, never none). Degenerate (zero-area) triangles, rays in
-            /// the triangle's plane that meet no area, and non-finite results give
-            /// `None`; no NaN is ever returned.
+            /// face. Triangles sharing an edge or a vertex leave no gap: a ray crossing
+            /// a mesh there hits at least one of them. Degenerate (zero-area)
+            /// triangles, rays in the triangle's plane that meet no area, and
+            /// non-finite results give `None`; no NaN is ever returned.
             pub fn hit(
                 &self,
                 v0: $vec,
@@ -74,28 +74,31 @@ macro_rules! ray_tri_impl {
                 let (bx, by) = (b[kx] - self.shear.x * b[kz], b[ky] - self.shear.y * b[kz]);
                 let (cx, cy) = (c[kx] - self.shear.x * c[kz], c[ky] - self.shear.y * c[kz]);
 
-                // Edge functions of (b, c), (c, a), (a, b): `u` weighs `v0`.
-                let mut u = cx * by - cy * bx;
-                let mut v = ax * cy - ay * cx;
-                let mut w = bx * ay - by * ax;
+                // Edge functions of (b, c), (c, a), (a, b): the unnormalized
+                // barycentric weights of v0, v1, v2.
+                let mut w0 = cx * by - cy * bx;
+                let mut w1 = ax * cy - ay * cx;
+                let mut w2 = bx * ay - by * ax;
                 // A zero may be a rounded tiny value; its true sign decides which of
                 // two neighbours owns the hit, so recompute exactly (the paper's
                 // double-precision fallback).
-                if u == 0.0 || v == 0.0 || w == 0.0 {
-                    u = $edge_exact(cx, by, cy, bx);
-                    v = $edge_exact(ax, cy, ay, cx);
-                    w = $edge_exact(bx, ay, by, ax);
+                if w0 == 0.0 || w1 == 0.0 || w2 == 0.0 {
+                    w0 = $edge_exact(cx, by, cy, bx);
+                    w1 = $edge_exact(ax, cy, ay, cx);
+                    w2 = $edge_exact(bx, ay, by, ax);
                 }
-                if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+                // Zero counts on both sides, so a ray exactly on an edge hits both
+                // neighbours rather than neither.
+                if (w0 < 0.0 || w1 < 0.0 || w2 < 0.0) && (w0 > 0.0 || w1 > 0.0 || w2 > 0.0) {
                     return None;
                 }
-                let det = u + v + w;
+                let det = w0 + w1 + w2;
                 if det == 0.0 || !det.is_finite() {
                     return None;
                 }
-                let t_scaled = u * (self.shear.z * a[kz])
-                    + v * (self.shear.z * b[kz])
-                    + w * (self.shear.z * c[kz]);
+                let t_scaled = w0 * (self.shear.z * a[kz])
+                    + w1 * (self.shear.z * b[kz])
+                    + w2 * (self.shear.z * c[kz]);
                 // Dividing rather than multiplying by `1 / det`: a subnormal `det`
                 // would make the reciprocal infinite and `0 * inf` a NaN.
                 let t = t_scaled / det;
@@ -105,14 +108,32 @@ macro_rules! ray_tri_impl {
                 if !in_range || $is_degenerate(v0, v1, v2) {
                     return None;
                 }
-                Some(TriHit { t, u: v / det, v: w / det })
+                Some(TriHit {
+                    t,
+                    u: w1 / det,
+                    v: w2 / det,
+                })
             }
         }
     };
 }
 
-ray_tri_impl!(RayTriTest3f, Ray3f, Vec3, f32, edge_exact_f32, is_degenerate);
-ray_tri_impl!(RayTriTest3d, Ray3d, DVec3, f64, edge_exact_f64, is_degenerate_f64);
+ray_tri_impl!(
+    RayTriTest3f,
+    Ray3f,
+    Vec3,
+    f32,
+    edge_exact_f32,
+    is_degenerate
+);
+ray_tri_impl!(
+    RayTriTest3d,
+    Ray3d,
+    DVec3,
+    f64,
+    edge_exact_f64,
+    is_degenerate_f64
+);
 
 /// `a * b - c * d` with the exact sign: f32 products are exact in f64, so only the
 /// final difference rounds, and rounding keeps the sign.

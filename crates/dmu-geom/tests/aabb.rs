@@ -13,17 +13,29 @@ fn dvec3(range: std::ops::Range<f64>) -> impl Strategy<Value = DVec3> {
 /// Rotation, non-uniform scale of either sign and translation up to 1e7.
 fn affine() -> impl Strategy<Value = DAffine3> {
     let scale = (0.01f64..100.0, any::<bool>()).prop_map(|(s, neg)| if neg { -s } else { s });
-    (dvec3(-1.0..1.0), 0.0..std::f64::consts::TAU, [scale.clone(), scale.clone(), scale], dvec3(-1e7..1e7))
+    (
+        dvec3(-1.0..1.0),
+        0.0..std::f64::consts::TAU,
+        [scale.clone(), scale.clone(), scale],
+        dvec3(-1e7..1e7),
+    )
         .prop_map(|(axis, angle, scale, translation)| {
             let rotation = DQuat::from_axis_angle(axis.try_normalize().unwrap_or(DVec3::X), angle);
-            DAffine3::from_scale_rotation_translation(DVec3::from_array(scale), rotation, translation)
+            DAffine3::from_scale_rotation_translation(
+                DVec3::from_array(scale),
+                rotation,
+                translation,
+            )
         })
 }
 
 /// A box with some zero-extent axes.
 fn aabb3d(range: f64) -> impl Strategy<Value = Aabb3d> {
     let extent = prop_oneof![1 => Just(0.0), 3 => 0.0..range];
-    (dvec3(-range..range), [extent.clone(), extent.clone(), extent])
+    (
+        dvec3(-range..range),
+        [extent.clone(), extent.clone(), extent],
+    )
         .prop_map(|(min, extent)| Aabb3d::new(min, min + DVec3::from_array(extent)))
 }
 
@@ -49,6 +61,8 @@ proptest! {
         let got = aabb.transformed(&m);
         let tol = 1e-12 * (oracle.min.abs().max(oracle.max.abs()).max_element() + 1.0);
         prop_assert!(close(got.min, oracle.min, tol) && close(got.max, oracle.max, tol), "{got:?} vs {oracle:?}");
+        // Never an ulp short: trees rely on boxes that enclose.
+        prop_assert!(got.contains(&oracle), "{got:?} does not enclose {oracle:?}");
     }
 
     #[test]
@@ -58,6 +72,7 @@ proptest! {
         let got = local.transformed(&m);
         let tol = 1e-12 * (oracle.min.abs().max(oracle.max.abs()).max_element() + 1.0);
         prop_assert!(close(got.min, oracle.min, tol) && close(got.max, oracle.max, tol), "{got:?} vs {oracle:?}");
+        prop_assert!(got.contains(&oracle), "{got:?} does not enclose {oracle:?}");
     }
 
     #[test]

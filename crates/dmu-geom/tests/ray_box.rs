@@ -41,11 +41,16 @@ fn check(got: Option<(f64, f64)>, expected: &Expected, rel_tol: f64) -> Result<(
     match (*expected, got) {
         (Expected::ParallelOutside, got) => prop_assert_eq!(got, None),
         (Expected::Interval { enter, exit }, got) => {
-            let tol = rel_tol * (1.0 + enter.abs() + if exit.is_finite() { exit.abs() } else { 0.0 });
+            let tol =
+                rel_tol * (1.0 + enter.abs() + if exit.is_finite() { exit.abs() } else { 0.0 });
             if exit - enter > tol {
-                let (e, x) = got.ok_or_else(|| TestCaseError::fail(format!("missed {expected:?}")))?;
+                let (e, x) =
+                    got.ok_or_else(|| TestCaseError::fail(format!("missed {expected:?}")))?;
                 prop_assert!((e - enter).abs() <= tol, "enter {e} vs {expected:?}");
-                prop_assert!(x == exit || (x - exit).abs() <= tol, "exit {x} vs {expected:?}");
+                prop_assert!(
+                    x == exit || (x - exit).abs() <= tol,
+                    "exit {x} vs {expected:?}"
+                );
             } else if enter - exit > tol {
                 prop_assert_eq!(got, None);
             } else if let Some((e, x)) = got {
@@ -109,7 +114,12 @@ fn case(offset: f64, to_f32: bool) -> impl Strategy<Value = Case> {
                 OriginOn::Min => min[axis],
                 OriginOn::Max => max[axis],
             }));
-            Case { aabb: Aabb3d::new(min, max), origin, dir: round(DVec3::from_array(dir)), t_max }
+            Case {
+                aabb: Aabb3d::new(min, max),
+                origin,
+                dir: round(DVec3::from_array(dir)),
+                t_max,
+            }
         })
 }
 
@@ -158,7 +168,10 @@ fn hit3f(origin: Vec3, dir: Vec3, aabb: &Aabb3f) -> Option<(f32, f32)> {
 fn assert_interval(got: Option<(f64, f64)>, enter: f64, exit: f64) {
     let (e, x) = got.unwrap_or_else(|| panic!("expected a hit on [{enter}, {exit}]"));
     assert_eq!(e, enter, "entry");
-    assert!(x >= exit && x - exit <= 1e-14 * exit.abs(), "exit {x} vs {exit}");
+    assert!(
+        x >= exit && x - exit <= 1e-14 * exit.abs(),
+        "exit {x} vs {exit}"
+    );
 }
 
 const UNIT: Aabb3d = Aabb3d::new(DVec3::ZERO, DVec3::ONE);
@@ -176,7 +189,8 @@ fn parallel_ray_on_slab_plane_hits() {
                 dir[axis] = 0.5;
                 assert_interval(hit3d(origin, dir, &UNIT), 4.0, 6.0);
                 let unit = Aabb3f::new(Vec3::ZERO, Vec3::ONE);
-                let (e, x) = hit3f(origin.as_vec3(), dir.as_vec3(), &unit).expect("f32 ray on a face plane");
+                let (e, x) =
+                    hit3f(origin.as_vec3(), dir.as_vec3(), &unit).expect("f32 ray on a face plane");
                 assert!(e == 4.0 && (x - 6.0).abs() < 1e-5, "f32 [{e}, {x}]");
             }
         }
@@ -188,9 +202,18 @@ fn parallel_ray_on_slab_plane_hits() {
 fn parallel_ray_just_outside_slab_misses() {
     for zero in [0.0, -0.0] {
         let dir = DVec3::new(1.0, zero, zero);
-        assert_eq!(hit3d(DVec3::new(-1.0, 1.0f64.next_up(), 0.5), dir, &UNIT), None);
-        assert_eq!(hit3d(DVec3::new(-1.0, 0.5, 0.0f64.next_down()), dir, &UNIT), None);
-        assert_eq!(hit3d(DVec3::new(-1.0, 1.0, 1.0), dir, &UNIT).map(|h| h.0), Some(1.0));
+        assert_eq!(
+            hit3d(DVec3::new(-1.0, 1.0f64.next_up(), 0.5), dir, &UNIT),
+            None
+        );
+        assert_eq!(
+            hit3d(DVec3::new(-1.0, 0.5, 0.0f64.next_down()), dir, &UNIT),
+            None
+        );
+        assert_eq!(
+            hit3d(DVec3::new(-1.0, 1.0, 1.0), dir, &UNIT).map(|h| h.0),
+            Some(1.0)
+        );
     }
 }
 
@@ -199,18 +222,37 @@ fn flat_box_hit_and_miss() {
     let flat = Aabb3d::new(DVec3::new(0.0, 0.0, 2.0), DVec3::new(1.0, 1.0, 2.0));
     // Crossing the flat box: entry and exit coincide.
     assert_interval(hit3d(DVec3::new(0.5, 0.5, 0.0), DVec3::Z, &flat), 2.0, 2.0);
-    assert_interval(hit3d(DVec3::ZERO, DVec3::new(0.25, 0.25, 1.0), &flat), 2.0, 2.0);
+    assert_interval(
+        hit3d(DVec3::ZERO, DVec3::new(0.25, 0.25, 1.0), &flat),
+        2.0,
+        2.0,
+    );
     // Crossing the plane outside the box, or stopping before it.
     assert_eq!(hit3d(DVec3::new(1.5, 0.5, 0.0), DVec3::Z, &flat), None);
-    assert_eq!(RayBoxTest3d::new(&Ray3d::new(DVec3::new(0.5, 0.5, 0.0), DVec3::Z)).hit(&flat, 1.999), None);
+    assert_eq!(
+        RayBoxTest3d::new(&Ray3d::new(DVec3::new(0.5, 0.5, 0.0), DVec3::Z)).hit(&flat, 1.999),
+        None
+    );
     // Lying in the flat box's plane: inside it along the whole crossing.
-    assert_eq!(hit3d(DVec3::new(-1.0, 0.5, 2.0), DVec3::X, &flat).map(|h| h.0), Some(1.0));
-    assert_eq!(hit3d(DVec3::new(-1.0, 0.5, 2.0f64.next_up()), DVec3::X, &flat), None);
+    assert_eq!(
+        hit3d(DVec3::new(-1.0, 0.5, 2.0), DVec3::X, &flat).map(|h| h.0),
+        Some(1.0)
+    );
+    assert_eq!(
+        hit3d(DVec3::new(-1.0, 0.5, 2.0f64.next_up()), DVec3::X, &flat),
+        None
+    );
     // A box flat on all three axes is a point.
     let point = Aabb3d::new(DVec3::splat(3.0), DVec3::splat(3.0));
     assert_interval(hit3d(DVec3::new(3.0, 3.0, 0.0), DVec3::Z, &point), 3.0, 3.0);
-    assert_eq!(hit3d(DVec3::new(3.0, 3.0, 3.0), DVec3::ZERO, &point), Some((0.0, f64::INFINITY)));
-    assert_eq!(hit3d(DVec3::new(3.0, 3.0f64.next_up(), 0.0), DVec3::Z, &point), None);
+    assert_eq!(
+        hit3d(DVec3::new(3.0, 3.0, 3.0), DVec3::ZERO, &point),
+        Some((0.0, f64::INFINITY))
+    );
+    assert_eq!(
+        hit3d(DVec3::new(3.0, 3.0f64.next_up(), 0.0), DVec3::Z, &point),
+        None
+    );
     let flat32 = Aabb3f::new(Vec3::new(0.0, 0.0, 2.0), Vec3::new(1.0, 1.0, 2.0));
     let (e, x) = hit3f(Vec3::new(0.5, 0.5, 0.0), Vec3::Z, &flat32).expect("f32 flat box");
     assert!(e == 2.0 && (x - 2.0).abs() < 1e-6, "f32 [{e}, {x}]");
@@ -219,33 +261,75 @@ fn flat_box_hit_and_miss() {
 
 #[test]
 fn origin_inside_box_enters_at_zero() {
-    assert_interval(hit3d(DVec3::splat(0.5), DVec3::new(1.0, -0.5, 0.25), &UNIT), 0.0, 0.5);
+    assert_interval(
+        hit3d(DVec3::splat(0.5), DVec3::new(1.0, -0.5, 0.25), &UNIT),
+        0.0,
+        0.5,
+    );
     // On a corner, leaving: the box is touched at t = 0 only.
     assert_interval(hit3d(DVec3::ONE, DVec3::ONE, &UNIT), 0.0, 0.0);
     // Zero direction: inside for every t, or never.
-    assert_eq!(hit3d(DVec3::splat(0.5), DVec3::ZERO, &UNIT), Some((0.0, f64::INFINITY)));
+    assert_eq!(
+        hit3d(DVec3::splat(0.5), DVec3::ZERO, &UNIT),
+        Some((0.0, f64::INFINITY))
+    );
     assert_eq!(hit3d(DVec3::splat(1.5), DVec3::ZERO, &UNIT), None);
-    assert_eq!(hit3d(DVec3::splat(0.5), -DVec3::ZERO, &UNIT), Some((0.0, f64::INFINITY)));
+    assert_eq!(
+        hit3d(DVec3::splat(0.5), -DVec3::ZERO, &UNIT),
+        Some((0.0, f64::INFINITY))
+    );
 }
 
 #[test]
 fn ray_along_face_and_edge_hits() {
     for zero in [0.0, -0.0] {
         // In the face y = 1, crossing it along x.
-        assert_interval(hit3d(DVec3::new(-1.0, 1.0, 0.5), DVec3::new(2.0, zero, zero), &UNIT), 0.5, 1.0);
+        assert_interval(
+            hit3d(
+                DVec3::new(-1.0, 1.0, 0.5),
+                DVec3::new(2.0, zero, zero),
+                &UNIT,
+            ),
+            0.5,
+            1.0,
+        );
         // Along the edge y = 0, z = 1, backwards.
-        assert_interval(hit3d(DVec3::new(3.0, 0.0, 1.0), DVec3::new(-1.0, zero, zero), &UNIT), 2.0, 3.0);
+        assert_interval(
+            hit3d(
+                DVec3::new(3.0, 0.0, 1.0),
+                DVec3::new(-1.0, zero, zero),
+                &UNIT,
+            ),
+            2.0,
+            3.0,
+        );
     }
 }
 
 #[test]
 fn empty_and_inverted_boxes_are_never_hit() {
     let inverted = Aabb3d::new(DVec3::ONE, DVec3::ZERO);
-    for origin in [DVec3::ZERO, DVec3::splat(0.5), DVec3::splat(-5.0), DVec3::new(0.5, 0.5, -3.0)] {
-        for dir in [DVec3::Z, DVec3::ONE, -DVec3::ONE, DVec3::ZERO, -DVec3::ZERO, DVec3::new(0.0, -0.0, 1.0)] {
+    for origin in [
+        DVec3::ZERO,
+        DVec3::splat(0.5),
+        DVec3::splat(-5.0),
+        DVec3::new(0.5, 0.5, -3.0),
+    ] {
+        for dir in [
+            DVec3::Z,
+            DVec3::ONE,
+            -DVec3::ONE,
+            DVec3::ZERO,
+            -DVec3::ZERO,
+            DVec3::new(0.0, -0.0, 1.0),
+        ] {
             assert_eq!(hit3d(origin, dir, &Aabb3d::EMPTY), None, "{origin} {dir}");
             assert_eq!(hit3d(origin, dir, &inverted), None, "{origin} {dir}");
-            assert_eq!(hit3f(origin.as_vec3(), dir.as_vec3(), &Aabb3f::EMPTY), None, "{origin} {dir}");
+            assert_eq!(
+                hit3f(origin.as_vec3(), dir.as_vec3(), &Aabb3f::EMPTY),
+                None,
+                "{origin} {dir}"
+            );
         }
     }
 }
@@ -266,17 +350,37 @@ fn t_max_and_negative_t_bound_the_hit() {
 /// f32 after taking the ray to the part's frame, the same `t` comes out.
 #[test]
 fn box_far_from_origin() {
-    let world = DAffine3::from_translation(DVec3::new(1e7, -2e7, 3e7)) * DAffine3::from_scale(DVec3::splat(2.0));
+    let world = DAffine3::from_translation(DVec3::new(1e7, -2e7, 3e7))
+        * DAffine3::from_scale(DVec3::splat(2.0));
     let local = Aabb3f::new(Vec3::new(-0.25, -0.25, -0.25), Vec3::new(0.25, 0.25, 0.25));
     let world_box = local.transformed(&world);
-    assert_eq!(world_box, Aabb3d::new(DVec3::new(1e7 - 0.5, -2e7 - 0.5, 3e7 - 0.5), DVec3::new(1e7 + 0.5, -2e7 + 0.5, 3e7 + 0.5)));
-    let ray = Ray3d::new(DVec3::new(1e7 + 0.25, -2e7 + 0.25, 3e7 - 10.0), DVec3::new(0.0, 0.0, 2.0));
-    let (e, x) = RayBoxTest3d::new(&ray).hit(&world_box, f64::INFINITY).unwrap();
+    assert_eq!(
+        world_box,
+        Aabb3d::new(
+            DVec3::new(1e7 - 0.5, -2e7 - 0.5, 3e7 - 0.5),
+            DVec3::new(1e7 + 0.5, -2e7 + 0.5, 3e7 + 0.5)
+        )
+    );
+    let ray = Ray3d::new(
+        DVec3::new(1e7 + 0.25, -2e7 + 0.25, 3e7 - 10.0),
+        DVec3::new(0.0, 0.0, 2.0),
+    );
+    let (e, x) = RayBoxTest3d::new(&ray)
+        .hit(&world_box, f64::INFINITY)
+        .unwrap();
     assert!((e - 4.75).abs() < 1e-12 && (x - 5.25).abs() < 1e-12);
-    let (e32, x32) = RayBoxTest3f::new(&ray.to_local(&world).as_f32()).hit(&local, f32::INFINITY).unwrap();
+    let (e32, x32) = RayBoxTest3f::new(&ray.to_local(&world).as_f32())
+        .hit(&local, f32::INFINITY)
+        .unwrap();
     assert!((f64::from(e32) - 4.75).abs() < 1e-5 && (f64::from(x32) - 5.25).abs() < 1e-5);
     // One millimetre beside the box: a miss in both frames.
     let beside = Ray3d::new(ray.origin + DVec3::new(0.25 + 1e-3, 0.0, 0.0), ray.dir);
-    assert_eq!(RayBoxTest3d::new(&beside).hit(&world_box, f64::INFINITY), None);
-    assert_eq!(RayBoxTest3f::new(&beside.to_local(&world).as_f32()).hit(&local, f32::INFINITY), None);
+    assert_eq!(
+        RayBoxTest3d::new(&beside).hit(&world_box, f64::INFINITY),
+        None
+    );
+    assert_eq!(
+        RayBoxTest3f::new(&beside.to_local(&world).as_f32()).hit(&local, f32::INFINITY),
+        None
+    );
 }

@@ -27,11 +27,14 @@ fn vec3(range: std::ops::Range<f32>) -> impl Strategy<Value = Vec3> {
 
 /// A triangle with no angle below about 8 degrees.
 fn well_shaped_triangle() -> impl Strategy<Value = [Vec3; 3]> {
-    [vec3(-10.0..10.0), vec3(-10.0..10.0), vec3(-10.0..10.0)].prop_filter("well shaped", |&[a, b, c]| {
-        let (a, b, c) = (a.as_dvec3(), b.as_dvec3(), c.as_dvec3());
-        let longest = (b - a).length().max((c - b).length()).max((a - c).length());
-        (b - a).cross(c - a).length() > 0.15 * longest * longest
-    })
+    [vec3(-10.0..10.0), vec3(-10.0..10.0), vec3(-10.0..10.0)].prop_filter(
+        "well shaped",
+        |&[a, b, c]| {
+            let (a, b, c) = (a.as_dvec3(), b.as_dvec3(), c.as_dvec3());
+            let longest = (b - a).length().max((c - b).length()).max((a - c).length());
+            (b - a).cross(c - a).length() > 0.15 * longest * longest
+        },
+    )
 }
 
 /// A ray from anywhere towards a point of the triangle's plane with barycentrics
@@ -46,8 +49,20 @@ struct Aim {
 }
 
 fn aim() -> impl Strategy<Value = Aim> {
-    (vec3(-20.0..20.0), -0.3f32..1.0, -0.3f32..1.0, 0.1f32..10.0, prop::bool::weighted(0.2))
-        .prop_map(|(origin, a, b, length, backwards)| Aim { origin, a, b, length, backwards })
+    (
+        vec3(-20.0..20.0),
+        -0.3f32..1.0,
+        -0.3f32..1.0,
+        0.1f32..10.0,
+        prop::bool::weighted(0.2),
+    )
+        .prop_map(|(origin, a, b, length, backwards)| Aim {
+            origin,
+            a,
+            b,
+            length,
+            backwards,
+        })
 }
 
 impl Aim {
@@ -79,8 +94,12 @@ fn check_against_oracle(
     match got {
         Some(hit) if expect_hit => {
             prop_assert!((hit.t - t).abs() <= rel_tol * t.abs(), "t {} vs {t}", hit.t);
-            prop_assert!((hit.u - u).abs() <= 10.0 * rel_tol && (hit.v - v).abs() <= 10.0 * rel_tol,
-                "uv ({}, {}) vs ({u}, {v})", hit.u, hit.v);
+            prop_assert!(
+                (hit.u - u).abs() <= 10.0 * rel_tol && (hit.v - v).abs() <= 10.0 * rel_tol,
+                "uv ({}, {}) vs ({u}, {v})",
+                hit.u,
+                hit.v
+            );
         }
         None if !expect_hit => {}
         _ => prop_assert!(false, "got {got:?}, oracle t {t} u {u} v {v}"),
@@ -122,12 +141,23 @@ impl HeightField {
         let index = |i: u32, j: u32| i * (N + 1) + j;
         let vertices = (0..=N)
             .flat_map(|i| (0..=N).map(move |j| (i, j)))
-            .map(|(i, j)| Vec3::new(i as f32, j as f32, f32::from(heights[index(i, j) as usize]) / 64.0))
+            .map(|(i, j)| {
+                Vec3::new(
+                    i as f32,
+                    j as f32,
+                    f32::from(heights[index(i, j) as usize]) / 64.0,
+                )
+            })
             .collect();
         let mut triangles = Vec::new();
         for i in 0..N {
             for j in 0..N {
-                let [a, b, c, d] = [index(i, j), index(i + 1, j), index(i + 1, j + 1), index(i, j + 1)];
+                let [a, b, c, d] = [
+                    index(i, j),
+                    index(i + 1, j),
+                    index(i + 1, j + 1),
+                    index(i, j + 1),
+                ];
                 if (i + j) % 2 == 0 {
                     triangles.extend([[a, b, c], [a, c, d]]);
                 } else {
@@ -135,16 +165,26 @@ impl HeightField {
                 }
             }
         }
-        HeightField { vertices, triangles }
+        HeightField {
+            vertices,
+            triangles,
+        }
     }
 
     /// Interior vertices and the midpoints of interior edges.
     fn shared_points(&self) -> Vec<Vec3> {
         let interior = |p: Vec3| p.x > 0.0 && p.x < N as f32 && p.y > 0.0 && p.y < N as f32;
-        let mut points: Vec<Vec3> = self.vertices.iter().copied().filter(|&p| interior(p)).collect();
+        let mut points: Vec<Vec3> = self
+            .vertices
+            .iter()
+            .copied()
+            .filter(|&p| interior(p))
+            .collect();
         for tri in &self.triangles {
             for k in 0..3 {
-                let mid = (self.vertices[tri[k] as usize] + self.vertices[tri[(k + 1) % 3] as usize]) * 0.5;
+                let mid = (self.vertices[tri[k] as usize]
+                    + self.vertices[tri[(k + 1) % 3] as usize])
+                    * 0.5;
                 if interior(mid) {
                     points.push(mid);
                 }
@@ -155,12 +195,20 @@ impl HeightField {
 
     /// The hits of `ray` with every triangle, in f32 and f64.
     fn hits(&self, ray: &Ray3f) -> (Vec<f32>, Vec<f64>) {
-        let (test32, test64) = (RayTriTest3f::new(ray), RayTriTest3d::new(&Ray3d::new(ray.origin.as_dvec3(), ray.dir.as_dvec3())));
+        let (test32, test64) = (
+            RayTriTest3f::new(ray),
+            RayTriTest3d::new(&Ray3d::new(ray.origin.as_dvec3(), ray.dir.as_dvec3())),
+        );
         let mut hits = (Vec::new(), Vec::new());
         for tri in &self.triangles {
             let [a, b, c] = tri.map(|k| self.vertices[k as usize]);
-            hits.0.extend(test32.hit(a, b, c, 0.0, f32::INFINITY).map(|h| h.t));
-            hits.1.extend(test64.hit(a.as_dvec3(), b.as_dvec3(), c.as_dvec3(), 0.0, f64::INFINITY).map(|h| h.t));
+            hits.0
+                .extend(test32.hit(a, b, c, 0.0, f32::INFINITY).map(|h| h.t));
+            hits.1.extend(
+                test64
+                    .hit(a.as_dvec3(), b.as_dvec3(), c.as_dvec3(), 0.0, f64::INFINITY)
+                    .map(|h| h.t),
+            );
         }
         hits
     }
@@ -228,7 +276,13 @@ fn hit32(tri: [Vec3; 3], origin: Vec3, dir: Vec3) -> Option<TriHit<f32>> {
 
 fn hit64(tri: [Vec3; 3], origin: Vec3, dir: Vec3) -> Option<TriHit<f64>> {
     let tri = tri.map(Vec3::as_dvec3);
-    RayTriTest3d::new(&Ray3d::new(origin.as_dvec3(), dir.as_dvec3())).hit(tri[0], tri[1], tri[2], 0.0, f64::INFINITY)
+    RayTriTest3d::new(&Ray3d::new(origin.as_dvec3(), dir.as_dvec3())).hit(
+        tri[0],
+        tri[1],
+        tri[2],
+        0.0,
+        f64::INFINITY,
+    )
 }
 
 proptest! {
@@ -294,17 +348,24 @@ proptest! {
         let [v0, v1, v2] = tri;
         let in_plane = |a: f32, b: f32| v0 + a * (v1 - v0) + b * (v2 - v0);
         let (origin, target) = (in_plane(a, b), in_plane(c, d));
-        for hit in [hit32(tri, origin, target - origin).map(|h| [h.t, h.u, h.v])] {
-            prop_assert!(hit.is_none_or(|h| h.iter().all(|x| x.is_finite())), "{hit:?}");
+        let hits = [
+            hit32(tri, origin, target - origin).map(|h| [h.t, h.u, h.v].map(f64::from)),
+            hit64(tri, origin, target - origin).map(|h| [h.t, h.u, h.v]),
+        ];
+        for [t, u, v] in hits.into_iter().flatten() {
+            prop_assert!(t.is_finite() && t >= 0.0, "t {t}");
+            prop_assert!(u >= 0.0 && v >= 0.0 && u + v <= 1.0 + 1e-6, "u {u} v {v}");
         }
-        let hit = hit64(tri, origin, target - origin);
-        prop_assert!(hit.is_none_or(|h| h.t.is_finite() && h.u.is_finite() && h.v.is_finite()), "{hit:?}");
     }
 }
 
 #[test]
 fn exactly_coplanar_rays_miss() {
-    let tri = [Vec3::ZERO, Vec3::new(4.0, 0.0, 0.0), Vec3::new(0.0, 4.0, 0.0)];
+    let tri = [
+        Vec3::ZERO,
+        Vec3::new(4.0, 0.0, 0.0),
+        Vec3::new(0.0, 4.0, 0.0),
+    ];
     for (origin, dir) in [
         (Vec3::new(-1.0, 1.0, 0.0), Vec3::X),
         (Vec3::new(1.0, 1.0, 0.0), Vec3::new(1.0, 0.5, 0.0)),
@@ -317,10 +378,21 @@ fn exactly_coplanar_rays_miss() {
 
 #[test]
 fn both_faces_are_hit_with_the_same_barycentrics() {
-    let tri = [Vec3::ZERO, Vec3::new(4.0, 0.0, 0.0), Vec3::new(0.0, 4.0, 0.0)];
+    let tri = [
+        Vec3::ZERO,
+        Vec3::new(4.0, 0.0, 0.0),
+        Vec3::new(0.0, 4.0, 0.0),
+    ];
     let front = hit32(tri, Vec3::new(1.0, 2.0, 3.0), -Vec3::Z).unwrap();
     let back = hit32(tri, Vec3::new(1.0, 2.0, -3.0), Vec3::Z).unwrap();
-    assert_eq!(front, TriHit { t: 3.0, u: 0.25, v: 0.5 });
+    assert_eq!(
+        front,
+        TriHit {
+            t: 3.0,
+            u: 0.25,
+            v: 0.5
+        }
+    );
     assert_eq!(back, front);
     assert_eq!(triangle_normal(tri[0], tri[1], tri[2]), Vec3::Z);
     assert_eq!(triangle_area(tri[0], tri[1], tri[2]), 8.0);
@@ -328,14 +400,33 @@ fn both_faces_are_hit_with_the_same_barycentrics() {
 
 #[test]
 fn t_range_is_inclusive() {
-    let tri = [Vec3::ZERO, Vec3::new(4.0, 0.0, 0.0), Vec3::new(0.0, 4.0, 0.0)];
+    let tri = [
+        Vec3::ZERO,
+        Vec3::new(4.0, 0.0, 0.0),
+        Vec3::new(0.0, 4.0, 0.0),
+    ];
     let test = RayTriTest3f::new(&Ray3f::new(Vec3::new(1.0, 1.0, 2.0), -Vec3::Z));
-    assert_eq!(test.hit(tri[0], tri[1], tri[2], 0.0, 2.0).map(|h| h.t), Some(2.0));
-    assert_eq!(test.hit(tri[0], tri[1], tri[2], 2.0, 3.0).map(|h| h.t), Some(2.0));
+    assert_eq!(
+        test.hit(tri[0], tri[1], tri[2], 0.0, 2.0).map(|h| h.t),
+        Some(2.0)
+    );
+    assert_eq!(
+        test.hit(tri[0], tri[1], tri[2], 2.0, 3.0).map(|h| h.t),
+        Some(2.0)
+    );
     assert_eq!(test.hit(tri[0], tri[1], tri[2], 0.0, 1.99), None);
     assert_eq!(test.hit(tri[0], tri[1], tri[2], 2.01, 3.0), None);
     // A zero direction hits nothing.
-    assert_eq!(RayTriTest3f::new(&Ray3f::new(Vec3::ZERO, Vec3::ZERO)).hit(tri[0], tri[1], tri[2], 0.0, f32::INFINITY), None);
+    assert_eq!(
+        RayTriTest3f::new(&Ray3f::new(Vec3::ZERO, Vec3::ZERO)).hit(
+            tri[0],
+            tri[1],
+            tri[2],
+            0.0,
+            f32::INFINITY
+        ),
+        None
+    );
 }
 
 proptest! {
