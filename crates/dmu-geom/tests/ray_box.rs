@@ -369,7 +369,8 @@ fn box_far_from_origin() {
     let (e, x) = RayBoxTest3d::new(&ray)
         .hit(&world_box, f64::INFINITY)
         .unwrap();
-    assert!((e - 4.75).abs() < 1e-12 && (x - 5.25).abs() < 1e-12);
+    // Within the enclosing pad (a few ulps of 3e7 over |dir| = 2).
+    assert!((e - 4.75).abs() < 1e-7 && (x - 5.25).abs() < 1e-7);
     let (e32, x32) = RayBoxTest3f::new(&ray.to_local(&world).as_f32())
         .hit(&local, f32::INFINITY)
         .unwrap();
