@@ -17,7 +17,10 @@ fn plant_triangles() -> u64 {
 
 /// Generation and glTF import throughput, in triangles per second.
 fn scene_io(c: &mut Criterion) {
-    let options = PlantOptions { triangles: plant_triangles(), ..PlantOptions::default() };
+    let options = PlantOptions {
+        triangles: plant_triangles(),
+        ..PlantOptions::default()
+    };
     let scene = plant(&options);
     let dir = tempfile::tempdir().expect("temp dir");
     let path = dir.path().join("plant.glb");
@@ -26,7 +29,9 @@ fn scene_io(c: &mut Criterion) {
     let mut group = c.benchmark_group("scene_io");
     group.sample_size(10);
     group.throughput(Throughput::Elements(scene.triangle_count()));
-    group.bench_function(format!("generate_plant_{}", options.triangles), |b| b.iter(|| black_box(plant(&options))));
+    group.bench_function(format!("generate_plant_{}", options.triangles), |b| {
+        b.iter(|| black_box(plant(&options)))
+    });
     group.bench_function(format!("import_glb_plant_{}", options.triangles), |b| {
         b.iter(|| black_box(import_gltf(&path, &ImportOptions::default()).expect("import")))
     });
@@ -39,14 +44,31 @@ fn scene_io(c: &mut Criterion) {
 /// Chunking cost per chunk size: the knob's time side (its effect on culling and
 /// picking is measured with the tree and renderer).
 fn chunking(c: &mut Criterion) {
-    let scene = plant(&PlantOptions { triangles: 1_000_000, ..PlantOptions::default() });
-    let big = scene.meshes().iter().max_by_key(|m| m.triangle_count()).expect("a mesh");
-    let mut data = dmu_scene::MeshData { name: big.name.clone(), ..Default::default() };
-    data.push_primitive(&big.positions, &big.normals, &remap_to_mesh(&scene, big), dmu_scene::MaterialId(0));
+    let scene = plant(&PlantOptions {
+        triangles: 1_000_000,
+        ..PlantOptions::default()
+    });
+    let big = scene
+        .meshes()
+        .iter()
+        .max_by_key(|m| m.triangle_count())
+        .expect("a mesh");
+    let mut data = dmu_scene::MeshData {
+        name: big.name.clone(),
+        ..Default::default()
+    };
+    data.push_primitive(
+        &big.positions,
+        &big.normals,
+        &remap_to_mesh(&scene, big),
+        dmu_scene::MaterialId(0),
+    );
     let mut group = c.benchmark_group("chunking");
     group.throughput(Throughput::Elements(u64::from(data.triangle_count())));
     for size in [256, 1024, 2048, 8192] {
-        group.bench_function(format!("chunk_mesh_{size}"), |b| b.iter(|| black_box(dmu_scene::chunk_mesh(&data, size))));
+        group.bench_function(format!("chunk_mesh_{size}"), |b| {
+            b.iter(|| black_box(dmu_scene::chunk_mesh(&data, size)))
+        });
     }
     group.finish();
 }
@@ -57,7 +79,9 @@ fn remap_to_mesh(scene: &dmu_scene::Scene, mesh: &dmu_scene::Mesh) -> Vec<u32> {
         .flat_map(|c| {
             let chunk = scene.chunk(c);
             let base = chunk.vertices.start;
-            mesh.indices[3 * chunk.triangles.start as usize..3 * chunk.triangles.end as usize].iter().map(move |&i| i + base)
+            mesh.indices[3 * chunk.triangles.start as usize..3 * chunk.triangles.end as usize]
+                .iter()
+                .map(move |&i| i + base)
         })
         .collect()
 }

@@ -48,7 +48,10 @@ enum Model {
 
 pub fn run(args: &Args) -> anyhow::Result<()> {
     if !(10_000..=500_000_000).contains(&args.triangles) && matches!(args.model, Model::Plant) {
-        anyhow::bail!("--triangles {} is outside the plant's range 10k..500M", args.triangles);
+        anyhow::bail!(
+            "--triangles {} is outside the plant's range 10k..500M",
+            args.triangles
+        );
     }
     let start = Instant::now();
     let scene = match args.model {
@@ -68,9 +71,12 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     };
     let generate_ms = start.elapsed().as_secs_f64() * 1e3;
     let start = Instant::now();
-    dmu_scene::export_gltf(&scene, &args.output).with_context(|| format!("writing {}", args.output.display()))?;
+    dmu_scene::export_gltf(&scene, &args.output)
+        .with_context(|| format!("writing {}", args.output.display()))?;
     let write_ms = start.elapsed().as_secs_f64() * 1e3;
-    let bytes = std::fs::metadata(&args.output).map(|m| m.len()).unwrap_or(0);
+    let bytes = std::fs::metadata(&args.output)
+        .map(|m| m.len())
+        .unwrap_or(0);
     let triangles = scene.triangle_count();
     let summary = serde_json::json!({
         "output": args.output.display().to_string(),

@@ -51,9 +51,16 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let loaded = load(&args.model)?;
     let s = &loaded.scene;
     let b = s.world_bounds();
-    let (min, max) = if b.is_empty() { ([0.0; 3], [0.0; 3]) } else { (b.min.to_array(), b.max.to_array()) };
+    let (min, max) = if b.is_empty() {
+        ([0.0; 3], [0.0; 3])
+    } else {
+        (b.min.to_array(), b.max.to_array())
+    };
     let info = Info {
-        source: loaded.source.as_ref().map_or_else(|| "built-in plant".into(), |p| p.display().to_string()),
+        source: loaded
+            .source
+            .as_ref()
+            .map_or_else(|| "built-in plant".into(), |p| p.display().to_string()),
         name: s.name().to_owned(),
         parts: s.parts().len(),
         instances: s.parts().len(),
@@ -78,19 +85,40 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         return Ok(());
     }
     println!("{} ({})", info.name, info.source);
-    println!("  parts           {:>14}   (meshes {}, nodes {})", info.parts, info.meshes, info.nodes);
-    println!("  triangles       {:>14}   (unique {}, degenerate {})", info.triangles, info.unique_triangles, info.degenerate_triangles);
-    println!("  chunks          {:>14}   (instances {}, at most {} triangles each)", info.chunks, info.chunk_instances, info.chunk_triangles);
+    println!(
+        "  parts           {:>14}   (meshes {}, nodes {})",
+        info.parts, info.meshes, info.nodes
+    );
+    println!(
+        "  triangles       {:>14}   (unique {}, degenerate {})",
+        info.triangles, info.unique_triangles, info.degenerate_triangles
+    );
+    println!(
+        "  chunks          {:>14}   (instances {}, at most {} triangles each)",
+        info.chunks, info.chunk_instances, info.chunk_triangles
+    );
     println!("  materials       {:>14}", info.materials);
     println!("  assembly depth  {:>14}", info.assembly_depth);
     println!("  bounds min      {:?}", info.bounds.min);
     println!("  bounds max      {:?}", info.bounds.max);
-    println!("  import          {:>11.1} ms   ({:.2} M triangles/s)", info.import_ms, info.import_triangles_per_s / 1e6);
+    println!(
+        "  import          {:>11.1} ms   ({:.2} M triangles/s)",
+        info.import_ms,
+        info.import_triangles_per_s / 1e6
+    );
     let r = &info.skipped;
-    if r.point_primitives_skipped + r.line_primitives_skipped + r.unused_meshes + r.primitives_with_computed_normals > 0 {
+    if r.point_primitives_skipped
+        + r.line_primitives_skipped
+        + r.unused_meshes
+        + r.primitives_with_computed_normals
+        > 0
+    {
         println!(
             "  skipped         points {}, lines {}, unused meshes {}; normals computed for {} primitives",
-            r.point_primitives_skipped, r.line_primitives_skipped, r.unused_meshes, r.primitives_with_computed_normals
+            r.point_primitives_skipped,
+            r.line_primitives_skipped,
+            r.unused_meshes,
+            r.primitives_with_computed_normals
         );
     }
     Ok(())

@@ -44,18 +44,34 @@ pub fn load(args: &ModelArgs) -> anyhow::Result<Loaded> {
             (dmu_scene::samples::plant(&options), ImportReport::default())
         }
     };
-    Ok(Loaded { scene, report, source: args.file.clone(), load_ms: start.elapsed().as_secs_f64() * 1e3 })
+    Ok(Loaded {
+        scene,
+        report,
+        source: args.file.clone(),
+        load_ms: start.elapsed().as_secs_f64() * 1e3,
+    })
 }
 
 fn import(path: &Path, chunk_triangles: u32) -> anyhow::Result<(Scene, ImportReport)> {
-    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
     if !matches!(ext.as_deref(), Some("glb" | "gltf")) {
-        bail!("{}: unknown file type (dmu reads .glb and .gltf)", path.display());
+        bail!(
+            "{}: unknown file type (dmu reads .glb and .gltf)",
+            path.display()
+        );
     }
     // A bar only for files big enough to take a while; indicatif hides it when
     // stderr is not a terminal, so scripts see clean output.
-    let big = std::fs::metadata(path).map(|m| m.len() > 32 << 20).unwrap_or(false);
-    let bar = if big { ProgressBar::new(0) } else { ProgressBar::hidden() };
+    let big = std::fs::metadata(path)
+        .map(|m| m.len() > 32 << 20)
+        .unwrap_or(false);
+    let bar = if big {
+        ProgressBar::new(0)
+    } else {
+        ProgressBar::hidden()
+    };
     bar.set_style(
         ProgressStyle::with_template("{spinner} importing meshes {pos}/{len} [{bar:30}] {elapsed}")
             .expect("static template")
@@ -65,8 +81,12 @@ fn import(path: &Path, chunk_triangles: u32) -> anyhow::Result<(Scene, ImportRep
         bar.set_length(total as u64);
         bar.set_position(done as u64);
     };
-    let options = ImportOptions { chunk_triangles, progress: Some(&progress) };
-    let result = dmu_scene::import_gltf(path, &options).with_context(|| format!("importing {}", path.display()));
+    let options = ImportOptions {
+        chunk_triangles,
+        progress: Some(&progress),
+    };
+    let result = dmu_scene::import_gltf(path, &options)
+        .with_context(|| format!("importing {}", path.display()));
     bar.finish_and_clear();
     result
 }

@@ -11,9 +11,11 @@ pub fn parse_count(s: &str) -> anyhow::Result<u64> {
         Some((i, 'g' | 'G')) => (&t[..i], 1e9),
         _ => (t, 1.0),
     };
-    let v: f64 = num.parse().with_context(|| format!("{s:?} is not a count (e.g. 500k, 10M, 2000000)"))?;
+    let v: f64 = num
+        .parse()
+        .with_context(|| format!("{s:?} is not a count (e.g. 500k, 10M, 2000000)"))?;
     let v = v * mult;
-    if !(v.is_finite() && v >= 0.0 && v < 1e15) {
+    if !(0.0..1e15).contains(&v) {
         bail!("{s:?} is out of range");
     }
     Ok(v.round() as u64)
@@ -49,7 +51,10 @@ mod tests {
 
     #[test]
     fn vectors() {
-        assert_eq!(parse_dvec3("1, 2.5,-3").unwrap(), glam::DVec3::new(1.0, 2.5, -3.0));
+        assert_eq!(
+            parse_dvec3("1, 2.5,-3").unwrap(),
+            glam::DVec3::new(1.0, 2.5, -3.0)
+        );
         assert!(parse_dvec3("1,2").is_err());
         assert!(parse_dvec3("1,2,NaN").is_err());
     }

@@ -6,11 +6,18 @@ use std::process::{Command, Output};
 use serde_json::Value;
 
 fn dmu(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dmu")).args(args).output().expect("run dmu")
+    Command::new(env!("CARGO_BIN_EXE_dmu"))
+        .args(args)
+        .output()
+        .expect("run dmu")
 }
 
 fn json(out: &Output) -> Value {
-    assert!(out.status.success(), "dmu failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "dmu failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     serde_json::from_slice(&out.stdout).expect("stdout is one JSON object")
 }
 
@@ -22,7 +29,9 @@ fn path(dir: &Path, name: &str) -> String {
 fn generate_grid_then_info_reports_the_analytic_counts_and_bounds() {
     let dir = tempfile::tempdir().unwrap();
     let file = path(dir.path(), "grid.glb");
-    let gen_out = json(&dmu(&["generate", "grid", "--n", "3", "-o", &file, "--json"]));
+    let gen_out = json(&dmu(&[
+        "generate", "grid", "--n", "3", "-o", &file, "--json",
+    ]));
     assert_eq!(gen_out["parts"], 27);
     let info = json(&dmu(&["info", &file, "--json"]));
     assert_eq!(info["parts"], 27);
@@ -43,10 +52,23 @@ fn generate_grid_then_info_reports_the_analytic_counts_and_bounds() {
 fn generate_plant_hits_its_triangle_target() {
     let dir = tempfile::tempdir().unwrap();
     let file = path(dir.path(), "plant.gltf");
-    json(&dmu(&["generate", "plant", "--triangles", "50k", "--seed", "3", "-o", &file, "--json"]));
+    json(&dmu(&[
+        "generate",
+        "plant",
+        "--triangles",
+        "50k",
+        "--seed",
+        "3",
+        "-o",
+        &file,
+        "--json",
+    ]));
     let info = json(&dmu(&["info", &file, "--json"]));
     let triangles = info["triangles"].as_f64().unwrap();
-    assert!((triangles - 50_000.0).abs() <= 0.05 * 50_000.0, "{triangles}");
+    assert!(
+        (triangles - 50_000.0).abs() <= 0.05 * 50_000.0,
+        "{triangles}"
+    );
     assert!(info["parts"].as_u64().unwrap() > 10);
 }
 
@@ -64,7 +86,10 @@ fn errors_name_the_file_and_exit_with_2() {
     let out = dmu(&["info", &missing]);
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("missing.glb") && err.contains("error"), "{err}");
+    assert!(
+        err.contains("missing.glb") && err.contains("error"),
+        "{err}"
+    );
 
     let corrupt = path(dir.path(), "corrupt.glb");
     std::fs::write(&corrupt, b"glTF\x02\0\0\0\xff\xff\xff\xffnot really").unwrap();
@@ -76,20 +101,42 @@ fn errors_name_the_file_and_exit_with_2() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("unknown file type"));
 
-    let out = dmu(&["generate", "plant", "--triangles", "ten", "-o", &path(dir.path(), "x.glb")]);
-    assert_eq!(out.status.code(), Some(2), "clap usage errors exit with 2 too");
+    let out = dmu(&[
+        "generate",
+        "plant",
+        "--triangles",
+        "ten",
+        "-o",
+        &path(dir.path(), "x.glb"),
+    ]);
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "clap usage errors exit with 2 too"
+    );
 }
 
 #[test]
 fn a_failed_write_keeps_the_previous_file() {
     let dir = tempfile::tempdir().unwrap();
     let file = path(dir.path(), "keep.glb");
-    json(&dmu(&["generate", "grid", "--n", "2", "-o", &file, "--json"]));
+    json(&dmu(&[
+        "generate", "grid", "--n", "2", "-o", &file, "--json",
+    ]));
     let before = std::fs::read(&file).unwrap();
     // Writing into a directory that does not exist fails before anything is touched.
     let bad = path(dir.path(), "no/such/dir/x.glb");
-    assert_eq!(dmu(&["generate", "grid", "--n", "3", "-o", &bad]).status.code(), Some(2));
+    assert_eq!(
+        dmu(&["generate", "grid", "--n", "3", "-o", &bad])
+            .status
+            .code(),
+        Some(2)
+    );
     assert_eq!(std::fs::read(&file).unwrap(), before);
-    let leftovers: Vec<_> = std::fs::read_dir(dir.path()).unwrap().flatten().map(|e| e.file_name()).collect();
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name())
+        .collect();
     assert_eq!(leftovers.len(), 1, "no temporary files left: {leftovers:?}");
 }

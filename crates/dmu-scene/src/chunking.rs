@@ -55,7 +55,10 @@ impl MeshData {
         match self.groups.last_mut() {
             Some(g) if g.material == material && g.triangles.end == first => g.triangles.end = last,
             _ if first == last => {}
-            _ => self.groups.push(MeshGroup { material, triangles: first..last }),
+            _ => self.groups.push(MeshGroup {
+                material,
+                triangles: first..last,
+            }),
         }
     }
 
@@ -138,7 +141,13 @@ pub fn chunk_mesh(mesh: &MeshData, chunk_triangles: u32) -> ChunkedMesh {
         let i = 3 * t as usize;
         [mesh.indices[i], mesh.indices[i + 1], mesh.indices[i + 2]]
     };
-    let centroid = |t: u32| tri(t).iter().map(|&i| mesh.positions[i as usize]).sum::<Vec3>() / 3.0;
+    let centroid = |t: u32| {
+        tri(t)
+            .iter()
+            .map(|&i| mesh.positions[i as usize])
+            .sum::<Vec3>()
+            / 3.0
+    };
 
     let mut out = ChunkedMesh {
         name: mesh.name.clone(),
@@ -155,7 +164,8 @@ pub fn chunk_mesh(mesh: &MeshData, chunk_triangles: u32) -> ChunkedMesh {
 
     let mut tris: Vec<u32> = Vec::new();
     for group in &mesh.groups {
-        let mut keyed: Vec<(u32, Vec3)> = group.triangles.clone().map(|t| (t, centroid(t))).collect();
+        let mut keyed: Vec<(u32, Vec3)> =
+            group.triangles.clone().map(|t| (t, centroid(t))).collect();
         leaves.clear();
         split(&mut keyed, 0, chunk_triangles as usize, &mut leaves);
 

@@ -62,7 +62,9 @@ pub enum ImportError {
         what: String,
     },
     /// A vertex position is NaN or infinite.
-    #[error("mesh {mesh} ({mesh_name:?}) primitive {primitive}: POSITION accessor {accessor} has a non-finite value at vertex {vertex}")]
+    #[error(
+        "mesh {mesh} ({mesh_name:?}) primitive {primitive}: POSITION accessor {accessor} has a non-finite value at vertex {vertex}"
+    )]
     NonFinitePosition {
         /// Mesh index.
         mesh: usize,
@@ -76,7 +78,9 @@ pub enum ImportError {
         vertex: usize,
     },
     /// A primitive's index refers past the vertex count.
-    #[error("mesh {mesh} ({mesh_name:?}) primitive {primitive}: index accessor {accessor} element {position} is {index}, but there are only {vertex_count} vertices")]
+    #[error(
+        "mesh {mesh} ({mesh_name:?}) primitive {primitive}: index accessor {accessor} element {position} is {index}, but there are only {vertex_count} vertices"
+    )]
     IndexOutOfRange {
         /// Mesh index.
         mesh: usize,

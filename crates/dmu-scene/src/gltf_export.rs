@@ -18,17 +18,28 @@ use crate::scene::Scene;
 /// base64 buffer otherwise. Written to a temporary file then renamed, so a
 /// failed export leaves any previous file untouched.
 pub fn export_gltf(scene: &Scene, path: &Path) -> Result<(), ExportError> {
-    let binary = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("glb"));
+    let binary = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("glb"));
     let (mut doc, bin) = build(scene);
-    let io = |source| ExportError::Io { path: path.to_owned(), source };
+    let io = |source| ExportError::Io {
+        path: path.to_owned(),
+        source,
+    };
     let bytes = if binary {
         if bin.len() as u64 + (1 << 20) > u64::from(u32::MAX) {
-            return Err(ExportError::TooLarge { format: "glb", bytes: bin.len() as u64 });
+            return Err(ExportError::TooLarge {
+                format: "glb",
+                bytes: bin.len() as u64,
+            });
         }
         doc["buffers"] = json!([{ "byteLength": bin.len() }]);
         glb(&serde_json::to_vec(&doc).map_err(|e| io(e.into()))?, &bin)
     } else {
-        let uri = format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bin));
+        let uri = format!(
+            "data:application/octet-stream;base64,{}",
+            base64::engine::general_purpose::STANDARD.encode(&bin)
+        );
         doc["buffers"] = json!([{ "byteLength": bin.len(), "uri": uri }]);
         serde_json::to_vec(&doc).map_err(|e| io(e.into()))?
     };
@@ -37,7 +48,9 @@ pub fn export_gltf(scene: &Scene, path: &Path) -> Result<(), ExportError> {
 
 /// Writes to a sibling temporary file, syncs, then renames over `path`.
 fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let file_name = path.file_name().ok_or_else(|| std::io::Error::other("path has no file name"))?;
+    let file_name = path
+        .file_name()
+        .ok_or_else(|| std::io::Error::other("path has no file name"))?;
     let mut tmp_name = std::ffi::OsString::from(".");
     tmp_name.push(file_name);
     tmp_name.push(format!(".tmp{}", std::process::id()));
@@ -124,12 +137,14 @@ fn build(scene: &Scene) -> (Value, Vec<u8>) {
             let mut primitives = Vec::new();
             // A primitive per run of consecutive chunks sharing a material.
             for run in chunks.chunk_by(|a, b| a.material == b.material) {
-                let verts = run[0].vertices.start as usize..run[run.len() - 1].vertices.end as usize;
+                let verts =
+                    run[0].vertices.start as usize..run[run.len() - 1].vertices.end as usize;
                 let indices: Vec<u32> = run
                     .iter()
                     .flat_map(|c| {
                         let rebase = c.vertices.start - verts.start as u32;
-                        let idx = &mesh.indices[3 * c.triangles.start as usize..3 * c.triangles.end as usize];
+                        let idx = &mesh.indices
+                            [3 * c.triangles.start as usize..3 * c.triangles.end as usize];
                         idx.iter().map(move |&i| i + rebase)
                     })
                     .collect();
@@ -157,14 +172,21 @@ fn build(scene: &Scene) -> (Value, Vec<u8>) {
         .iter()
         .skip(1)
         .map(|node| {
-            let parent_world = node.parent.map_or(DAffine3::IDENTITY, |p| scene.node(p).world);
+            let parent_world = node
+                .parent
+                .map_or(DAffine3::IDENTITY, |p| scene.node(p).world);
             let local = parent_world.inverse() * node.world;
             let mut n = json!({ "name": node.name });
             if local != DAffine3::IDENTITY {
                 n["matrix"] = json!(DMat4::from(local).to_cols_array());
             }
             if !node.children.is_empty() {
-                n["children"] = json!(node.children.iter().map(|c| c.index() - 1).collect::<Vec<_>>());
+                n["children"] = json!(
+                    node.children
+                        .iter()
+                        .map(|c| c.index() - 1)
+                        .collect::<Vec<_>>()
+                );
             }
             if let Some(part) = node.part {
                 n["mesh"] = json!(scene.part(part).mesh.0);
@@ -172,7 +194,11 @@ fn build(scene: &Scene) -> (Value, Vec<u8>) {
             n
         })
         .collect();
-    let roots: Vec<usize> = scene.nodes()[0].children.iter().map(|c| c.index() - 1).collect();
+    let roots: Vec<usize> = scene.nodes()[0]
+        .children
+        .iter()
+        .map(|c| c.index() - 1)
+        .collect();
 
     let doc = json!({
         "asset": { "version": "2.0", "generator": concat!("dmu ", env!("CARGO_PKG_VERSION")) },

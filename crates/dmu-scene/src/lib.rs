@@ -34,6 +34,10 @@ mod scene;
 pub use chunking::{ChunkData, ChunkedMesh, MeshData, MeshGroup, chunk_mesh, compute_normals};
 pub use error::{ExportError, ImportError, SceneError};
 pub use gltf_export::export_gltf;
-pub use gltf_import::{ImportOptions, ImportReport, SUPPORTED_REQUIRED, import_gltf, import_gltf_slice};
+pub use gltf_import::{
+    ImportOptions, ImportReport, SUPPORTED_REQUIRED, import_gltf, import_gltf_slice,
+};
 pub use ids::{ChunkId, MaterialId, MeshId, NodeId, PartId};
-pub use scene::{AssemblyNode, Chunk, DEFAULT_CHUNK_TRIANGLES, Material, Mesh, Part, Scene, SceneBuilder};
+pub use scene::{
+    AssemblyNode, Chunk, DEFAULT_CHUNK_TRIANGLES, Material, Mesh, Part, Scene, SceneBuilder,
+};

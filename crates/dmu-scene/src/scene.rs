@@ -224,7 +224,10 @@ impl Scene {
 
     /// Triangles over all parts (instances counted each time).
     pub fn triangle_count(&self) -> u64 {
-        self.parts.iter().map(|p| self.mesh(p.mesh).triangle_count()).sum()
+        self.parts
+            .iter()
+            .map(|p| self.mesh(p.mesh).triangle_count())
+            .sum()
     }
 
     /// Triangles stored once per mesh (instancing not expanded).
@@ -234,12 +237,18 @@ impl Scene {
 
     /// Chunk instances over all parts: what the tree holds.
     pub fn chunk_instance_count(&self) -> u64 {
-        self.parts.iter().map(|p| self.mesh(p.mesh).chunks.len() as u64).sum()
+        self.parts
+            .iter()
+            .map(|p| self.mesh(p.mesh).chunks.len() as u64)
+            .sum()
     }
 
     /// Degenerate (zero-area) triangles over all parts.
     pub fn degenerate_triangle_count(&self) -> u64 {
-        self.parts.iter().map(|p| u64::from(self.mesh(p.mesh).degenerate_triangles)).sum()
+        self.parts
+            .iter()
+            .map(|p| u64::from(self.mesh(p.mesh).degenerate_triangles))
+            .sum()
     }
 
     /// A part's world box: its mesh's local box through its f64 world transform.
@@ -254,7 +263,9 @@ impl Scene {
 
     /// World box of every part (hidden ones too).
     pub fn world_bounds(&self) -> Aabb3d {
-        self.part_ids().map(|p| self.part_world_bounds(p)).fold(Aabb3d::EMPTY, Aabb3d::union)
+        self.part_ids()
+            .map(|p| self.part_world_bounds(p))
+            .fold(Aabb3d::EMPTY, Aabb3d::union)
     }
 
     /// The three local vertex positions of a chunk's triangle `t` (mesh-relative index).
@@ -272,21 +283,34 @@ impl Scene {
         if let Some(num) = key.strip_prefix('#') {
             return match num.parse::<u32>() {
                 Ok(i) if (i as usize) < self.parts.len() => Ok(PartId(i)),
-                _ => Err(SceneError::UnknownPart { key: key.to_owned() }),
+                _ => Err(SceneError::UnknownPart {
+                    key: key.to_owned(),
+                }),
             };
         }
-        let by_name: Vec<PartId> = self.part_ids().filter(|&p| self.part_name(p) == key).collect();
+        let by_name: Vec<PartId> = self
+            .part_ids()
+            .filter(|&p| self.part_name(p) == key)
+            .collect();
         let matches = if by_name.is_empty() && key.contains('/') {
-            self.part_ids().filter(|&p| self.part_path(p) == key).collect()
+            self.part_ids()
+                .filter(|&p| self.part_path(p) == key)
+                .collect()
         } else {
             by_name
         };
         match matches.as_slice() {
             [one] => Ok(*one),
-            [] => Err(SceneError::UnknownPart { key: key.to_owned() }),
+            [] => Err(SceneError::UnknownPart {
+                key: key.to_owned(),
+            }),
             many => Err(SceneError::AmbiguousPart {
                 key: key.to_owned(),
-                candidates: many.iter().take(8).map(|&p| format!("{p} {}", self.part_path(p))).collect(),
+                candidates: many
+                    .iter()
+                    .take(8)
+                    .map(|&p| format!("{p} {}", self.part_path(p)))
+                    .collect(),
                 count: many.len(),
             }),
         }
@@ -332,7 +356,10 @@ impl Scene {
         let mut next_chunk = 0u32;
         for (m, mesh) in self.meshes.iter().enumerate() {
             if mesh.chunks.start != next_chunk || mesh.chunks.end as usize > self.chunks.len() {
-                return fail(format!("mesh {m}: chunk range {:?} not contiguous", mesh.chunks));
+                return fail(format!(
+                    "mesh {m}: chunk range {:?} not contiguous",
+                    mesh.chunks
+                ));
             }
             next_chunk = mesh.chunks.end;
             if mesh.normals.len() != mesh.positions.len() || mesh.indices.len() % 3 != 0 {
@@ -341,7 +368,8 @@ impl Scene {
             let (mut tri, mut vert, mut bounds) = (0u32, 0u32, Aabb3f::EMPTY);
             for c in mesh.chunk_ids() {
                 let chunk = self.chunk(c);
-                if chunk.mesh != MeshId(m as u32) || chunk.material.index() >= self.materials.len() {
+                if chunk.mesh != MeshId(m as u32) || chunk.material.index() >= self.materials.len()
+                {
                     return fail(format!("chunk {c}: wrong mesh or material"));
                 }
                 if chunk.triangles.start != tri || chunk.vertices.start != vert {
@@ -349,11 +377,13 @@ impl Scene {
                 }
                 (tri, vert) = (chunk.triangles.end, chunk.vertices.end);
                 let verts = chunk.vertices.end - chunk.vertices.start;
-                let idx = &mesh.indices[3 * chunk.triangles.start as usize..3 * chunk.triangles.end as usize];
+                let idx = &mesh.indices
+                    [3 * chunk.triangles.start as usize..3 * chunk.triangles.end as usize];
                 if let Some(bad) = idx.iter().find(|&&i| i >= verts) {
                     return fail(format!("chunk {c}: index {bad} >= {verts} vertices"));
                 }
-                let pos = &mesh.positions[chunk.vertices.start as usize..chunk.vertices.end as usize];
+                let pos =
+                    &mesh.positions[chunk.vertices.start as usize..chunk.vertices.end as usize];
                 if chunk.bounds != Aabb3f::from_points(pos.iter().copied()) {
                     return fail(format!("chunk {c}: box does not fit its vertices"));
                 }
@@ -414,7 +444,10 @@ impl SceneBuilder {
 
     /// Adds a material.
     pub fn add_material(&mut self, name: impl Into<String>, base_color: [f32; 4]) -> MaterialId {
-        self.scene.materials.push(Material { name: name.into(), base_color });
+        self.scene.materials.push(Material {
+            name: name.into(),
+            base_color,
+        });
         MaterialId::from_index(self.scene.materials.len() - 1)
     }
 
@@ -454,7 +487,11 @@ impl SceneBuilder {
         let first = self.scene.chunks.len() as u32;
         let mut bounds = Aabb3f::EMPTY;
         for c in mesh.chunks {
-            assert!(c.material.index() < self.scene.materials.len(), "unknown material {}", c.material);
+            assert!(
+                c.material.index() < self.scene.materials.len(),
+                "unknown material {}",
+                c.material
+            );
             bounds = bounds.union(c.bounds);
             self.scene.chunks.push(Chunk {
                 mesh: id,
@@ -481,12 +518,19 @@ impl SceneBuilder {
     /// # Panics
     /// When the node already has a part.
     pub fn add_part(&mut self, node: NodeId, mesh: MeshId) -> PartId {
-        assert!(mesh.index() < self.scene.meshes.len(), "unknown mesh {mesh}");
+        assert!(
+            mesh.index() < self.scene.meshes.len(),
+            "unknown mesh {mesh}"
+        );
         let id = PartId::from_index(self.scene.parts.len());
         let slot = &mut self.scene.nodes[node.index()].part;
         assert!(slot.is_none(), "node {node} already has a part");
         *slot = Some(id);
-        self.scene.parts.push(Part { node, mesh, hidden: false });
+        self.scene.parts.push(Part {
+            node,
+            mesh,
+            hidden: false,
+        });
         id
     }
 

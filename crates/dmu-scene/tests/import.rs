@@ -17,7 +17,13 @@ fn nan_or_infinite_position_names_mesh_primitive_and_accessor() {
         let mut d = Doc::new();
         let good = d.positions(&[[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
         let broken = d.positions(&[[0.0; 3], [1.0, bad, 0.0], [0.0, 1.0, 0.0]]);
-        let mesh = d.mesh("bracket", vec![json!({ "attributes": { "POSITION": good } }), json!({ "attributes": { "POSITION": broken } })]);
+        let mesh = d.mesh(
+            "bracket",
+            vec![
+                json!({ "attributes": { "POSITION": good } }),
+                json!({ "attributes": { "POSITION": broken } }),
+            ],
+        );
         d.node(json!({ "mesh": mesh }), true);
         let err = d.import().expect_err("non-finite position must fail");
         assert!(
@@ -25,7 +31,13 @@ fn nan_or_infinite_position_names_mesh_primitive_and_accessor() {
             "{err:?}"
         );
         let msg = err.to_string();
-        for part in ["mesh 0", "\"bracket\"", "primitive 1", &format!("accessor {broken}"), "vertex 1"] {
+        for part in [
+            "mesh 0",
+            "\"bracket\"",
+            "primitive 1",
+            &format!("accessor {broken}"),
+            "vertex 1",
+        ] {
             assert!(msg.contains(part), "{msg:?} lacks {part:?}");
         }
     }
@@ -36,7 +48,10 @@ fn index_out_of_range_is_an_error() {
     let mut d = Doc::new();
     let pos = d.positions(&[[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
     let idx = d.indices(&[0, 1, 2, 0, 2, 3]);
-    let mesh = d.mesh("m", vec![json!({ "attributes": { "POSITION": pos }, "indices": idx })]);
+    let mesh = d.mesh(
+        "m",
+        vec![json!({ "attributes": { "POSITION": pos }, "indices": idx })],
+    );
     d.node(json!({ "mesh": mesh }), true);
     let err = d.import().expect_err("index 3 of 3 vertices");
     assert!(
@@ -58,7 +73,10 @@ fn reference_out_of_range_is_an_error_not_a_panic() {
         let mesh = d.mesh("m", vec![prim.clone()]);
         d.node(json!({ "mesh": mesh }), true);
         let err = d.import().expect_err("dangling reference");
-        assert!(matches!(err, ImportError::Invalid { .. }), "{prim}: {err:?}");
+        assert!(
+            matches!(err, ImportError::Invalid { .. }),
+            "{prim}: {err:?}"
+        );
     }
     let mut d = one_quad_doc();
     d.node(json!({ "mesh": 5 }), true);
@@ -72,7 +90,10 @@ fn accessor_overrunning_its_view_is_an_error() {
     let mesh = d.mesh("m", vec![json!({ "attributes": { "POSITION": pos } })]);
     d.node(json!({ "mesh": mesh }), true);
     let err = d.import().expect_err("4 vertices in 36 bytes");
-    assert!(err.to_string().contains(&format!("accessors[{pos}]")), "{err}");
+    assert!(
+        err.to_string().contains(&format!("accessors[{pos}]")),
+        "{err}"
+    );
 }
 
 #[test]
@@ -101,14 +122,21 @@ fn degenerate_triangles_are_kept_and_counted() {
     let pos = d.positions(&[[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [2.0, 0.0, 0.0]]);
     // A good triangle, a collinear one, and one with a repeated vertex.
     let idx = d.indices(&[0, 1, 2, 0, 1, 3, 2, 2, 1]);
-    let mesh = d.mesh("m", vec![json!({ "attributes": { "POSITION": pos }, "indices": idx })]);
+    let mesh = d.mesh(
+        "m",
+        vec![json!({ "attributes": { "POSITION": pos }, "indices": idx })],
+    );
     d.node(json!({ "mesh": mesh }), true);
     let (scene, report) = d.import().unwrap();
     assert_eq!(scene.triangle_count(), 3);
     assert_eq!(scene.degenerate_triangle_count(), 2);
     assert_eq!(report.primitives_with_computed_normals, 1);
     let mesh = &scene.meshes()[0];
-    assert!(mesh.normals.iter().all(|n| n.is_finite() && (n.length() - 1.0).abs() < 1e-6));
+    assert!(
+        mesh.normals
+            .iter()
+            .all(|n| n.is_finite() && (n.length() - 1.0).abs() < 1e-6)
+    );
 }
 
 #[test]
@@ -122,14 +150,22 @@ fn far_offset_keeps_hundredth_millimetre_precision() {
     // A part 1e7 mm from the origin with features 0.01 mm apart: the node transform
     // is read as f64 and the geometry stays local f32, so world positions are exact.
     let offset = [10_000_000.123_456, -12_345_678.987_654, 9_999_999.5];
-    let local: Vec<[f32; 3]> = (0..50).map(|i| [i as f32 * 0.01, 0.0, (i % 7) as f32 * 0.01]).collect();
+    let local: Vec<[f32; 3]> = (0..50)
+        .map(|i| [i as f32 * 0.01, 0.0, (i % 7) as f32 * 0.01])
+        .collect();
     let mut d = Doc::new();
     let pos = d.positions(&local);
     let idx: Vec<u32> = (0..48).flat_map(|i| [i, i + 1, i + 2]).collect();
     let idx = d.indices(&idx);
-    let mesh = d.mesh("fine", vec![json!({ "attributes": { "POSITION": pos }, "indices": idx })]);
+    let mesh = d.mesh(
+        "fine",
+        vec![json!({ "attributes": { "POSITION": pos }, "indices": idx })],
+    );
     let parent = d.node(json!({ "name": "site", "translation": [offset[0] - 1000.0, offset[1], offset[2]], "children": [] }), true);
-    let child = d.node(json!({ "name": "fine part", "translation": [1000.0, 0.0, 0.0], "mesh": mesh }), false);
+    let child = d.node(
+        json!({ "name": "fine part", "translation": [1000.0, 0.0, 0.0], "mesh": mesh }),
+        false,
+    );
     d.json["nodes"][parent]["children"] = json!([child]);
     let (scene, _) = d.import().unwrap();
     let part = scene.find_part("fine part").unwrap();
@@ -138,7 +174,9 @@ fn far_offset_keeps_hundredth_millimetre_precision() {
     assert_eq!(mesh.positions.len(), local.len());
     for &p in &mesh.positions {
         let w = world.transform_point3(p.as_dvec3());
-        let err = (w - (DVec3::from(offset) + p.as_dvec3())).abs().max_element();
+        let err = (w - (DVec3::from(offset) + p.as_dvec3()))
+            .abs()
+            .max_element();
         assert!(err < 1e-4, "world error {err} mm at {w}");
     }
     // Two neighbours 0.01 mm apart stay 0.01 mm apart in world space.
@@ -149,15 +187,31 @@ fn far_offset_keeps_hundredth_millimetre_precision() {
 
 #[test]
 fn strips_and_fans_become_triangle_lists() {
-    let p = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 2.0, 0.0]];
-    for (mode, expected) in [(5, vec![[0, 1, 2], [2, 1, 3], [2, 3, 4]]), (6, vec![[0, 1, 2], [0, 2, 3], [0, 3, 4]])] {
+    let p = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 2.0, 0.0],
+    ];
+    for (mode, expected) in [
+        (5, vec![[0, 1, 2], [2, 1, 3], [2, 3, 4]]),
+        (6, vec![[0, 1, 2], [0, 2, 3], [0, 3, 4]]),
+    ] {
         let mut d = Doc::new();
         let pos = d.positions(&p);
-        let mesh = d.mesh("m", vec![json!({ "attributes": { "POSITION": pos }, "mode": mode })]);
+        let mesh = d.mesh(
+            "m",
+            vec![json!({ "attributes": { "POSITION": pos }, "mode": mode })],
+        );
         d.node(json!({ "mesh": mesh }), true);
         let (scene, _) = d.import().unwrap();
         let m = &scene.meshes()[0];
-        let got: Vec<[[f32; 3]; 3]> = m.indices.chunks(3).map(|t| [0, 1, 2].map(|k| m.positions[t[k] as usize].to_array())).collect();
+        let got: Vec<[[f32; 3]; 3]> = m
+            .indices
+            .chunks(3)
+            .map(|t| [0, 1, 2].map(|k| m.positions[t[k] as usize].to_array()))
+            .collect();
         let want: Vec<[[f32; 3]; 3]> = expected.iter().map(|t| t.map(|i| p[i])).collect();
         assert_eq!(got, want, "mode {mode}");
     }
@@ -167,12 +221,20 @@ fn strips_and_fans_become_triangle_lists() {
 fn points_and_lines_are_skipped_and_counted() {
     let mut d = one_quad_doc();
     let pos = d.positions(&[[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
-    let prims = (0..4).map(|mode| json!({ "attributes": { "POSITION": pos }, "mode": mode })).collect();
+    let prims = (0..4)
+        .map(|mode| json!({ "attributes": { "POSITION": pos }, "mode": mode }))
+        .collect();
     let mesh = d.mesh("wire", prims);
     d.node(json!({ "mesh": mesh }), true);
     let (scene, report) = d.import().unwrap();
     assert_eq!(scene.triangle_count(), 2);
-    assert_eq!((report.point_primitives_skipped, report.line_primitives_skipped), (1, 3));
+    assert_eq!(
+        (
+            report.point_primitives_skipped,
+            report.line_primitives_skipped
+        ),
+        (1, 3)
+    );
 }
 
 #[test]
@@ -188,14 +250,23 @@ fn sparse_and_quantized_attributes_decode() {
     let view = d.view(&view_bytes, Some(8));
     // Sparse: vertex 2 replaced by (0, 1, 0).
     let sparse_idx = d.view(&2u16.to_le_bytes(), None);
-    let sparse_val = d.view(&[0i16, 32767, 0].iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<_>>(), None);
+    let sparse_val = d.view(
+        &[0i16, 32767, 0]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect::<Vec<_>>(),
+        None,
+    );
     let pos = d.json["accessors"].as_array().unwrap().len();
     d.json["accessors"].as_array_mut().unwrap().push(json!({
         "bufferView": view, "componentType": 5122, "normalized": true, "count": 3, "type": "VEC3",
         "sparse": { "count": 1, "indices": { "bufferView": sparse_idx, "componentType": 5123 }, "values": { "bufferView": sparse_val } }
     }));
     let mesh = d.mesh("q", vec![json!({ "attributes": { "POSITION": pos } })]);
-    d.node(json!({ "mesh": mesh, "scale": [1000.0, 1000.0, 1000.0] }), true);
+    d.node(
+        json!({ "mesh": mesh, "scale": [1000.0, 1000.0, 1000.0] }),
+        true,
+    );
     d.json["extensionsRequired"] = json!(["KHR_mesh_quantization"]);
     d.json["extensionsUsed"] = json!(["KHR_mesh_quantization"]);
     let (scene, _) = d.import().unwrap();
@@ -212,7 +283,9 @@ fn unsupported_required_extension_is_named() {
     d.json["extensionsUsed"] = json!(["KHR_draco_mesh_compression"]);
     d.json["extensionsRequired"] = json!(["KHR_draco_mesh_compression"]);
     let err = d.import().expect_err("draco is not supported");
-    assert!(matches!(&err, ImportError::UnsupportedExtension { name } if name == "KHR_draco_mesh_compression"));
+    assert!(
+        matches!(&err, ImportError::UnsupportedExtension { name } if name == "KHR_draco_mesh_compression")
+    );
     assert!(err.to_string().contains("KHR_draco_mesh_compression"));
     // Merely used (with a fallback in the file) is fine.
     d.json["extensionsRequired"] = json!([]);
@@ -226,16 +299,16 @@ fn node_cycles_and_shared_children_are_errors() {
     assert!(d.import().unwrap_err().to_string().contains("cycle"));
     let mut d = one_quad_doc();
     d.node(json!({ "name": "a", "children": [0] }), true);
-    assert!(d.import().is_err(), "node 0 reached from the scene and from node 1");
+    assert!(
+        d.import().is_err(),
+        "node 0 reached from the scene and from node 1"
+    );
 }
 
 #[test]
 fn unnamed_nodes_get_stable_names_and_paths() {
     let mut d = one_quad_doc();
-    d.json["nodes"][0]
-        .as_object_mut()
-        .unwrap()
-        .remove("name");
+    d.json["nodes"][0].as_object_mut().unwrap().remove("name");
     let group = d.node(json!({ "children": [0] }), false);
     d.json["scenes"][0]["nodes"] = json!([group]);
     let (a, _) = d.import().unwrap();
@@ -254,11 +327,19 @@ fn glb_container_and_corruptions() {
     let (scene, _) = import_gltf_slice(&glb, None, "t", &opts).unwrap();
     assert_eq!(scene.triangle_count(), 2);
     for cut in [0, 3, 11, 12, 19, 40, glb.len() - 1] {
-        assert!(import_gltf_slice(&glb[..cut], None, "t", &opts).is_err(), "truncated at {cut}");
+        assert!(
+            import_gltf_slice(&glb[..cut], None, "t", &opts).is_err(),
+            "truncated at {cut}"
+        );
     }
     let mut bad_version = glb.clone();
     bad_version[4] = 1;
-    assert!(import_gltf_slice(&bad_version, None, "t", &opts).unwrap_err().to_string().contains("version 1"));
+    assert!(
+        import_gltf_slice(&bad_version, None, "t", &opts)
+            .unwrap_err()
+            .to_string()
+            .contains("version 1")
+    );
 }
 
 proptest! {

@@ -20,13 +20,30 @@ pub fn assert_same_scene(a: &Scene, b: &Scene) {
     for p in a.part_ids() {
         assert_eq!(a.part_name(p), b.part_name(p));
         assert_eq!(a.part_path(p), b.part_path(p));
-        assert_eq!(a.part_mesh(p).triangle_count(), b.part_mesh(p).triangle_count(), "triangles of {}", a.part_name(p));
-        let (wa, wb) = (a.part_world(p).to_cols_array(), b.part_world(p).to_cols_array());
+        assert_eq!(
+            a.part_mesh(p).triangle_count(),
+            b.part_mesh(p).triangle_count(),
+            "triangles of {}",
+            a.part_name(p)
+        );
+        let (wa, wb) = (
+            a.part_world(p).to_cols_array(),
+            b.part_world(p).to_cols_array(),
+        );
         let scale = wa.iter().fold(1.0f64, |m, v| m.max(v.abs()));
         for (x, y) in wa.iter().zip(&wb) {
-            assert!((x - y).abs() <= 1e-9 * scale, "transform of {}: {wa:?} vs {wb:?}", a.part_name(p));
+            assert!(
+                (x - y).abs() <= 1e-9 * scale,
+                "transform of {}: {wa:?} vs {wb:?}",
+                a.part_name(p)
+            );
         }
-        assert_eq!(colours(a, p), colours(b, p), "colours of {}", a.part_name(p));
+        assert_eq!(
+            colours(a, p),
+            colours(b, p),
+            "colours of {}",
+            a.part_name(p)
+        );
     }
     assert_eq!(a.triangle_count(), b.triangle_count());
 }
@@ -36,7 +53,9 @@ fn colours(s: &Scene, p: dmu_scene::PartId) -> BTreeMap<[u32; 4], u64> {
     let mut m = BTreeMap::new();
     for c in s.part_mesh(p).chunk_ids() {
         let chunk = s.chunk(c);
-        let colour = s.materials()[chunk.material.index()].base_color.map(f32::to_bits);
+        let colour = s.materials()[chunk.material.index()]
+            .base_color
+            .map(f32::to_bits);
         *m.entry(colour).or_default() += u64::from(chunk.triangle_count());
     }
     m
@@ -53,7 +72,8 @@ fn round_trip(scene: &Scene, ext: &str) -> Scene {
 
 #[test]
 fn shared_models_import_with_their_published_counts_and_round_trip() {
-    let Some(data) = shared_data("shared_models_import_with_their_published_counts_and_round_trip") else {
+    let Some(data) = shared_data("shared_models_import_with_their_published_counts_and_round_trip")
+    else {
         return;
     };
     let table: &[(&str, usize, u64)] = &[
@@ -69,10 +89,18 @@ fn shared_models_import_with_their_published_counts_and_round_trip() {
     for &(file, parts, triangles) in table {
         let scene = import(&data.join(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
         scene.validate().unwrap();
-        assert_eq!((scene.parts().len(), scene.triangle_count()), (parts, triangles), "{file}");
+        assert_eq!(
+            (scene.parts().len(), scene.triangle_count()),
+            (parts, triangles),
+            "{file}"
+        );
         let back = round_trip(&scene, "glb");
         assert_same_scene(&scene, &back);
-        assert_eq!(back.meshes().len(), scene.meshes().len(), "{file}: instancing kept");
+        assert_eq!(
+            back.meshes().len(),
+            scene.meshes().len(),
+            "{file}: instancing kept"
+        );
     }
 }
 
@@ -91,7 +119,11 @@ fn meshopt_compressed_equals_uncompressed() {
     for (m, (a, b)) in quant.meshes().iter().zip(meshopt.meshes()).enumerate() {
         let (ta, tb) = (triangles(&quant, a), triangles(&meshopt, b));
         let differing = ta.iter().zip(&tb).filter(|(x, y)| x != y).count();
-        assert!(ta.len() == tb.len() && differing == 0, "mesh {m}: {differing} of {} triangles differ", ta.len());
+        assert!(
+            ta.len() == tb.len() && differing == 0,
+            "mesh {m}: {differing} of {} triangles differ",
+            ta.len()
+        );
     }
 }
 
@@ -100,7 +132,11 @@ fn triangles(scene: &Scene, mesh: &dmu_scene::Mesh) -> Vec<[[u32; 3]; 3]> {
         .chunk_ids()
         .flat_map(|c| {
             let chunk = scene.chunk(c);
-            chunk.triangles.clone().map(move |t| scene.triangle_local(chunk.mesh, c, t).map(|p| p.to_array().map(f32::to_bits)))
+            chunk.triangles.clone().map(move |t| {
+                scene
+                    .triangle_local(chunk.mesh, c, t)
+                    .map(|p| p.to_array().map(f32::to_bits))
+            })
         })
         .map(|t| {
             let rotations = [t, [t[1], t[2], t[0]], [t[2], t[0], t[1]]];
@@ -126,22 +162,36 @@ fn debian_assimp_models() {
         return;
     };
     let engine = import(&dir.join("2CylinderEngine-glTF-Binary/2CylinderEngine.glb")).unwrap();
-    assert_eq!((engine.parts().len(), engine.triangle_count()), (67, 121_496));
+    assert_eq!(
+        (engine.parts().len(), engine.triangle_count()),
+        (67, 121_496)
+    );
     assert_eq!(engine.materials().len(), 34);
     assert_same_scene(&engine, &round_trip(&engine, "glb"));
 
     match import(&dir.join("draco/2CylinderEngine.gltf")) {
-        Err(ImportError::UnsupportedExtension { name }) => assert_eq!(name, "KHR_draco_mesh_compression"),
+        Err(ImportError::UnsupportedExtension { name }) => {
+            assert_eq!(name, "KHR_draco_mesh_compression")
+        }
         other => panic!("draco must be refused by name, got {other:?}"),
     }
 
     // Asset generator primitive modes: 00-03 and 07-10 are points and lines.
     for i in 0..16 {
-        let path = dir.join(format!("glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_{i:02}.gltf"));
+        let path = dir.join(format!(
+            "glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_{i:02}.gltf"
+        ));
         let (scene, report) = import_gltf(&path, &ImportOptions::default()).unwrap();
         let lines_or_points = matches!(i, 0..=3 | 7..=10);
-        assert_eq!(scene.triangle_count(), if lines_or_points { 0 } else { 2 }, "mode file {i:02}");
-        assert_eq!(report.point_primitives_skipped + report.line_primitives_skipped, usize::from(lines_or_points));
+        assert_eq!(
+            scene.triangle_count(),
+            if lines_or_points { 0 } else { 2 },
+            "mode file {i:02}"
+        );
+        assert_eq!(
+            report.point_primitives_skipped + report.line_primitives_skipped,
+            usize::from(lines_or_points)
+        );
     }
 
     for broken in [
@@ -155,7 +205,9 @@ fn debian_assimp_models() {
         "wrongTypes/badArray.gltf",
         "wrongTypes/badString.gltf",
     ] {
-        let err = import(&dir.join(broken)).err().unwrap_or_else(|| panic!("{broken} must fail"));
+        let err = import(&dir.join(broken))
+            .err()
+            .unwrap_or_else(|| panic!("{broken} must fail"));
         assert!(!err.to_string().is_empty());
     }
     // Everything else in the folder: an answer, never a panic.
@@ -187,8 +239,12 @@ fn gltf_validator_suite() {
     };
     let (mut clean, mut with_errors, mut refused, mut no_data) = (0, 0, 0, 0);
     for file in walk(&data.join("gltf-validator")) {
-        let report_path = file.with_file_name(format!("{}.report.json", file.file_name().unwrap().to_string_lossy()));
-        let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&report_path).unwrap()).unwrap();
+        let report_path = file.with_file_name(format!(
+            "{}.report.json",
+            file.file_name().unwrap().to_string_lossy()
+        ));
+        let report: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&report_path).unwrap()).unwrap();
         let errors = report["issues"]["numErrors"].as_u64().unwrap();
         let result = import(&file);
         if errors == 0 {
@@ -197,7 +253,12 @@ fn gltf_validator_suite() {
                 Ok(_) => {}
                 // A .gltf whose buffer has no uri carries no data at all; the
                 // validator checks only its JSON. Refusing to invent geometry is right.
-                Err(e) if e.to_string().contains("has no data (no uri, and no GLB BIN chunk)") => no_data += 1,
+                Err(e)
+                    if e.to_string()
+                        .contains("has no data (no uri, and no GLB BIN chunk)") =>
+                {
+                    no_data += 1
+                }
                 Err(e) => panic!("{} has no validator error but failed: {e}", file.display()),
             }
         } else {
@@ -208,6 +269,12 @@ fn gltf_validator_suite() {
     eprintln!(
         "validator suite: {clean} clean files ({no_data} of them without buffer data, refused); {refused} of {with_errors} files with errors refused"
     );
-    assert!(no_data <= 2, "{no_data} clean files lacked buffer data: more than the two known JSON-only cases");
-    assert!(clean > 100 && with_errors > 200, "suite looks incomplete: {clean} clean, {with_errors} with errors");
+    assert!(
+        no_data <= 2,
+        "{no_data} clean files lacked buffer data: more than the two known JSON-only cases"
+    );
+    assert!(
+        clean > 100 && with_errors > 200,
+        "suite looks incomplete: {clean} clean, {with_errors} with errors"
+    );
 }

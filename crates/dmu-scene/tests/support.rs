@@ -39,7 +39,14 @@ impl Doc {
     }
 
     /// Adds an accessor over a fresh buffer view.
-    pub fn accessor(&mut self, bytes: &[u8], component_type: u32, count: usize, ty: &str, extra: Value) -> usize {
+    pub fn accessor(
+        &mut self,
+        bytes: &[u8],
+        component_type: u32,
+        count: usize,
+        ty: &str,
+        extra: Value,
+    ) -> usize {
         let view = self.view(bytes, None);
         let mut a = json!({ "bufferView": view, "componentType": component_type, "count": count, "type": ty });
         if let Value::Object(m) = extra {
@@ -69,7 +76,10 @@ impl Doc {
     pub fn node(&mut self, node: Value, root: bool) -> usize {
         let n = self.push("nodes", node);
         if root {
-            self.json["scenes"][0]["nodes"].as_array_mut().expect("array").push(json!(n));
+            self.json["scenes"][0]["nodes"]
+                .as_array_mut()
+                .expect("array")
+                .push(json!(n));
         }
         n
     }
@@ -77,7 +87,10 @@ impl Doc {
     /// The document as .gltf bytes with the buffer embedded.
     pub fn bytes(&self) -> Vec<u8> {
         let mut j = self.json.clone();
-        let uri = format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&self.bin));
+        let uri = format!(
+            "data:application/octet-stream;base64,{}",
+            base64::engine::general_purpose::STANDARD.encode(&self.bin)
+        );
         j["buffers"] = json!([{ "byteLength": self.bin.len(), "uri": uri }]);
         serde_json::to_vec(&j).expect("json")
     }
@@ -92,7 +105,13 @@ impl Doc {
         bin.resize(bin.len().next_multiple_of(4), 0);
         let total = 12 + 8 + json.len() + 8 + bin.len();
         let mut out = Vec::new();
-        for w in [0x4654_6C67u32, 2, total as u32, json.len() as u32, 0x4E4F_534A] {
+        for w in [
+            0x4654_6C67u32,
+            2,
+            total as u32,
+            json.len() as u32,
+            0x4E4F_534A,
+        ] {
             out.extend_from_slice(&w.to_le_bytes());
         }
         out.extend_from_slice(&json);
@@ -111,9 +130,17 @@ impl Doc {
 /// A unit square in the z = 0 plane as one triangle-list primitive on a node.
 pub fn one_quad_doc() -> Doc {
     let mut d = Doc::new();
-    let pos = d.positions(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]]);
+    let pos = d.positions(&[
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0],
+    ]);
     let idx = d.indices(&[0, 1, 2, 0, 2, 3]);
-    let mesh = d.mesh("quad", vec![json!({ "attributes": { "POSITION": pos }, "indices": idx })]);
+    let mesh = d.mesh(
+        "quad",
+        vec![json!({ "attributes": { "POSITION": pos }, "indices": idx })],
+    );
     d.node(json!({ "name": "quad", "mesh": mesh }), true);
     d
 }
@@ -125,7 +152,9 @@ pub fn shared_data(test: &str) -> Option<PathBuf> {
     if dir.is_dir() {
         Some(dir)
     } else {
-        eprintln!("SKIPPED {test}: ../shared/data is absent (it exists beside the project checkout in CI)");
+        eprintln!(
+            "SKIPPED {test}: ../shared/data is absent (it exists beside the project checkout in CI)"
+        );
         None
     }
 }
@@ -133,11 +162,14 @@ pub fn shared_data(test: &str) -> Option<PathBuf> {
 /// The glTF2 folder of Debian's assimp-testmodels, fetched by
 /// `scripts/fetch-testdata.sh` into `target/testdata`.
 pub fn assimp_models(test: &str) -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target/testdata/assimp/usr/share/assimp/models/glTF2");
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../target/testdata/assimp/usr/share/assimp/models/glTF2");
     if dir.is_dir() {
         Some(dir)
     } else {
-        eprintln!("SKIPPED {test}: run scripts/fetch-testdata.sh to fetch Debian's assimp-testmodels");
+        eprintln!(
+            "SKIPPED {test}: run scripts/fetch-testdata.sh to fetch Debian's assimp-testmodels"
+        );
         None
     }
 }

@@ -19,9 +19,13 @@ pub(super) fn split_container(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>), Im
     if !bytes.starts_with(b"glTF") {
         return Ok((bytes, None));
     }
-    let malformed = |m: &str| ImportError::Malformed { message: format!("GLB container: {m}") };
+    let malformed = |m: &str| ImportError::Malformed {
+        message: format!("GLB container: {m}"),
+    };
     let word = |at: usize| -> Option<u32> {
-        bytes.get(at..at + 4).map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+        bytes
+            .get(at..at + 4)
+            .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
     };
     let version = word(4).ok_or_else(|| malformed("truncated header"))?;
     if version != 2 {
@@ -29,7 +33,10 @@ pub(super) fn split_container(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>), Im
     }
     let length = word(8).ok_or_else(|| malformed("truncated header"))? as usize;
     if length > bytes.len() {
-        return Err(malformed(&format!("header says {length} bytes, file has {}", bytes.len())));
+        return Err(malformed(&format!(
+            "header says {length} bytes, file has {}",
+            bytes.len()
+        )));
     }
     let (mut json, mut bin) = (None, None);
     let mut at = 12;
@@ -55,7 +62,11 @@ pub(super) type Bytes<'a> = Result<Cow<'a, [u8]>, String>;
 
 /// Loads every buffer: the GLB BIN chunk, data URIs and files next to the glTF.
 /// Buffers that exist only as an EXT_meshopt_compression fallback are left empty.
-pub(super) fn load_buffers<'a>(root: &json::Root, blob: Option<&'a [u8]>, base_dir: Option<&Path>) -> Vec<Bytes<'a>> {
+pub(super) fn load_buffers<'a>(
+    root: &json::Root,
+    blob: Option<&'a [u8]>,
+    base_dir: Option<&Path>,
+) -> Vec<Bytes<'a>> {
     root.buffers
         .iter()
         .enumerate()
@@ -105,7 +116,9 @@ fn percent_decode(uri: &str) -> String {
     let mut out = Vec::with_capacity(bytes.len());
     let mut i = 0;
     while i < bytes.len() {
-        let hex = bytes.get(i + 1..i + 3).and_then(|h| std::str::from_utf8(h).ok());
+        let hex = bytes
+            .get(i + 1..i + 3)
+            .and_then(|h| std::str::from_utf8(h).ok());
         match (bytes[i], hex.and_then(|h| u8::from_str_radix(h, 16).ok())) {
             (b'%', Some(b)) => {
                 out.push(b);
@@ -126,19 +139,32 @@ pub(super) fn resolve_views<'a>(root: &json::Root, buffers: &'a [Bytes<'a>]) -> 
         .iter()
         .enumerate()
         .map(|(i, view)| {
-            let meshopt = view.extensions.as_ref().and_then(|e| e.others.get("EXT_meshopt_compression"));
+            let meshopt = view
+                .extensions
+                .as_ref()
+                .and_then(|e| e.others.get("EXT_meshopt_compression"));
             if let Some(ext) = meshopt {
                 return decode_meshopt(i, ext, buffers).map(Cow::Owned);
             }
             let offset = view.byte_offset.map_or(0, |o| o.0 as usize);
-            slice(buffers, view.buffer.value(), offset, view.byte_length.0 as usize)
-                .map(Cow::Borrowed)
-                .map_err(|e| format!("bufferViews[{i}]: {e}"))
+            slice(
+                buffers,
+                view.buffer.value(),
+                offset,
+                view.byte_length.0 as usize,
+            )
+            .map(Cow::Borrowed)
+            .map_err(|e| format!("bufferViews[{i}]: {e}"))
         })
         .collect()
 }
 
-fn slice<'a>(buffers: &'a [Bytes<'a>], buffer: usize, offset: usize, len: usize) -> Result<&'a [u8], String> {
+fn slice<'a>(
+    buffers: &'a [Bytes<'a>],
+    buffer: usize,
+    offset: usize,
+    len: usize,
+) -> Result<&'a [u8], String> {
     let data = match buffers.get(buffer) {
         Some(Ok(data)) => data,
         Some(Err(e)) => return Err(e.clone()),
@@ -147,21 +173,40 @@ fn slice<'a>(buffers: &'a [Bytes<'a>], buffer: usize, offset: usize, len: usize)
     offset
         .checked_add(len)
         .and_then(|end| data.get(offset..end))
-        .ok_or_else(|| format!("bytes {offset}..{offset}+{len} outside buffer {buffer} of {} bytes", data.len()))
+        .ok_or_else(|| {
+            format!(
+                "bytes {offset}..{offset}+{len} outside buffer {buffer} of {} bytes",
+                data.len()
+            )
+        })
 }
 
 /// Decodes one EXT_meshopt_compression buffer view (modes ATTRIBUTES, TRIANGLES,
 /// INDICES; filters OCTAHEDRAL, QUATERNION, EXPONENTIAL).
-fn decode_meshopt(view: usize, ext: &serde_json::Value, buffers: &[Bytes<'_>]) -> Result<Vec<u8>, String> {
+fn decode_meshopt(
+    view: usize,
+    ext: &serde_json::Value,
+    buffers: &[Bytes<'_>],
+) -> Result<Vec<u8>, String> {
     let bad = |m: &str| format!("bufferViews[{view}].extensions.EXT_meshopt_compression: {m}");
-    let field = |k: &str| ext.get(k).and_then(serde_json::Value::as_u64).map(|v| v as usize);
+    let field = |k: &str| {
+        ext.get(k)
+            .and_then(serde_json::Value::as_u64)
+            .map(|v| v as usize)
+    };
     let buffer = field("buffer").ok_or_else(|| bad("missing buffer"))?;
     let offset = field("byteOffset").unwrap_or(0);
     let length = field("byteLength").ok_or_else(|| bad("missing byteLength"))?;
     let stride = field("byteStride").ok_or_else(|| bad("missing byteStride"))?;
     let count = field("count").ok_or_else(|| bad("missing count"))?;
-    let mode = ext.get("mode").and_then(serde_json::Value::as_str).unwrap_or("");
-    let filter = ext.get("filter").and_then(serde_json::Value::as_str).unwrap_or("NONE");
+    let mode = ext
+        .get("mode")
+        .and_then(serde_json::Value::as_str)
+        .unwrap_or("");
+    let filter = ext
+        .get("filter")
+        .and_then(serde_json::Value::as_str)
+        .unwrap_or("NONE");
     let src = slice(buffers, buffer, offset, length).map_err(|e| bad(&e))?;
     let err = |e: meshopt::Error| bad(&format!("corrupt {mode} stream ({e})"));
     match (mode, stride) {
@@ -186,7 +231,9 @@ fn decode_meshopt(view: usize, ext: &serde_json::Value, buffers: &[Bytes<'_>]) -
             apply_filter(&mut words, filter, stride).map_err(|m| bad(&m))?;
             Ok(words.iter().flat_map(|w| w.to_le_bytes()).collect())
         }
-        _ => Err(bad(&format!("unsupported mode {mode:?} with byteStride {stride}"))),
+        _ => Err(bad(&format!(
+            "unsupported mode {mode:?} with byteStride {stride}"
+        ))),
     }
 }
 
@@ -210,8 +257,12 @@ fn decode_attributes(src: &[u8], count: usize, stride: usize) -> Result<Vec<u32>
 fn apply_filter(words: &mut [u32], filter: &str, stride: usize) -> Result<(), String> {
     match (filter, stride) {
         ("NONE", _) => {}
-        ("OCTAHEDRAL", 4) => meshopt::encoding::decode_filter_oct::<i8>(bytemuck::cast_slice_mut(words)),
-        ("OCTAHEDRAL", 8) => meshopt::encoding::decode_filter_oct::<i16>(bytemuck::cast_slice_mut(words)),
+        ("OCTAHEDRAL", 4) => {
+            meshopt::encoding::decode_filter_oct::<i8>(bytemuck::cast_slice_mut(words))
+        }
+        ("OCTAHEDRAL", 8) => {
+            meshopt::encoding::decode_filter_oct::<i16>(bytemuck::cast_slice_mut(words))
+        }
         ("QUATERNION", 8) => meshopt::encoding::decode_filter_quat(bytemuck::cast_slice_mut(words)),
         ("EXPONENTIAL", s) if s % 4 == 0 => match s / 4 {
             1 => meshopt::encoding::decode_filter_exp::<1>(bytemuck::cast_slice_mut(words)),
@@ -220,8 +271,11 @@ fn apply_filter(words: &mut [u32], filter: &str, stride: usize) -> Result<(), St
             4 => meshopt::encoding::decode_filter_exp::<4>(bytemuck::cast_slice_mut(words)),
             _ => return Err(format!("EXPONENTIAL filter with byteStride {s}")),
         },
-        _ => return Err(format!("unsupported filter {filter:?} with byteStride {stride}")),
+        _ => {
+            return Err(format!(
+                "unsupported filter {filter:?} with byteStride {stride}"
+            ));
+        }
     }
     Ok(())
 }
-

@@ -60,13 +60,18 @@ pub struct ImportOptions<'a> {
 
 impl std::fmt::Debug for ImportOptions<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("ImportOptions").field("chunk_triangles", &self.chunk_triangles).finish_non_exhaustive()
+        f.debug_struct("ImportOptions")
+            .field("chunk_triangles", &self.chunk_triangles)
+            .finish_non_exhaustive()
     }
 }
 
 impl Default for ImportOptions<'_> {
     fn default() -> Self {
-        Self { chunk_triangles: crate::DEFAULT_CHUNK_TRIANGLES, progress: None }
+        Self {
+            chunk_triangles: crate::DEFAULT_CHUNK_TRIANGLES,
+            progress: None,
+        }
     }
 }
 
@@ -84,9 +89,17 @@ pub struct ImportReport {
 }
 
 /// Imports a .gltf or .glb file.
-pub fn import_gltf(path: &Path, options: &ImportOptions<'_>) -> Result<(Scene, ImportReport), ImportError> {
-    let bytes = std::fs::read(path).map_err(|source| ImportError::Io { path: path.to_owned(), source })?;
-    let name = path.file_stem().map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned());
+pub fn import_gltf(
+    path: &Path,
+    options: &ImportOptions<'_>,
+) -> Result<(Scene, ImportReport), ImportError> {
+    let bytes = std::fs::read(path).map_err(|source| ImportError::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    let name = path
+        .file_stem()
+        .map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned());
     import_gltf_slice(&bytes, path.parent(), &name, options)
 }
 
@@ -98,7 +111,9 @@ pub fn import_gltf_slice(
     options: &ImportOptions<'_>,
 ) -> Result<(Scene, ImportReport), ImportError> {
     let (json_bytes, blob) = split_container(bytes)?;
-    let malformed = |e: serde_json::Error| ImportError::Malformed { message: format!("JSON: {e}") };
+    let malformed = |e: serde_json::Error| ImportError::Malformed {
+        message: format!("JSON: {e}"),
+    };
     let mut value: serde_json::Value = serde_json::from_slice(json_bytes).map_err(malformed)?;
     // Node transforms first, as f64 from the untouched numbers.
     let transforms = RawTransforms::deserialize(&value).map_err(malformed)?;
@@ -107,23 +122,44 @@ pub fn import_gltf_slice(
     // before typed parsing, so their schema quirks (e.g. an animation target
     // without a node, valid since KHR_animation_pointer) cannot fail an import.
     if let Some(top) = value.as_object_mut() {
-        for unused in ["animations", "skins", "cameras", "images", "textures", "samplers"] {
+        for unused in [
+            "animations",
+            "skins",
+            "cameras",
+            "images",
+            "textures",
+            "samplers",
+        ] {
             top.remove(unused);
         }
         // `scene.nodes` is optional in the spec but required by the `gltf` crate.
-        for scene in top.get_mut("scenes").and_then(|s| s.as_array_mut()).into_iter().flatten() {
+        for scene in top
+            .get_mut("scenes")
+            .and_then(|s| s.as_array_mut())
+            .into_iter()
+            .flatten()
+        {
             if let Some(scene) = scene.as_object_mut() {
-                scene.entry("nodes").or_insert_with(|| serde_json::json!([]));
+                scene
+                    .entry("nodes")
+                    .or_insert_with(|| serde_json::json!([]));
             }
         }
     }
     let root = json::Root::deserialize(&value).map_err(malformed)?;
-    if let Some(name) = root.extensions_required.iter().find(|e| !SUPPORTED_REQUIRED.contains(&e.as_str())) {
+    if let Some(name) = root
+        .extensions_required
+        .iter()
+        .find(|e| !SUPPORTED_REQUIRED.contains(&e.as_str()))
+    {
         return Err(ImportError::UnsupportedExtension { name: name.clone() });
     }
     let buffers = load_buffers(&root, blob, base_dir);
     let views = resolve_views(&root, &buffers);
-    let data = Data { root: &root, views: &views };
+    let data = Data {
+        root: &root,
+        views: &views,
+    };
 
     let scene_index = match root.scene {
         Some(s) => Some(s.value()),
@@ -131,9 +167,15 @@ pub fn import_gltf_slice(
         None => Some(0),
     };
     let scene_json = scene_index
-        .map(|s| root.scenes.get(s).ok_or_else(|| invalid(format!("scene {s} does not exist"))))
+        .map(|s| {
+            root.scenes
+                .get(s)
+                .ok_or_else(|| invalid(format!("scene {s} does not exist")))
+        })
         .transpose()?;
-    let name = scene_json.and_then(|s| s.name.clone()).unwrap_or_else(|| default_name.to_owned());
+    let name = scene_json
+        .and_then(|s| s.name.clone())
+        .unwrap_or_else(|| default_name.to_owned());
     let mut builder = SceneBuilder::new(name, options.chunk_triangles);
 
     for (i, m) in root.materials.iter().enumerate() {
@@ -142,7 +184,12 @@ pub fn import_gltf_slice(
     }
     // A grey default only when some primitive names no material.
     let default_material = MaterialId::from_index(root.materials.len());
-    if root.meshes.iter().flat_map(|m| &m.primitives).any(|p| p.material.is_none()) {
+    if root
+        .meshes
+        .iter()
+        .flat_map(|m| &m.primitives)
+        .any(|p| p.material.is_none())
+    {
         builder.add_material("default", [0.8, 0.8, 0.8, 1.0]);
     }
 
@@ -189,7 +236,11 @@ fn integral_floats_to_integers(v: &mut serde_json::Value) {
     match v {
         serde_json::Value::Number(n) if n.is_f64() => {
             if let Some(f) = n.as_f64().filter(|f| f.fract() == 0.0 && f.abs() < 9.0e15) {
-                *n = if f < 0.0 { (f as i64).into() } else { (f as u64).into() };
+                *n = if f < 0.0 {
+                    (f as i64).into()
+                } else {
+                    (f as u64).into()
+                };
             }
         }
         serde_json::Value::Array(a) => a.iter_mut().for_each(integral_floats_to_integers),
@@ -207,7 +258,13 @@ fn base_color(m: &json::Material) -> [f32; 4] {
         .and_then(|e| e.get("diffuseFactor"))
         .and_then(|v| serde_json::from_value::<[f32; 4]>(v.clone()).ok());
     let c = spec_gloss.unwrap_or(m.pbr_metallic_roughness.base_color_factor.0);
-    c.map(|v| if v.is_finite() { v.clamp(0.0, 1.0) } else { 1.0 })
+    c.map(|v| {
+        if v.is_finite() {
+            v.clamp(0.0, 1.0)
+        } else {
+            1.0
+        }
+    })
 }
 
 /// The node transforms as f64 (the `gltf` crate holds them as f32).
@@ -231,11 +288,17 @@ impl RawNode {
             DAffine3::from_mat4(DMat4::from_cols_array(&m))
         } else {
             let t = self.translation.map_or(DVec3::ZERO, DVec3::from_array);
-            let r = self.rotation.map_or(DQuat::IDENTITY, |q| DQuat::from_array(q).normalize());
+            let r = self
+                .rotation
+                .map_or(DQuat::IDENTITY, |q| DQuat::from_array(q).normalize());
             let s = self.scale.map_or(DVec3::ONE, DVec3::from_array);
             DAffine3::from_scale_rotation_translation(s, r, t)
         };
-        if m.is_finite() { Ok(m) } else { Err(invalid(format!("nodes[{index}]: transform is not finite"))) }
+        if m.is_finite() {
+            Ok(m)
+        } else {
+            Err(invalid(format!("nodes[{index}]: transform is not finite")))
+        }
     }
 }
 
@@ -266,11 +329,20 @@ fn walk_nodes(
     mut visit: impl FnMut(usize, Option<usize>) -> Result<(), ImportError>,
 ) -> Result<(), ImportError> {
     let mut seen = vec![false; root.nodes.len()];
-    let mut stack: Vec<(usize, Option<usize>)> = root_nodes(root, scene).into_iter().rev().map(|n| (n, None)).collect();
+    let mut stack: Vec<(usize, Option<usize>)> = root_nodes(root, scene)
+        .into_iter()
+        .rev()
+        .map(|n| (n, None))
+        .collect();
     while let Some((n, parent)) = stack.pop() {
-        let node = root.nodes.get(n).ok_or_else(|| invalid(format!("node {n} does not exist")))?;
+        let node = root
+            .nodes
+            .get(n)
+            .ok_or_else(|| invalid(format!("node {n} does not exist")))?;
         if std::mem::replace(&mut seen[n], true) {
-            return Err(invalid(format!("nodes[{n}] is reached twice: the node graph has a cycle or a shared child")));
+            return Err(invalid(format!(
+                "nodes[{n}] is reached twice: the node graph has a cycle or a shared child"
+            )));
         }
         visit(n, parent)?;
         for c in node.children.iter().flatten().rev() {
@@ -280,14 +352,23 @@ fn walk_nodes(
     Ok(())
 }
 
-fn used_meshes(root: &json::Root, raw: &RawTransforms, scene: Option<&json::Scene>) -> Result<Vec<bool>, ImportError> {
+fn used_meshes(
+    root: &json::Root,
+    raw: &RawTransforms,
+    scene: Option<&json::Scene>,
+) -> Result<Vec<bool>, ImportError> {
     if raw.nodes.len() != root.nodes.len() {
         return Err(invalid("node list read twice with different lengths"));
     }
     let mut used = vec![false; root.meshes.len()];
     walk_nodes(root, scene, |n, _| {
         if let Some(m) = root.nodes[n].mesh {
-            *used.get_mut(m.value()).ok_or_else(|| invalid(format!("nodes[{n}].mesh: mesh {} does not exist", m.value())))? = true;
+            *used.get_mut(m.value()).ok_or_else(|| {
+                invalid(format!(
+                    "nodes[{n}].mesh: mesh {} does not exist",
+                    m.value()
+                ))
+            })? = true;
         }
         Ok(())
     })?;
@@ -333,12 +414,19 @@ fn decode_mesh(
     chunk_triangles: u32,
 ) -> Result<(ChunkedMesh, ImportReport), ImportError> {
     let mesh_name = mesh.name.clone().unwrap_or_else(|| format!("mesh{m}"));
-    let mut out = MeshData { name: mesh_name.clone(), ..MeshData::default() };
+    let mut out = MeshData {
+        name: mesh_name.clone(),
+        ..MeshData::default()
+    };
     let mut report = ImportReport::default();
     for (p, prim) in mesh.primitives.iter().enumerate() {
         let mode = match prim.mode {
             Checked::Valid(mode) => mode,
-            Checked::Invalid => return Err(invalid(format!("meshes[{m}].primitives[{p}].mode is invalid"))),
+            Checked::Invalid => {
+                return Err(invalid(format!(
+                    "meshes[{m}].primitives[{p}].mode is invalid"
+                )));
+            }
         };
         match mode {
             Mode::Points => {
@@ -352,9 +440,15 @@ fn decode_mesh(
             Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan => {}
         }
         let attribute = |s: Semantic| prim.attributes.get(&Checked::Valid(s)).map(|a| a.value());
-        let pos_accessor = attribute(Semantic::Positions)
-            .ok_or_else(|| invalid(format!("meshes[{m}].primitives[{p}] has no POSITION attribute")))?;
-        let positions: Vec<Vec3> = read_vectors::<3>(data, pos_accessor)?.into_iter().map(Vec3::from_array).collect();
+        let pos_accessor = attribute(Semantic::Positions).ok_or_else(|| {
+            invalid(format!(
+                "meshes[{m}].primitives[{p}] has no POSITION attribute"
+            ))
+        })?;
+        let positions: Vec<Vec3> = read_vectors::<3>(data, pos_accessor)?
+            .into_iter()
+            .map(Vec3::from_array)
+            .collect();
         if let Some(vertex) = positions.iter().position(|v| !v.is_finite()) {
             return Err(ImportError::NonFinitePosition {
                 mesh: m,
@@ -382,7 +476,10 @@ fn decode_mesh(
         let indices = triangulate(mode, &list);
         let normals = match attribute(Semantic::Normals) {
             Some(a) => {
-                let n: Vec<Vec3> = read_vectors::<3>(data, a)?.into_iter().map(Vec3::from_array).collect();
+                let n: Vec<Vec3> = read_vectors::<3>(data, a)?
+                    .into_iter()
+                    .map(Vec3::from_array)
+                    .collect();
                 if n.len() != positions.len() {
                     return Err(invalid(format!(
                         "meshes[{m}].primitives[{p}]: NORMAL has {} elements, POSITION {}",
@@ -399,8 +496,15 @@ fn decode_mesh(
             compute_normals(&positions, &indices)
         });
         let material = match prim.material {
-            Some(mat) if mat.value() < data.root.materials.len() => MaterialId::from_index(mat.value()),
-            Some(mat) => return Err(invalid(format!("meshes[{m}].primitives[{p}].material {} does not exist", mat.value()))),
+            Some(mat) if mat.value() < data.root.materials.len() => {
+                MaterialId::from_index(mat.value())
+            }
+            Some(mat) => {
+                return Err(invalid(format!(
+                    "meshes[{m}].primitives[{p}].material {} does not exist",
+                    mat.value()
+                )));
+            }
             None => default_material,
         };
         out.push_primitive(&positions, &normals, &indices, material);
@@ -418,7 +522,9 @@ fn triangulate(mode: Mode, list: &[u32]) -> Vec<u32> {
                 if i % 2 == 0 { [a, b, c] } else { [b, a, c] }
             })
             .collect(),
-        Mode::TriangleFan => (1..list.len().saturating_sub(1)).flat_map(|i| [list[0], list[i], list[i + 1]]).collect(),
+        Mode::TriangleFan => (1..list.len().saturating_sub(1))
+            .flat_map(|i| [list[0], list[i], list[i + 1]])
+            .collect(),
         _ => list[..list.len() - list.len() % 3].to_vec(),
     }
 }

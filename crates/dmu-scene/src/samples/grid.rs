@@ -8,7 +8,10 @@ use crate::scene::{Scene, SceneBuilder};
 /// The 24 vertices and 12 triangles of a box from `min` to `max`, with flat
 /// outward normals and counter-clockwise outward faces.
 pub(crate) fn box_mesh(name: &str, min: Vec3, max: Vec3, material: crate::MaterialId) -> MeshData {
-    let mut mesh = MeshData { name: name.into(), ..MeshData::default() };
+    let mut mesh = MeshData {
+        name: name.into(),
+        ..MeshData::default()
+    };
     for axis in 0..3 {
         for positive in [false, true] {
             let mut n = Vec3::ZERO;
@@ -22,7 +25,12 @@ pub(crate) fn box_mesh(name: &str, min: Vec3, max: Vec3, material: crate::Materi
                 p[v] = if b { max[v] } else { min[v] };
                 p
             };
-            let quad = [corner(false, false), corner(true, false), corner(true, true), corner(false, true)];
+            let quad = [
+                corner(false, false),
+                corner(true, false),
+                corner(true, true),
+                corner(false, true),
+            ];
             mesh.push_primitive(&quad, &[n; 4], &[0, 1, 2, 0, 2, 3], material);
         }
     }
@@ -41,7 +49,11 @@ pub fn grid(n: u32, spacing: f64, size: f32, chunk_triangles: u32) -> Scene {
         for y in 0..n {
             for x in 0..n {
                 let at = DVec3::new(f64::from(x), f64::from(y), f64::from(z)) * spacing;
-                let node = b.add_node(layer, format!("box_{x}_{y}_{z}"), DAffine3::from_translation(at));
+                let node = b.add_node(
+                    layer,
+                    format!("box_{x}_{y}_{z}"),
+                    DAffine3::from_translation(at),
+                );
                 b.add_part(node, mesh);
             }
         }

@@ -17,7 +17,12 @@ pub struct PlantOptions {
 
 impl Default for PlantOptions {
     fn default() -> Self {
-        Self { triangles: 1_000_000, seed: 1, origin: glam::DVec3::new(4_512_000.0, 5_341_000.0, 12_000.0), chunk_triangles: 2048 }
+        Self {
+            triangles: 1_000_000,
+            seed: 1,
+            origin: glam::DVec3::new(4_512_000.0, 5_341_000.0, 12_000.0),
+            chunk_triangles: 2048,
+        }
     }
 }
 

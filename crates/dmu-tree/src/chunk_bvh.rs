@@ -1,0 +1,138 @@
+//! Per-chunk triangle BVHs for exact picking, built on first use and shared by
+//! every instance of the chunk. obvhs builds them (PLOC); traversal is ours, in
+//! f64 with dmu-geom's robust slab and watertight triangle tests, so rays along
+//! faces and edges and axis-parallel rays are answered exactly.
+
+use std::sync::OnceLock;
+use std::time::Duration;
+
+use dmu_geom::{Aabb3f, Ray3d, RayBoxTest3d, RayTriTest3d};
+use dmu_scene::{ChunkId, Scene};
+use glam::Vec3A;
+use obvhs::BvhBuildParams;
+use obvhs::bvh2::Bvh2;
+use obvhs::triangle::Triangle;
+
+/// Chunks of at most this many triangles are tested without a BVH.
+const BRUTE_FORCE_MAX: u32 = 16;
+
+/// A chunk's BVH: nodes (obvhs layout: an inner node's children are at
+/// `first_index` and `first_index + 1`) and the triangle order of the leaves.
+#[derive(Debug)]
+pub(crate) struct ChunkBvh {
+    nodes: Vec<(Aabb3f, u32, u32)>, // (box, prim_count, first_index)
+    triangles: Vec<u32>,
+}
+
+/// The lazily built BVHs of all chunks of a scene.
+#[derive(Debug)]
+pub(crate) struct ChunkBvhCache {
+    slots: Vec<OnceLock<Option<ChunkBvh>>>,
+}
+
+/// A triangle hit inside one chunk: mesh-relative triangle index and parameter.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct LocalHit {
+    pub triangle: u32,
+    pub t: f64,
+}
+
+impl ChunkBvhCache {
+    pub fn new(chunks: usize) -> Self {
+        Self {
+            slots: (0..chunks).map(|_| OnceLock::new()).collect(),
+        }
+    }
+
+    /// Chunks whose BVH has been built.
+    pub fn built(&self) -> usize {
+        self.slots.iter().filter(|s| s.get().is_some()).count()
+    }
+
+    fn get(&self, scene: &Scene, chunk: ChunkId) -> Option<&ChunkBvh> {
+        self.slots[chunk.index()]
+            .get_or_init(|| build(scene, chunk))
+            .as_ref()
+    }
+
+    /// Calls `visit` with every triangle of `chunk` whose BVH leaf the local ray
+    /// reaches before `t_max`; `visit` returns the new `t_max` (to shrink the
+    /// search for the nearest hit) or the old one (to see every hit).
+    pub fn for_each_hit(
+        &self,
+        scene: &Scene,
+        chunk: ChunkId,
+        local: &Ray3d,
+        mut t_max: f64,
+        visit: &mut dyn FnMut(LocalHit) -> f64,
+    ) {
+        let c = scene.chunk(chunk);
+        let tri_test = RayTriTest3d::new(local);
+        let test = |t: u32, t_max: f64| {
+            let [a, b, d] = scene.triangle_local(c.mesh, chunk, t).map(|v| v.as_dvec3());
+            tri_test.hit(a, b, d, 0.0, t_max).map(|h| LocalHit {
+                triangle: t,
+                t: h.t,
+            })
+        };
+        let Some(bvh) = self.get(scene, chunk) else {
+            for t in c.triangles.clone() {
+                if let Some(hit) = test(t, t_max) {
+                    t_max = visit(hit);
+                }
+            }
+            return;
+        };
+        let box_test = RayBoxTest3d::new(local);
+        let mut stack: Vec<u32> = vec![0];
+        while let Some(n) = stack.pop() {
+            let (bounds, count, first) = bvh.nodes[n as usize];
+            if box_test.hit(&bounds.as_dvec(), t_max).is_none() {
+                continue;
+            }
+            if count == 0 {
+                stack.push(first);
+                stack.push(first + 1);
+                continue;
+            }
+            for &t in &bvh.triangles[first as usize..(first + count) as usize] {
+                if let Some(hit) = test(c.triangles.start + t, t_max) {
+                    t_max = visit(hit);
+                }
+            }
+        }
+    }
+}
+
+fn build(scene: &Scene, chunk: ChunkId) -> Option<ChunkBvh> {
+    let c = scene.chunk(chunk);
+    if c.triangle_count() <= BRUTE_FORCE_MAX {
+        return None;
+    }
+    let tris: Vec<Triangle> = c
+        .triangles
+        .clone()
+        .map(|t| {
+            let [v0, v1, v2] = scene.triangle_local(c.mesh, chunk, t).map(Vec3A::from);
+            Triangle { v0, v1, v2 }
+        })
+        .collect();
+    let mut build_time = Duration::ZERO;
+    let bvh: Bvh2 =
+        obvhs::bvh2::builder::build_bvh2(&tris, BvhBuildParams::fast_build(), &mut build_time);
+    let nodes = bvh
+        .nodes
+        .iter()
+        .map(|n| {
+            (
+                Aabb3f::new(n.aabb().min.into(), n.aabb().max.into()),
+                n.prim_count,
+                n.first_index,
+            )
+        })
+        .collect();
+    Some(ChunkBvh {
+        nodes,
+        triangles: bvh.primitive_indices,
+    })
+}

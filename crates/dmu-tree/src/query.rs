@@ -1,0 +1,283 @@
+//! Queries: nearest and all ray hits, parts in a box, frustum traversal.
+
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
+
+use dmu_geom::{Aabb3d, Containment, Frustum, Ray3d, RayBoxTest3d};
+use dmu_scene::{ChunkId, PartId, Scene};
+use glam::DVec3;
+
+use crate::tree::{CellId, Kind, Tree};
+
+/// A ray hit on a triangle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// The part hit.
+    pub part: PartId,
+    /// Its chunk.
+    pub chunk: ChunkId,
+    /// Triangle index within the part's mesh.
+    pub triangle: u32,
+    /// Ray parameter: the hit is at `origin + t * dir` (the distance for a unit `dir`).
+    pub t: f64,
+    /// World point, f64.
+    pub point: DVec3,
+    /// Unit world normal of the triangle, facing the ray's origin.
+    pub normal: DVec3,
+}
+
+/// What a frustum visitor is told about a node.
+#[derive(Clone, Copy, Debug)]
+pub struct FrustumNode {
+    /// World box of the node.
+    pub bounds: Aabb3d,
+    /// How the box meets the frustum (never `Outside`: those are skipped).
+    pub containment: Containment,
+    /// The cell, when the node is a leaf.
+    pub cell: Option<CellId>,
+}
+
+impl Tree {
+    /// The nearest hit of a world ray on a visible part, exact: the f64 ray goes to
+    /// each part's local frame and a per-chunk BVH finds the triangle. Hidden parts
+    /// are skipped.
+    pub fn pick(&self, scene: &Scene, ray: &Ray3d) -> Option<Hit> {
+        let mut best: Option<Hit> = None;
+        self.ray_search(scene, ray, &mut |hit| {
+            if best.is_none_or(|b| hit.t < b.t) {
+                best = Some(hit);
+            }
+            hit.t
+        });
+        best
+    }
+
+    /// Every hit of a world ray on visible parts, nearest first. A ray through
+    /// the shared edge or vertex of triangles of one part hits each of them at the
+    /// same point: such hits (same part, `t` equal to 1e-12 relative) count once.
+    pub fn pick_all(&self, scene: &Scene, ray: &Ray3d) -> Vec<Hit> {
+        let mut hits = Vec::new();
+        self.ray_search(scene, ray, &mut |hit| {
+            hits.push(hit);
+            f64::INFINITY
+        });
+        hits.sort_by(|a, b| {
+            a.part
+                .cmp(&b.part)
+                .then(a.t.total_cmp(&b.t))
+                .then(a.triangle.cmp(&b.triangle))
+        });
+        hits.dedup_by(|b, a| a.part == b.part && (b.t - a.t).abs() <= 1e-12 * a.t.abs().max(1.0));
+        hits.sort_by(|a, b| a.t.total_cmp(&b.t).then(a.part.cmp(&b.part)));
+        hits
+    }
+
+    /// Best-first traversal: nodes by the distance at which the ray enters them.
+    /// `found` gets each hit and returns the farthest `t` still of interest (the
+    /// hit's own `t` for the nearest hit, infinity for all hits); the search stops
+    /// once the next node starts beyond it.
+    fn ray_search(&self, scene: &Scene, ray: &Ray3d, found: &mut dyn FnMut(Hit) -> f64) {
+        if !(ray.origin.is_finite() && ray.dir.is_finite()) || ray.dir == DVec3::ZERO {
+            return;
+        }
+        let test = RayBoxTest3d::new(ray);
+        let mut t_max = f64::INFINITY;
+        let mut heap = BinaryHeap::new();
+        if let Some((t, _)) = test.hit(&self.nodes[self.root as usize].bounds, t_max) {
+            heap.push(Near { t, node: self.root });
+        }
+        while let Some(Near { t, node }) = heap.pop() {
+            if t > t_max {
+                break;
+            }
+            match self.nodes[node as usize].kind {
+                Kind::Internal(children) => {
+                    for c in children {
+                        if let Some((t, _)) = test.hit(&self.nodes[c as usize].bounds, t_max) {
+                            heap.push(Near { t, node: c });
+                        }
+                    }
+                }
+                Kind::Leaf(cell) => {
+                    for (part, entries) in self.cell_groups(CellId(cell)) {
+                        if scene.part(part).hidden {
+                            continue;
+                        }
+                        let world = scene.part_world(part);
+                        let local = ray.to_local(&world);
+                        let normal_matrix = world.matrix3.inverse().transpose();
+                        for &e in entries {
+                            let entry = &self.entries[e as usize];
+                            if test.hit(&entry.bounds, t_max).is_none() {
+                                continue;
+                            }
+                            self.bvhs
+                                .for_each_hit(scene, entry.chunk, &local, t_max, &mut |h| {
+                                    let [a, b, c] = scene.triangle_local(
+                                        scene.part(part).mesh,
+                                        entry.chunk,
+                                        h.triangle,
+                                    );
+                                    let n = (normal_matrix * (b - a).cross(c - a).as_dvec3())
+                                        .normalize_or_zero();
+                                    let hit = Hit {
+                                        part,
+                                        chunk: entry.chunk,
+                                        triangle: h.triangle,
+                                        t: h.t,
+                                        point: ray.at(h.t),
+                                        normal: if n.dot(ray.dir) > 0.0 { -n } else { n },
+                                    };
+                                    t_max = t_max.min(found(hit));
+                                    t_max
+                                });
+                        }
+                    }
+                }
+                Kind::Free => unreachable!("free node in the tree"),
+            }
+        }
+    }
+
+    /// Visible parts with at least one triangle touching `query` (boundaries count),
+    /// sorted by id. Exact: triangles are tested against the box in world f64.
+    pub fn parts_in_box(&self, scene: &Scene, query: &Aabb3d) -> Vec<PartId> {
+        let mut parts = Vec::new();
+        let mut stack = vec![self.root];
+        while let Some(node) = stack.pop() {
+            let n = &self.nodes[node as usize];
+            if !n.bounds.overlaps(query) {
+                continue;
+            }
+            match n.kind {
+                Kind::Internal(c) => stack.extend(c),
+                Kind::Leaf(cell) => {
+                    for (part, entries) in self.cell_groups(CellId(cell)) {
+                        if scene.part(part).hidden || parts.last() == Some(&part) {
+                            continue;
+                        }
+                        let hit = entries.iter().any(|&e| {
+                            let entry = &self.entries[e as usize];
+                            entry.bounds.overlaps(query)
+                                && chunk_touches_box(scene, part, entry.chunk, query)
+                        });
+                        if hit {
+                            parts.push(part);
+                        }
+                    }
+                }
+                Kind::Free => unreachable!("free node in the tree"),
+            }
+        }
+        parts.sort_unstable();
+        parts.dedup();
+        parts
+    }
+
+    /// Visits nodes that meet the frustum, parents before children; `visit`
+    /// returns whether to descend. Subtrees entirely inside are still visited
+    /// (the renderer and loader want the cells), with `Inside` passed down without
+    /// further plane tests.
+    pub fn visit_frustum(&self, frustum: &Frustum, visit: &mut dyn FnMut(&FrustumNode) -> bool) {
+        let mut stack = vec![(self.root, Containment::Intersecting)];
+        while let Some((node, parent)) = stack.pop() {
+            let n = &self.nodes[node as usize];
+            let containment = match parent {
+                Containment::Inside => Containment::Inside,
+                _ => frustum.test_aabb(&n.bounds),
+            };
+            if containment == Containment::Outside || n.bounds.is_empty() {
+                continue;
+            }
+            let cell = match n.kind {
+                Kind::Leaf(c) => Some(CellId(c)),
+                _ => None,
+            };
+            if visit(&FrustumNode {
+                bounds: n.bounds,
+                containment,
+                cell,
+            }) && let Kind::Internal(children) = n.kind
+            {
+                stack.extend(children.map(|c| (c, containment)));
+            }
+        }
+    }
+}
+
+/// Whether any triangle of the chunk, in world f64, touches the box.
+pub fn chunk_touches_box(scene: &Scene, part: PartId, chunk: ChunkId, query: &Aabb3d) -> bool {
+    let world = scene.part_world(part);
+    let c = scene.chunk(chunk);
+    let center = query.center();
+    let half = query.extent() * 0.5;
+    c.triangles.clone().any(|t| {
+        let tri = scene
+            .triangle_local(c.mesh, chunk, t)
+            .map(|v| world.transform_point3(v.as_dvec3()) - center);
+        triangle_box_overlap(tri, half)
+    })
+}
+
+/// Separating-axis test of a triangle against a box centred at the origin with
+/// half extents `h` (Akenine-Möller 2001); touching counts as overlapping.
+pub fn triangle_box_overlap(v: [DVec3; 3], h: DVec3) -> bool {
+    let e = [v[1] - v[0], v[2] - v[1], v[0] - v[2]];
+    // The box's face normals.
+    for axis in 0..3 {
+        let (lo, hi) = (
+            v[0][axis].min(v[1][axis]).min(v[2][axis]),
+            v[0][axis].max(v[1][axis]).max(v[2][axis]),
+        );
+        if lo > h[axis] || hi < -h[axis] {
+            return false;
+        }
+    }
+    // The triangle's normal.
+    let n = e[0].cross(e[1]);
+    let r = h.x * n.x.abs() + h.y * n.y.abs() + h.z * n.z.abs();
+    let d = n.dot(v[0]);
+    if d.abs() > r {
+        return false;
+    }
+    // Nine edge cross products.
+    for edge in e {
+        for axis in [DVec3::X, DVec3::Y, DVec3::Z] {
+            let a = axis.cross(edge);
+            if a == DVec3::ZERO {
+                continue;
+            }
+            let p = v.map(|p| a.dot(p));
+            let r = h.x * a.x.abs() + h.y * a.y.abs() + h.z * a.z.abs();
+            if p[0].min(p[1]).min(p[2]) > r || p[0].max(p[1]).max(p[2]) < -r {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// A node waiting in the ray queue, nearest entry first.
+#[derive(Clone, Copy, Debug)]
+struct Near {
+    t: f64,
+    node: u32,
+}
+
+impl PartialEq for Near {
+    fn eq(&self, other: &Self) -> bool {
+        self.t.total_cmp(&other.t) == Ordering::Equal
+    }
+}
+impl Eq for Near {}
+impl PartialOrd for Near {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+impl Ord for Near {
+    /// Reversed for the max-heap: smallest `t` first.
+    fn cmp(&self, other: &Self) -> Ordering {
+        other.t.total_cmp(&self.t)
+    }
+}

@@ -1,0 +1,372 @@
+//! Moving a part: only its chunks are touched. Chunks whose new box left their
+//! cell are removed and re-inserted at the best cell (branch and bound on the
+//! SAH cost increase); cells over budget split, cells under a quarter of it
+//! merge with a leaf sibling; ancestors refit; a bounded number of rotations on
+//! the touched paths keeps a long editing session from degrading the tree.
+
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
+
+use dmu_geom::Aabb3d;
+use dmu_scene::{PartId, Scene};
+use glam::DAffine3;
+
+use crate::build::{sah_partition, sort_key};
+use crate::tree::{Kind, NONE, Tree};
+
+impl Tree {
+    /// Sets a part's absolute world transform in the scene and updates the tree
+    /// for it. Cost is proportional to the part's chunk count times tree depth.
+    pub fn move_part(&mut self, scene: &mut Scene, part: PartId, world: DAffine3) {
+        scene.set_part_world(part, world);
+        self.update_part(scene, part);
+    }
+
+    /// Brings the tree up to date with `part`'s current transform in `scene`.
+    pub fn update_part(&mut self, scene: &Scene, part: PartId) {
+        self.stats.moves += 1;
+        let world = scene.part_world(part);
+        let mut touched: Vec<u32> = Vec::new();
+        let mut reinsert: Vec<u32> = Vec::new();
+        for e in self.part_entries[part.index()].clone() {
+            let entry = &mut self.entries[e as usize];
+            entry.bounds = scene.chunk(entry.chunk).bounds.transformed(&world);
+            let (cell, bounds) = (entry.cell, entry.bounds);
+            if self.nodes[self.cells[cell as usize].node as usize]
+                .bounds
+                .contains(&bounds)
+            {
+                self.stats.stayed += 1;
+            } else {
+                let c = &mut self.cells[cell as usize];
+                c.entries.retain(|&x| x != e);
+                c.triangles -= self.entries[e as usize].triangles;
+                reinsert.push(e);
+            }
+            touched.push(cell);
+        }
+        touched.sort_unstable();
+        touched.dedup();
+        let mut paths = Vec::new();
+        for cell in touched {
+            // A cell may already be gone, merged into a neighbour touched earlier.
+            if self.cells[cell as usize].node != NONE
+                && let Some(node) = self.settle_cell(cell)
+            {
+                paths.push(node);
+            }
+        }
+        for e in reinsert {
+            self.stats.reinserted += 1;
+            paths.push(self.insert_entry(e));
+        }
+        self.rotate_paths(&paths);
+        debug_assert_eq!(self.validate(), Ok(()));
+    }
+
+    /// Refits a cell whose entries changed; removes it when empty, merges it with a
+    /// leaf sibling when under a quarter of the budget. Returns a node from which
+    /// ancestors were refit (for rotations), if the cell or its merge survives.
+    fn settle_cell(&mut self, cell: u32) -> Option<u32> {
+        let node = self.cells[cell as usize].node;
+        if self.cells[cell as usize].entries.is_empty() && node != self.root {
+            let grandparent = self.remove_leaf(node);
+            self.free_cell(cell);
+            self.refit_up(grandparent);
+            return (grandparent != NONE).then_some(grandparent);
+        }
+        self.refit_cell(cell);
+        self.refit_up(self.nodes[node as usize].parent);
+        self.try_merge(cell).or(Some(node))
+    }
+
+    /// Merges `cell` with its sibling when both are leaves, `cell` is under a
+    /// quarter of the budget and the two fit in one cell.
+    fn try_merge(&mut self, cell: u32) -> Option<u32> {
+        let budget = self.options.cell_triangles;
+        let node = self.cells[cell as usize].node;
+        let parent = self.nodes[node as usize].parent;
+        if parent == NONE || self.cells[cell as usize].triangles >= budget / 4 {
+            return None;
+        }
+        let Kind::Internal(children) = self.nodes[parent as usize].kind else {
+            unreachable!("parent is internal")
+        };
+        let sibling = if children[0] == node {
+            children[1]
+        } else {
+            children[0]
+        };
+        let Kind::Leaf(other) = self.nodes[sibling as usize].kind else {
+            return None;
+        };
+        if self.cells[cell as usize].triangles + self.cells[other as usize].triangles > budget {
+            return None;
+        }
+        self.stats.merges += 1;
+        let mut ids = std::mem::take(&mut self.cells[cell as usize].entries);
+        ids.extend(std::mem::take(&mut self.cells[other as usize].entries));
+        self.free_cell(cell);
+        self.free_cell(other);
+        self.free_node(node);
+        self.free_node(sibling);
+        let merged = self.alloc_cell(parent, ids);
+        self.nodes[parent as usize].kind = Kind::Leaf(merged);
+        self.refit_cell(merged);
+        self.refit_up(self.nodes[parent as usize].parent);
+        Some(parent)
+    }
+
+    /// Unlinks leaf `node`: its sibling takes the parent's place. Frees the leaf
+    /// and the parent nodes; returns the grandparent (or NONE at the root).
+    fn remove_leaf(&mut self, node: u32) -> u32 {
+        let parent = self.nodes[node as usize].parent;
+        let Kind::Internal(children) = self.nodes[parent as usize].kind else {
+            unreachable!("parent is internal")
+        };
+        let sibling = if children[0] == node {
+            children[1]
+        } else {
+            children[0]
+        };
+        let grandparent = self.nodes[parent as usize].parent;
+        self.nodes[sibling as usize].parent = grandparent;
+        if grandparent == NONE {
+            self.root = sibling;
+        } else {
+            self.replace_child(grandparent, parent, sibling);
+        }
+        self.free_node(node);
+        self.free_node(parent);
+        grandparent
+    }
+
+    fn replace_child(&mut self, parent: u32, old: u32, new: u32) {
+        if let Kind::Internal(c) = &mut self.nodes[parent as usize].kind {
+            for slot in c.iter_mut().filter(|s| **s == old) {
+                *slot = new;
+            }
+        }
+    }
+
+    /// Inserts entry `e` into the cell where it raises the SAH cost least, splitting
+    /// the cell if it overflows. Returns the node the insertion ended at.
+    fn insert_entry(&mut self, e: u32) -> u32 {
+        let leaf = self.best_leaf(e);
+        let Kind::Leaf(cell) = self.nodes[leaf as usize].kind else {
+            unreachable!("best_leaf returns a leaf")
+        };
+        let entries = &self.entries;
+        let key = sort_key(entries[e as usize].part, entries[e as usize].chunk);
+        let c = &mut self.cells[cell as usize];
+        let at = c.entries.partition_point(|&x| {
+            sort_key(entries[x as usize].part, entries[x as usize].chunk) < key
+        });
+        c.entries.insert(at, e);
+        c.triangles += entries[e as usize].triangles;
+        self.entries[e as usize].cell = cell;
+        let b = self.nodes[leaf as usize]
+            .bounds
+            .union(self.entries[e as usize].bounds);
+        self.nodes[leaf as usize].bounds = b;
+        self.refit_up(self.nodes[leaf as usize].parent);
+        self.split_if_over(cell);
+        leaf
+    }
+
+    /// Branch and bound over the tree for the cell whose SAH cost grows least when
+    /// `e` joins it: each ancestor costs its area growth, the cell its area times
+    /// triangles growth; a subtree is skipped once even its lower bound (the
+    /// ancestors' growth so far plus `e`'s own area times triangles) is no better.
+    fn best_leaf(&self, e: u32) -> u32 {
+        let eb = self.entries[e as usize].bounds;
+        let et = f64::from(self.entries[e as usize].triangles);
+        let floor = eb.surface_area() * et;
+        let mut best = (f64::INFINITY, self.root);
+        let mut heap = BinaryHeap::from([Candidate {
+            bound: floor,
+            inherited: 0.0,
+            node: self.root,
+        }]);
+        while let Some(Candidate {
+            bound,
+            inherited,
+            node,
+        }) = heap.pop()
+        {
+            if bound >= best.0 {
+                break;
+            }
+            let n = &self.nodes[node as usize];
+            let union = n.bounds.union(eb);
+            match n.kind {
+                Kind::Leaf(cell) => {
+                    let t = f64::from(self.cells[cell as usize].triangles);
+                    let cost =
+                        inherited + union.surface_area() * (t + et) - n.bounds.surface_area() * t;
+                    if cost < best.0 {
+                        best = (cost, node);
+                    }
+                }
+                Kind::Internal(children) => {
+                    let inherited = inherited + union.surface_area() - n.bounds.surface_area();
+                    if inherited + floor < best.0 {
+                        for child in children {
+                            heap.push(Candidate {
+                                bound: inherited + floor,
+                                inherited,
+                                node: child,
+                            });
+                        }
+                    }
+                }
+                Kind::Free => unreachable!("free node in the tree"),
+            }
+        }
+        best.1
+    }
+
+    /// Splits a cell over budget in two by SAH, repeatedly, while it has more
+    /// than one entry.
+    fn split_if_over(&mut self, cell: u32) {
+        let c = &self.cells[cell as usize];
+        if c.triangles <= self.options.cell_triangles || c.entries.len() < 2 {
+            return;
+        }
+        self.stats.splits += 1;
+        let node = c.node;
+        let mut ids = std::mem::take(&mut self.cells[cell as usize].entries);
+        self.free_cell(cell);
+        let mid = sah_partition(&self.entries, &mut ids, self.options.sah_bins);
+        let right_ids = ids.split_off(mid);
+        let mut children = [NONE; 2];
+        for (slot, part) in children.iter_mut().zip([ids, right_ids]) {
+            let bounds = part.iter().fold(Aabb3d::EMPTY, |b, &e| {
+                b.union(self.entries[e as usize].bounds)
+            });
+            let child = self.alloc_node(bounds, node, Kind::Free);
+            let new_cell = self.alloc_cell(child, part);
+            self.nodes[child as usize].kind = Kind::Leaf(new_cell);
+            *slot = child;
+        }
+        self.nodes[node as usize].kind = Kind::Internal(children);
+        for child in children {
+            if let Kind::Leaf(c) = self.nodes[child as usize].kind {
+                self.split_if_over(c);
+            }
+        }
+    }
+
+    /// Sets a cell's node box to the exact union of its entries.
+    fn refit_cell(&mut self, cell: u32) {
+        let c = &self.cells[cell as usize];
+        let b = c.entries.iter().fold(Aabb3d::EMPTY, |b, &e| {
+            b.union(self.entries[e as usize].bounds)
+        });
+        self.nodes[c.node as usize].bounds = b;
+    }
+
+    /// Recomputes boxes from `node` up to the root, stopping where nothing changes.
+    fn refit_up(&mut self, mut node: u32) {
+        while node != NONE {
+            let Kind::Internal([a, b]) = self.nodes[node as usize].kind else {
+                unreachable!("ancestor is internal")
+            };
+            let bounds = self.nodes[a as usize]
+                .bounds
+                .union(self.nodes[b as usize].bounds);
+            if bounds == self.nodes[node as usize].bounds {
+                return;
+            }
+            self.nodes[node as usize].bounds = bounds;
+            node = self.nodes[node as usize].parent;
+        }
+    }
+
+    /// Tree rotations (Kopta et al. 2012) on the ancestors of the given nodes,
+    /// bottom-up, at most `rotations_per_move` applied: a child swaps with a
+    /// grandchild on the other side when that shrinks the area of the node between.
+    fn rotate_paths(&mut self, starts: &[u32]) {
+        let mut budget = self.options.rotations_per_move;
+        for &start in starts {
+            let mut node = start;
+            while node != NONE && budget > 0 {
+                if self.nodes[node as usize].kind != Kind::Free && self.rotate_best(node) {
+                    budget -= 1;
+                    self.stats.rotations += 1;
+                }
+                node = self.nodes[node as usize].parent;
+            }
+        }
+    }
+
+    /// Applies the best of the four rotations at `node`, if any shrinks a child.
+    fn rotate_best(&mut self, node: u32) -> bool {
+        let Kind::Internal(children) = self.nodes[node as usize].kind else {
+            return false;
+        };
+        let area = |t: &Tree, n: u32| t.nodes[n as usize].bounds.surface_area();
+        let mut best: Option<(f64, usize, usize)> = None; // (gain, side kept as internal, grandchild index)
+        for side in 0..2 {
+            let (inner, other) = (children[side], children[1 - side]);
+            let Kind::Internal(grand) = self.nodes[inner as usize].kind else {
+                continue;
+            };
+            for g in 0..2 {
+                // Swap `other` with grand[g]: `inner` then holds grand[1-g] and `other`.
+                let kept = self.nodes[grand[1 - g] as usize].bounds;
+                let new_area = kept.union(self.nodes[other as usize].bounds).surface_area();
+                let gain = area(self, inner) - new_area;
+                if gain > 1e-9 * area(self, node) && best.is_none_or(|(bg, _, _)| gain > bg) {
+                    best = Some((gain, side, g));
+                }
+            }
+        }
+        let Some((_, side, g)) = best else {
+            return false;
+        };
+        let (inner, other) = (children[side], children[1 - side]);
+        let Kind::Internal(grand) = self.nodes[inner as usize].kind else {
+            return false;
+        };
+        let moved = grand[g];
+        // `moved` goes up to `node`; `other` goes down into `inner`.
+        self.replace_child(node, other, moved);
+        self.nodes[moved as usize].parent = node;
+        self.replace_child(inner, moved, other);
+        self.nodes[other as usize].parent = inner;
+        let Kind::Internal([a, b]) = self.nodes[inner as usize].kind else {
+            return false;
+        };
+        self.nodes[inner as usize].bounds = self.nodes[a as usize]
+            .bounds
+            .union(self.nodes[b as usize].bounds);
+        true
+    }
+}
+
+/// A subtree waiting in the branch-and-bound queue, cheapest bound first.
+#[derive(Clone, Copy, Debug)]
+struct Candidate {
+    bound: f64,
+    inherited: f64,
+    node: u32,
+}
+
+impl PartialEq for Candidate {
+    fn eq(&self, other: &Self) -> bool {
+        self.bound.total_cmp(&other.bound) == Ordering::Equal
+    }
+}
+impl Eq for Candidate {}
+impl PartialOrd for Candidate {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+impl Ord for Candidate {
+    /// Reversed: `BinaryHeap` is a max-heap and the smallest bound comes first.
+    fn cmp(&self, other: &Self) -> Ordering {
+        other.bound.total_cmp(&self.bound)
+    }
+}

@@ -1,0 +1,134 @@
+//! Queries against brute force on random scenes, before and after random moves.
+
+use dmu_geom::Aabb3d;
+use dmu_scene::Scene;
+use dmu_scene::samples::Rng;
+use dmu_tree::{Tree, TreeOptions};
+use glam::DVec3;
+use proptest::prelude::*;
+
+use crate::support::{
+    brute_parts_in_box, brute_pick, random_box, random_ray, random_scene, random_transform,
+    world_triangles,
+};
+
+fn options() -> TreeOptions {
+    TreeOptions {
+        cell_triangles: 24,
+        ..TreeOptions::default()
+    }
+}
+
+/// Picks and box queries agree with brute force; returns how many rays hit.
+fn check_queries(
+    tree: &Tree,
+    scene: &Scene,
+    rng: &mut Rng,
+    rays: usize,
+) -> Result<usize, TestCaseError> {
+    let tris = world_triangles(scene);
+    let bounds = scene.world_bounds();
+    let mut hits = 0;
+    for _ in 0..rays {
+        let ray = random_ray(rng, &bounds);
+        let got = tree.pick(scene, &ray);
+        let want = brute_pick(&tris, &ray);
+        match (got, want) {
+            (None, None) => {}
+            (Some(g), Some((t, part))) => {
+                hits += 1;
+                prop_assert!(
+                    (g.t - t).abs() <= 1e-6 * t.max(1.0),
+                    "distance {} vs brute {t}",
+                    g.t
+                );
+                // Another part may lie at the same distance (within rounding).
+                if g.part != part {
+                    let other = tris.iter().filter(|(p, _)| *p == g.part).count();
+                    prop_assert!(
+                        other > 0 && (g.t - t).abs() <= 1e-9 * t.max(1.0),
+                        "part {} vs brute {part}",
+                        g.part
+                    );
+                }
+                let all = tree.pick_all(scene, &ray);
+                prop_assert_eq!(all.first().map(|h| h.t), Some(g.t));
+                prop_assert!(all.windows(2).all(|w| w[0].t <= w[1].t));
+            }
+            (g, w) => {
+                // Only a grazing ray may disagree with the non-watertight oracle.
+                let t = g.map(|h| h.t).or(w.map(|w| w.0)).unwrap_or(0.0);
+                let near = tris.iter().any(|(_, v)| grazes(&ray, *v, t));
+                prop_assert!(near, "tree {g:?} vs brute {w:?}");
+            }
+        }
+    }
+    for _ in 0..rays / 2 {
+        let b = random_box(rng, &bounds);
+        prop_assert_eq!(tree.parts_in_box(scene, &b), brute_parts_in_box(&tris, &b));
+    }
+    Ok(hits)
+}
+
+/// Whether the ray passes within rounding of a triangle's edge at parameter `t`.
+fn grazes(ray: &dmu_geom::Ray3d, v: [DVec3; 3], t: f64) -> bool {
+    let p = ray.at(t);
+    (0..3).any(|i| {
+        let (a, b) = (v[i], v[(i + 1) % 3]);
+        let ab = b - a;
+        let s = ((p - a).dot(ab) / ab.length_squared().max(1e-300)).clamp(0.0, 1.0);
+        (a + ab * s - p).length() < 1e-6 * (1.0 + p.length())
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    #[test]
+    fn pick_and_box_equal_brute_force(seed in any::<u64>(), parts in 1usize..40) {
+        let scene = random_scene(seed, parts, DVec3::ZERO);
+        let tree = Tree::build(&scene, options());
+        tree.validate_against(&scene).map_err(TestCaseError::fail)?;
+        check_queries(&tree, &scene, &mut Rng::new(seed ^ 1), 40)?;
+    }
+
+    #[test]
+    fn queries_stay_exact_after_random_moves(seed in any::<u64>(), parts in 2usize..30, moves in 1usize..60) {
+        let mut scene = random_scene(seed, parts, DVec3::ZERO);
+        let mut tree = Tree::build(&scene, options());
+        let mut rng = Rng::new(seed ^ 2);
+        for _ in 0..moves {
+            let part = dmu_scene::PartId(rng.below(parts as u64) as u32);
+            let world = random_transform(&mut rng, DVec3::ZERO, 25.0);
+            tree.move_part(&mut scene, part, world);
+            tree.validate_against(&scene).map_err(TestCaseError::fail)?;
+        }
+        if rng.chance(0.5) {
+            scene.set_part_hidden(dmu_scene::PartId(0), true);
+        }
+        check_queries(&tree, &scene, &mut rng, 40)?;
+    }
+}
+
+#[test]
+fn random_rays_do_hit_often_enough_to_test_something() {
+    let scene = random_scene(7, 30, DVec3::ZERO);
+    let tree = Tree::build(&scene, options());
+    let hits = check_queries(&tree, &scene, &mut Rng::new(3), 200).unwrap();
+    assert!(hits > 50, "{hits} of 200 rays hit");
+}
+
+#[test]
+fn empty_box_and_empty_scene() {
+    let scene = random_scene(1, 5, DVec3::ZERO);
+    let tree = Tree::build(&scene, options());
+    assert!(tree.parts_in_box(&scene, &Aabb3d::EMPTY).is_empty());
+    let empty = dmu_scene::SceneBuilder::new("empty", 8).finish();
+    let tree = Tree::build(&empty, options());
+    tree.validate_against(&empty).unwrap();
+    assert!(
+        tree.pick(&empty, &dmu_geom::Ray3d::new(DVec3::ZERO, DVec3::X))
+            .is_none()
+    );
+    assert_eq!(tree.cell_count(), 1);
+}

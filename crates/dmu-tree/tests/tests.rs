@@ -1,0 +1,3 @@
+mod hard_cases;
+mod queries;
+mod support;
