@@ -7,9 +7,6 @@ use anyhow::{Context as _, bail};
 use dmu_scene::{ImportOptions, ImportReport, Scene};
 use indicatif::{ProgressBar, ProgressStyle};
 
-/// Default size of the built-in plant when a command is given no file.
-pub const BUILTIN_PLANT_TRIANGLES: u64 = 2_000_000;
-
 /// A loaded model and how it was obtained.
 pub struct Loaded {
     pub scene: Scene,
@@ -28,6 +25,9 @@ pub struct ModelArgs {
     /// Maximum triangles per chunk (the unit of loading, drawing and picking).
     #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..))]
     pub chunk_triangles: u32,
+    /// Size of the built-in plant used when no file is given.
+    #[arg(long = "plant-triangles", default_value = "2M", value_parser = crate::units::parse_count)]
+    pub plant_triangles: u64,
 }
 
 /// Opens the model: the file, or the built-in plant.
@@ -37,7 +37,7 @@ pub fn load(args: &ModelArgs) -> anyhow::Result<Loaded> {
         Some(path) => import(path, args.chunk_triangles)?,
         None => {
             let options = dmu_scene::samples::PlantOptions {
-                triangles: BUILTIN_PLANT_TRIANGLES,
+                triangles: args.plant_triangles,
                 chunk_triangles: args.chunk_triangles,
                 ..Default::default()
             };

@@ -1,7 +1,10 @@
 //! `dmu`: the command line of the dmu digital-mockup viewer.
 
+mod cmd_bench;
 mod cmd_generate;
 mod cmd_info;
+mod cmd_move;
+mod cmd_pick;
 mod load;
 mod units;
 
@@ -24,6 +27,9 @@ struct Cli {
 enum Command {
     Generate(cmd_generate::Args),
     Info(cmd_info::Args),
+    Pick(cmd_pick::Args),
+    Move(cmd_move::Args),
+    Bench(cmd_bench::Args),
 }
 
 fn main() -> ExitCode {
@@ -31,6 +37,9 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Generate(args) => cmd_generate::run(&args),
         Command::Info(args) => cmd_info::run(&args),
+        Command::Pick(args) => cmd_pick::run(&args),
+        Command::Move(args) => cmd_move::run(&args),
+        Command::Bench(args) => cmd_bench::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -140,3 +140,74 @@ fn a_failed_write_keeps_the_previous_file() {
         .collect();
     assert_eq!(leftovers.len(), 1, "no temporary files left: {leftovers:?}");
 }
+
+#[test]
+fn pick_and_move_on_the_grid() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = path(dir.path(), "grid.glb");
+    json(&dmu(&[
+        "generate", "grid", "--n", "3", "-o", &file, "--json",
+    ]));
+    // Up the first column: box_0_0_0 spans z in [-2, 2].
+    let hit = json(&dmu(&["pick", &file, "--ray", "0,0,-100,0,0,2", "--json"]));
+    assert_eq!(hit["hit"], true);
+    assert_eq!(hit["part"], "box_0_0_0");
+    assert_eq!(
+        hit["distance"], 98.0,
+        "distance in world units whatever |dir|"
+    );
+    assert_eq!(hit["point"], serde_json::json!([0.0, 0.0, -2.0]));
+    let all = json(&dmu(&[
+        "pick",
+        &file,
+        "--ray",
+        "0,0,-100,0,0,1",
+        "--all",
+        "--json",
+    ]));
+    let distances: Vec<f64> = all["hits"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|h| h["distance"].as_f64().unwrap())
+        .collect();
+    assert_eq!(distances, [98.0, 102.0, 108.0, 112.0, 118.0, 122.0]);
+    let miss = json(&dmu(&["pick", &file, "--ray", "5,5,-100,0,0,1", "--json"]));
+    assert_eq!(miss["hit"], false);
+
+    let moved = path(dir.path(), "moved.glb");
+    let m = json(&dmu(&[
+        "move",
+        &file,
+        "--part",
+        "box_0_0_0",
+        "--translate",
+        "500,0,0",
+        "--rotate-deg",
+        "0,0,1,90",
+        "-o",
+        &moved,
+        "--json",
+    ]));
+    assert_eq!(m["translation_after"], serde_json::json!([500.0, 0.0, 0.0]));
+    let hit = json(&dmu(&["pick", &moved, "--ray", "0,0,-100,0,0,1", "--json"]));
+    assert_eq!(
+        (hit["part"].as_str(), hit["distance"].as_f64()),
+        (Some("box_0_0_1"), Some(108.0))
+    );
+    let hit = json(&dmu(&[
+        "pick",
+        &moved,
+        "--ray",
+        "500,0,-100,0,0,1",
+        "--json",
+    ]));
+    assert_eq!(
+        (hit["part"].as_str(), hit["distance"].as_f64()),
+        (Some("box_0_0_0"), Some(98.0))
+    );
+
+    let out = dmu(&["move", &file, "--part", "nope", "-o", &moved]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("unknown part \"nope\""));
+}

@@ -1,0 +1,244 @@
+//! `dmu bench`: measured figures for scripts (`--json`); ratios are taken within
+//! one run, because the machine is shared and noisy.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use dmu_geom::Ray3d;
+use dmu_scene::PartId;
+use dmu_scene::samples::Rng;
+use dmu_tree::{Tree, TreeOptions};
+use glam::{DAffine3, DVec3};
+use serde_json::json;
+
+use crate::load::{ModelArgs, load};
+use crate::units::parse_count;
+
+/// Measure a subsystem on a model (the built-in plant by default).
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(subcommand)]
+    what: What,
+}
+
+#[derive(Debug, clap::Subcommand)]
+enum What {
+    /// The cell tree: build, pick, move, rebuild-versus-move and SAH after moves.
+    Tree(TreeArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct TreeArgs {
+    /// Model file; the built-in plant of `--triangles` when omitted.
+    file: Option<PathBuf>,
+    /// Size of the built-in plant.
+    #[arg(long, default_value = "10M", value_parser = parse_count)]
+    triangles: u64,
+    /// Rays to pick (each aimed at a random triangle, so it hits).
+    #[arg(long, default_value_t = 10_000)]
+    rays: usize,
+    /// Timed moves of parts of about `--part-triangles`, and untimed random moves
+    /// before the SAH comparison.
+    #[arg(long, default_value_t = 10_000)]
+    moves: usize,
+    /// Size of the parts moved for `move_us_median`.
+    #[arg(long, default_value_t = 10_000)]
+    part_triangles: u64,
+    /// Largest move, model units (1 m in the millimetre plant).
+    #[arg(long, default_value_t = 1000.0)]
+    move_reach: f64,
+    /// Cell triangle budget.
+    #[arg(long, default_value_t = TreeOptions::default().cell_triangles)]
+    cell_triangles: u32,
+    /// Maximum triangles per chunk.
+    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES)]
+    chunk_triangles: u32,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Print JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    match &args.what {
+        What::Tree(t) => bench_tree(t),
+    }
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    percentile(v, 0.5)
+}
+
+fn percentile(v: &mut [f64], q: f64) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    v[((v.len() - 1) as f64 * q).round() as usize]
+}
+
+fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
+    let start = Instant::now();
+    let out = f();
+    (out, start.elapsed().as_secs_f64())
+}
+
+/// A point in the unit ball, uniformly.
+fn in_ball(rng: &mut Rng) -> DVec3 {
+    loop {
+        let v = DVec3::new(
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+        );
+        if v.length_squared() <= 1.0 {
+            return v;
+        }
+    }
+}
+
+fn bench_tree(args: &TreeArgs) -> anyhow::Result<()> {
+    let model = ModelArgs {
+        file: args.file.clone(),
+        chunk_triangles: args.chunk_triangles,
+        plant_triangles: args.triangles,
+    };
+    let mut loaded = load(&model)?;
+    let scene = &mut loaded.scene;
+    let options = TreeOptions {
+        cell_triangles: args.cell_triangles,
+        ..TreeOptions::default()
+    };
+    let mut rng = Rng::new(args.seed);
+
+    let (mut tree, build_s) = time(|| Tree::build(scene, options));
+
+    // Rays aimed at random triangles from a few metres away: each hits something.
+    let entries = tree.entries();
+    let rays: Vec<Ray3d> = (0..args.rays)
+        .map(|_| {
+            let e = &entries[rng.below(entries.len() as u64) as usize];
+            let c = scene.chunk(e.chunk);
+            let t = c.triangles.start + rng.below(u64::from(c.triangle_count())) as u32;
+            let tri = scene.triangle_local(c.mesh, e.chunk, t);
+            let target = scene
+                .part_world(e.part)
+                .transform_point3(((tri[0] + tri[1] + tri[2]) / 3.0).as_dvec3());
+            let eye = target
+                + in_ball(&mut rng).normalize_or(DVec3::Z) * rng.range(0.5, 20.0) * args.move_reach;
+            Ray3d::new(eye, (target - eye).normalize())
+        })
+        .collect();
+    let mut pick_cold = Vec::with_capacity(rays.len());
+    let mut pick_warm = Vec::with_capacity(rays.len());
+    let mut hits = 0usize;
+    for ray in &rays {
+        let (hit, s) = time(|| tree.pick(scene, ray));
+        pick_cold.push(s * 1e6);
+        hits += usize::from(hit.is_some());
+    }
+    for ray in &rays {
+        pick_warm.push(time(|| tree.pick(scene, ray)).1 * 1e6);
+    }
+
+    // Parts of about `part_triangles` triangles, moved up to `move_reach` from home.
+    let mut by_size: Vec<PartId> = scene.part_ids().collect();
+    by_size.sort_by_key(|&p| {
+        scene
+            .part_mesh(p)
+            .triangle_count()
+            .abs_diff(args.part_triangles)
+    });
+    let movers: Vec<PartId> = by_size.into_iter().take(32).collect();
+    let home: Vec<DAffine3> = movers.iter().map(|&p| scene.part_world(p)).collect();
+    let mover_triangles = movers
+        .iter()
+        .map(|&p| scene.part_mesh(p).triangle_count())
+        .sum::<u64>()
+        / movers.len().max(1) as u64;
+    let mut move_us = Vec::with_capacity(args.moves);
+    for _ in 0..args.moves {
+        let i = rng.below(movers.len() as u64) as usize;
+        let world = DAffine3::from_translation(in_ball(&mut rng) * args.move_reach) * home[i];
+        move_us.push(time(|| tree.move_part(scene, movers[i], world)).1 * 1e6);
+    }
+    for (&p, &w) in movers.iter().zip(&home) {
+        tree.move_part(scene, p, w);
+    }
+
+    // What a move would cost without incremental update: a rebuild from the boxes.
+    let (_, rebuild_s) = time(|| tree.rebuild());
+
+    // Random moves of random parts, then the SAH cost against a fresh build.
+    let parts = scene.parts().len() as u64;
+    let mut random_move_us = Vec::with_capacity(args.moves);
+    for _ in 0..args.moves {
+        let p = PartId(rng.below(parts) as u32);
+        let world =
+            DAffine3::from_translation(in_ball(&mut rng) * args.move_reach) * scene.part_world(p);
+        random_move_us.push(time(|| tree.move_part(scene, p, world)).1 * 1e6);
+    }
+    let fresh = Tree::build(scene, options);
+    let move_median = median(&mut move_us);
+    let out = json!({
+        "model": loaded.source.as_ref().map_or_else(|| format!("built-in plant {}", args.triangles), |p| p.display().to_string()),
+        "triangles": scene.triangle_count(),
+        "parts": scene.parts().len(),
+        "entries": tree.entries().len(),
+        "cells": fresh.cell_count(),
+        "depth": fresh.depth(),
+        "cell_triangles": args.cell_triangles,
+        "chunk_triangles": args.chunk_triangles,
+        "load_ms": loaded.load_ms,
+        "build_ms": build_s * 1e3,
+        "rays": rays.len(),
+        "rays_hit": hits,
+        "pick_us_median": median(&mut pick_warm),
+        "pick_us_p95": percentile(&mut pick_warm, 0.95),
+        "pick_us_median_cold": median(&mut pick_cold),
+        "chunk_bvhs_built": tree.chunk_bvhs_built(),
+        "moved_part_triangles": mover_triangles,
+        "move_us_median": move_median,
+        "move_us_p95": percentile(&mut move_us, 0.95),
+        "random_move_us_median": median(&mut random_move_us),
+        "rebuild_ms": rebuild_s * 1e3,
+        "rebuild_over_move": rebuild_s * 1e6 / move_median,
+        "sah_after_moves_over_fresh": tree.sah_cost() / fresh.sah_cost(),
+        "update_stats": {
+            "moves": tree.update_stats().moves,
+            "stayed": tree.update_stats().stayed,
+            "reinserted": tree.update_stats().reinserted,
+            "splits": tree.update_stats().splits,
+            "merges": tree.update_stats().merges,
+            "rotations": tree.update_stats().rotations,
+        },
+    });
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&out)?);
+    } else {
+        println!(
+            "tree bench on {} ({} triangles, {} parts)",
+            out["model"].as_str().unwrap_or_default(),
+            out["triangles"],
+            out["parts"]
+        );
+        for key in [
+            "entries",
+            "cells",
+            "depth",
+            "build_ms",
+            "pick_us_median",
+            "pick_us_p95",
+            "pick_us_median_cold",
+            "move_us_median",
+            "move_us_p95",
+            "rebuild_ms",
+            "rebuild_over_move",
+            "sah_after_moves_over_fresh",
+        ] {
+            println!("  {key:<28} {}", out[key]);
+        }
+    }
+    Ok(())
+}
