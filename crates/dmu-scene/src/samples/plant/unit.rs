@@ -82,8 +82,13 @@ pub(super) struct Route {
 
 /// A rotation whose X axis is `x` (unit), Z as close to `z_hint` as possible.
 pub(super) fn basis(x: DVec3, z_hint: DVec3) -> DMat3 {
-    let hint = if x.dot(z_hint).abs() > 0.9 { DVec3::X.cross(x).try_normalize().map_or(DVec3::Y, |_| DVec3::X) } else { z_hint };
-    let hint = if x.dot(hint).abs() > 0.9 { DVec3::Y } else { hint };
+    let hint = if x.dot(z_hint).abs() < 0.9 {
+        z_hint
+    } else if x.x.abs() < 0.9 {
+        DVec3::X
+    } else {
+        DVec3::Y
+    };
     let y = hint.cross(x).normalize();
     DMat3::from_cols(x, y, x.cross(y))
 }
