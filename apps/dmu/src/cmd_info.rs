@@ -50,7 +50,7 @@ struct Info {
 pub fn run(args: &Args) -> anyhow::Result<()> {
     let loaded = load(&args.model)?;
     let s = &loaded.scene;
-    let b = s.world_bounds();
+    let b = s.tight_world_bounds();
     let (min, max) = if b.is_empty() {
         ([0.0; 3], [0.0; 3])
     } else {

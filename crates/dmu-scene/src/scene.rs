@@ -261,11 +261,30 @@ impl Scene {
         self.chunk(chunk).bounds.transformed(&self.part_world(part))
     }
 
-    /// World box of every part (hidden ones too).
+    /// World box of every part (hidden ones too), from the parts' local boxes:
+    /// conservative (it encloses the geometry, padded by a few ulps) and cheap.
     pub fn world_bounds(&self) -> Aabb3d {
         self.part_ids()
             .map(|p| self.part_world_bounds(p))
             .fold(Aabb3d::EMPTY, Aabb3d::union)
+    }
+
+    /// The exact world box of every vertex of every part, each transformed in f64:
+    /// what a report of the model's extent should show (tight also for rotated
+    /// parts). Costs a pass over all instanced vertices, in parallel.
+    pub fn tight_world_bounds(&self) -> Aabb3d {
+        use rayon::prelude::*;
+        (0..self.parts.len())
+            .into_par_iter()
+            .map(|p| {
+                let part = PartId(p as u32);
+                let world = self.part_world(part);
+                self.part_mesh(part)
+                    .positions
+                    .iter()
+                    .fold(Aabb3d::EMPTY, |b, v| b.grown(world.transform_point3(v.as_dvec3())))
+            })
+            .reduce(|| Aabb3d::EMPTY, Aabb3d::union)
     }
 
     /// The three local vertex positions of a chunk's triangle `t` (mesh-relative index).

@@ -1,3 +1,4 @@
 mod import;
+mod plant;
 mod real_models;
 mod support;

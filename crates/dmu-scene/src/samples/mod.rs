@@ -3,6 +3,7 @@
 mod grid;
 mod plant;
 mod rng;
+mod shapes;
 
 pub use grid::grid;
 pub use plant::{PlantOptions, plant};

@@ -36,7 +36,10 @@ impl Tess {
     /// An empty mesh named `name`, placed at the identity, with `material`.
     pub(crate) fn new(name: impl Into<String>, material: MaterialId) -> Self {
         Self {
-            mesh: MeshData { name: name.into(), ..MeshData::default() },
+            mesh: MeshData {
+                name: name.into(),
+                ..MeshData::default()
+            },
             pos: Vec::new(),
             nrm: Vec::new(),
             idx: Vec::new(),
@@ -59,7 +62,8 @@ impl Tess {
         for n in &mut self.nrm {
             *n = xf.transform_vector3(*n).normalize_or(Vec3::Z);
         }
-        self.mesh.push_primitive(&self.pos, &self.nrm, &self.idx, self.material);
+        self.mesh
+            .push_primitive(&self.pos, &self.nrm, &self.idx, self.material);
         self.pos.clear();
         self.nrm.clear();
         self.idx.clear();
@@ -129,7 +133,15 @@ impl Tess {
     /// A round solid along local X from `x0` to `x1 > x0`, radius `r0` at `x0` and
     /// `r1` at `x1` (one of them may be zero: a cone), with `seg` segments around
     /// and flat end caps where `caps` says so (a zero radius needs none).
-    pub(crate) fn frustum(&mut self, x0: f32, x1: f32, r0: f32, r1: f32, seg: u32, caps: (bool, bool)) {
+    pub(crate) fn frustum(
+        &mut self,
+        x0: f32,
+        x1: f32,
+        r0: f32,
+        r1: f32,
+        seg: u32,
+        caps: (bool, bool),
+    ) {
         debug_assert!(x1 > x0 && seg >= 3 && (r0 > 0.0 || r1 > 0.0));
         let slope = (r0 - r1) / (x1 - x0);
         let ring = |i: u32| {
@@ -146,7 +158,12 @@ impl Tess {
             }
             for i in 0..seg {
                 let j = (i + 1) % seg;
-                let (a0, b0, a1, b1) = (base + 2 * i, base + 2 * i + 1, base + 2 * j, base + 2 * j + 1);
+                let (a0, b0, a1, b1) = (
+                    base + 2 * i,
+                    base + 2 * i + 1,
+                    base + 2 * j,
+                    base + 2 * j + 1,
+                );
                 self.tri(a0, a1, b1);
                 self.tri(a0, b1, b0);
             }
@@ -159,7 +176,10 @@ impl Tess {
             }
             for i in 0..seg {
                 let mid = TAU * (i as f32 + 0.5) / seg as f32;
-                let apex = self.vertex(Vec3::new(x_apex, 0.0, 0.0), side(Vec2::new(mid.cos(), mid.sin())));
+                let apex = self.vertex(
+                    Vec3::new(x_apex, 0.0, 0.0),
+                    side(Vec2::new(mid.cos(), mid.sin())),
+                );
                 let (a, b) = (base + i, base + (i + 1) % seg);
                 if r0 > 0.0 {
                     self.tri(a, b, apex);
@@ -199,7 +219,15 @@ impl Tess {
     /// `bend` from angle 0 (point (bend, 0, 0), heading +Y) to `angle`, with
     /// `steps` steps along the arc and `seg` segments around; `caps` closes both
     /// ends (leave them open for a full ring).
-    pub(crate) fn torus(&mut self, bend: f32, tube: f32, angle: f32, steps: u32, seg: u32, caps: bool) {
+    pub(crate) fn torus(
+        &mut self,
+        bend: f32,
+        tube: f32,
+        angle: f32,
+        steps: u32,
+        seg: u32,
+        caps: bool,
+    ) {
         debug_assert!(bend > tube && steps >= 1 && seg >= 3);
         let full = (angle - TAU).abs() < 1e-4;
         let rings = if full { steps } else { steps + 1 };
@@ -232,7 +260,10 @@ impl Tess {
                 let first = self.pos.len() as u32;
                 for i in 0..seg {
                     let phi = TAU * i as f32 / seg as f32;
-                    self.vertex(radial * bend + (radial * phi.cos() + Vec3::Z * phi.sin()) * tube, normal);
+                    self.vertex(
+                        radial * bend + (radial * phi.cos() + Vec3::Z * phi.sin()) * tube,
+                        normal,
+                    );
                 }
                 for i in 0..seg {
                     let (a, b) = (first + i, first + (i + 1) % seg);
@@ -253,7 +284,13 @@ impl Tess {
     /// the base, where it meets a shell.
     pub(crate) fn dish(&mut self, radius: f32, depth: f32, rings: u32, seg: u32) {
         debug_assert!(radius > 0.0 && depth > 0.0 && rings >= 1 && seg >= 3);
-        let normal_at = |p: Vec3| Vec3::new(p.x / (depth * depth), p.y / (radius * radius), p.z / (radius * radius));
+        let normal_at = |p: Vec3| {
+            Vec3::new(
+                p.x / (depth * depth),
+                p.y / (radius * radius),
+                p.z / (radius * radius),
+            )
+        };
         let base = self.pos.len() as u32;
         for k in 0..rings {
             let alpha = std::f32::consts::FRAC_PI_2 * k as f32 / rings as f32;
@@ -319,7 +356,18 @@ pub(crate) fn i_section(h: f32, b: f32, tw: f32, tf: f32) -> ([Vec2; 12], [[u32;
     ];
     // Bottom flange fanned from its corner 0, the web, the top flange from corner 6:
     // every triangle has positive area (no three collinear corners).
-    let cap = [[0, 1, 2], [0, 2, 3], [0, 3, 10], [0, 10, 11], [10, 3, 4], [10, 4, 9], [6, 7, 8], [6, 8, 9], [6, 9, 4], [6, 4, 5]];
+    let cap = [
+        [0, 1, 2],
+        [0, 2, 3],
+        [0, 3, 10],
+        [0, 10, 11],
+        [10, 3, 4],
+        [10, 4, 9],
+        [6, 7, 8],
+        [6, 8, 9],
+        [6, 9, 4],
+        [6, 4, 5],
+    ];
     (outline, cap)
 }
 
@@ -336,6 +384,13 @@ pub(crate) fn c_section(h: f32, b: f32, t: f32) -> ([Vec2; 8], [[u32; 3]; 6]) {
         Vec2::new(b, h),
         Vec2::new(0.0, h),
     ];
-    let cap = [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 7], [7, 4, 5], [7, 5, 6]];
+    let cap = [
+        [0, 1, 2],
+        [0, 2, 3],
+        [0, 3, 4],
+        [0, 4, 7],
+        [7, 4, 5],
+        [7, 5, 6],
+    ];
     (outline, cap)
 }

@@ -7,7 +7,7 @@
 //! along +X, out along +Y); equipment, ladders and supports stand on their
 //! origin with Z up.
 
-use std::f32::consts::{FRAC_PI_2, PI, TAU};
+use std::f32::consts::{FRAC_1_SQRT_2, FRAC_PI_2, PI, TAU};
 
 use glam::{Affine3A, Mat3, Vec3};
 
@@ -74,8 +74,14 @@ impl Mat {
 }
 
 /// Pipe services, each with its colour.
-pub(super) const SERVICES: [Mat; 6] =
-    [Mat::PipeProcess, Mat::PipeWater, Mat::PipeSteam, Mat::PipeFire, Mat::PipeGas, Mat::PipeChemical];
+pub(super) const SERVICES: [Mat; 6] = [
+    Mat::PipeProcess,
+    Mat::PipeWater,
+    Mat::PipeSteam,
+    Mat::PipeFire,
+    Mat::PipeGas,
+    Mat::PipeChemical,
+];
 
 /// A nominal pipe size (ASME B36.10 outside diameter, long-radius elbow,
 /// class 150 weld-neck flange and gate valve), in millimetres.
@@ -97,8 +103,24 @@ pub(super) struct Dn {
     pub bolts: u32,
 }
 
-const fn dn(nominal: u32, od: f32, bend: u32, flange_od: f32, flange_len: u32, valve_len: u32, bolts: u32) -> Dn {
-    Dn { nominal, od, bend, flange_od, flange_len, valve_len, bolts }
+const fn dn(
+    nominal: u32,
+    od: f32,
+    bend: u32,
+    flange_od: f32,
+    flange_len: u32,
+    valve_len: u32,
+    bolts: u32,
+) -> Dn {
+    Dn {
+        nominal,
+        od,
+        bend,
+        flange_od,
+        flange_len,
+        valve_len,
+        bolts,
+    }
 }
 
 /// The pipe sizes in use, smallest first.
@@ -232,7 +254,10 @@ pub(super) fn vessel_top(d: u32, h: u32, dn: u8) -> u32 {
 }
 /// The top nozzle of a drum: (x along its axis, height of the face).
 pub(super) fn drum_nozzle(d: u32, l: u32, dn: u8) -> (i64, u32) {
-    (i64::from(l / 4), drum_axis(d) + d / 2 + NOZZLE as u32 + DNS[dn as usize].flange_len)
+    (
+        i64::from(l / 4),
+        drum_axis(d) + d / 2 + NOZZLE as u32 + DNS[dn as usize].flange_len,
+    )
 }
 fn drum_axis(d: u32) -> u32 {
     d / 2 + 500
@@ -261,10 +286,18 @@ impl Spec {
     /// A readable mesh name.
     pub(super) fn name(&self) -> String {
         match *self {
-            Self::Block { size: [x, y, z], mat } => format!("BLOCK-{x}x{y}x{z}-{mat:?}"),
-            Self::Profile { section, len } => format!("{}-L{len}", ["HEB300", "IPE450", "IPE300", "HEA300"][section as usize]),
+            Self::Block {
+                size: [x, y, z],
+                mat,
+            } => format!("BLOCK-{x}x{y}x{z}-{mat:?}"),
+            Self::Profile { section, len } => format!(
+                "{}-L{len}",
+                ["HEB300", "IPE450", "IPE300", "HEA300"][section as usize]
+            ),
             Self::Brace { len } => format!("SHS150-L{len}"),
-            Self::Pipe { dn, len, mat } => format!("PIPE-DN{}-L{len}-{mat:?}", DNS[dn as usize].nominal),
+            Self::Pipe { dn, len, mat } => {
+                format!("PIPE-DN{}-L{len}-{mat:?}", DNS[dn as usize].nominal)
+            }
             Self::Elbow { dn, mat } => format!("ELBOW90-DN{}-{mat:?}", DNS[dn as usize].nominal),
             Self::Flange { dn, mat } => format!("FLANGE-DN{}-{mat:?}", DNS[dn as usize].nominal),
             Self::FlangePair { dn, mat } => format!("JOINT-DN{}-{mat:?}", DNS[dn as usize].nominal),
@@ -281,7 +314,9 @@ impl Spec {
             Self::Handrail { len } => format!("HANDRAIL-L{len}"),
             Self::Tray { len, w } => format!("TRAY-W{w}-L{len}"),
             Self::TraySupport { w, drop } => format!("TRAY-HANGER-W{w}-D{drop}"),
-            Self::Hanger { dn, drop } => format!("PIPE-HANGER-DN{}-D{drop}", DNS[dn as usize].nominal),
+            Self::Hanger { dn, drop } => {
+                format!("PIPE-HANGER-DN{}-D{drop}", DNS[dn as usize].nominal)
+            }
             Self::Shoe { dn } => format!("PIPE-SHOE-DN{}", DNS[dn as usize].nominal),
             Self::Tank { d, h } => format!("TANK-D{d}-H{h}"),
             Self::Plinth { d, h } => format!("PLINTH-D{d}-H{h}"),
@@ -320,7 +355,10 @@ pub(super) fn build(spec: &Spec, detail: &Detail) -> MeshData {
             let (bend, r) = (p.bend as f32, p.od * 0.5);
             // The torus starts at (bend, 0, 0) heading +Y: turn it so it starts at
             // (-bend, 0, 0) heading +X and ends at (0, bend, 0) heading +Y.
-            t.xf = Affine3A::from_mat3_translation(Mat3::from_cols(-Vec3::Y, Vec3::X, Vec3::Z), Vec3::new(-bend, bend, 0.0));
+            t.xf = Affine3A::from_mat3_translation(
+                Mat3::from_cols(-Vec3::Y, Vec3::X, Vec3::Z),
+                Vec3::new(-bend, bend, 0.0),
+            );
             t.torus(bend, r, FRAC_PI_2, d.steps, d.seg(r), true);
         }
         Spec::Flange { dn, mat } => {
@@ -336,9 +374,24 @@ pub(super) fn build(spec: &Spec, detail: &Detail) -> MeshData {
             flange(&mut t, d, dn, len + 1.5, -1.0);
         }
         Spec::Valve { dn } => valve(&mut t, d, dn),
-        Spec::Vessel { d: dia, h, dn, seed } => vessel(&mut t, d, dia, h, dn, seed),
-        Spec::Drum { d: dia, l, dn, seed } => drum(&mut t, d, dia, l, dn, seed, false),
-        Spec::Exchanger { d: dia, l, dn, seed } => drum(&mut t, d, dia, l, dn, seed, true),
+        Spec::Vessel {
+            d: dia,
+            h,
+            dn,
+            seed,
+        } => vessel(&mut t, d, dia, h, dn, seed),
+        Spec::Drum {
+            d: dia,
+            l,
+            dn,
+            seed,
+        } => drum(&mut t, d, dia, l, dn, seed, false),
+        Spec::Exchanger {
+            d: dia,
+            l,
+            dn,
+            seed,
+        } => drum(&mut t, d, dia, l, dn, seed, true),
         Spec::Pump { size } => pump(&mut t, d, size),
         Spec::Cabinet { w } => cabinet(&mut t, w),
         Spec::Hvac { l } => hvac(&mut t, d, l),
@@ -380,8 +433,14 @@ pub(super) fn build(spec: &Spec, detail: &Detail) -> MeshData {
         Spec::Shoe { dn } => {
             let r = DNS[dn as usize].od * 0.5;
             let w = (r * 1.2).max(100.0);
-            t.block(Vec3::new(0.0, 0.0, -r - SHOE_H + 8.0), Vec3::new(300.0, w, 16.0));
-            t.block(Vec3::new(0.0, 0.0, -r - SHOE_H * 0.5 - 1.0), Vec3::new(300.0, 12.0, SHOE_H - 18.0));
+            t.block(
+                Vec3::new(0.0, 0.0, -r - SHOE_H + 8.0),
+                Vec3::new(300.0, w, 16.0),
+            );
+            t.block(
+                Vec3::new(0.0, 0.0, -r - SHOE_H * 0.5 - 1.0),
+                Vec3::new(300.0, 12.0, SHOE_H - 18.0),
+            );
         }
         Spec::Tank { d: dia, h } => tank(&mut t, d, dia, h),
         Spec::Plinth { d: dia, h } => {
@@ -398,8 +457,8 @@ fn v3(size: [u32; 3]) -> Vec3 {
     Vec3::new(size[0] as f32, size[1] as f32, size[2] as f32)
 }
 
-/// A weld-neck flange along X with its face at `x_face`, hub on the side of
-/// `dir` (+1: hub towards -X... the face is at the +X end when `dir` is 1).
+/// A weld-neck flange along X: its hub (pipe) end at `x_hub`, its face at
+/// `x_hub + dir * flange_len` (`dir` is +1 or -1).
 fn flange(t: &mut Tess, d: &Detail, dn: u8, x_hub: f32, dir: f32) {
     let p = DNS[dn as usize];
     let (r, rf, len) = (p.od * 0.5, p.flange_od * 0.5, p.flange_len as f32);
@@ -407,7 +466,11 @@ fn flange(t: &mut Tess, d: &Detail, dn: u8, x_hub: f32, dir: f32) {
     let r_hub = r * 1.12 + 6.0;
     // In the flange's own axis u (from hub end to face): hub [0, len - disc], disc after.
     let span = |u0: f32, u1: f32| {
-        if dir > 0.0 { (x_hub + u0, x_hub + u1) } else { (x_hub - u1, x_hub - u0) }
+        if dir > 0.0 {
+            (x_hub + u0, x_hub + u1)
+        } else {
+            (x_hub - u1, x_hub - u0)
+        }
     };
     let (a, b) = span(0.0, len - disc);
     let (ra, rb) = if dir > 0.0 { (r, r_hub) } else { (r_hub, r) };
@@ -421,7 +484,8 @@ fn flange(t: &mut Tess, d: &Detail, dn: u8, x_hub: f32, dir: f32) {
         let base = t.xf;
         for k in 0..p.bolts {
             let a_k = TAU * (k as f32 + 0.5) / p.bolts as f32;
-            t.xf = base * Affine3A::from_translation(Vec3::new(0.0, rb * a_k.cos(), rb * a_k.sin()));
+            t.xf =
+                base * Affine3A::from_translation(Vec3::new(0.0, rb * a_k.cos(), rb * a_k.sin()));
             t.cylinder(a, b, 14.0 + r * 0.05, 6);
         }
         t.xf = base;
@@ -440,11 +504,19 @@ fn valve(t: &mut Tess, d: &Detail, dn: u8) {
     // Body and bonnet up +Z.
     let up = frame(Vec3::ZERO, Vec3::Z, Vec3::X);
     t.xf = up;
-    let rb = r * 1.25 + 10.0;
+    // Within the face-to-face length, so the body stays clear of the pipes.
+    let rb = (r * 1.25 + 10.0).min(half - disc - 2.0);
     t.cylinder(-r * 1.1, r * 1.4, rb, d.seg(rb));
     t.cylinder(r * 1.4, r * 1.4 + 30.0, rb * 1.15, d.seg(rb * 1.15));
     let bonnet_top = r * 1.4 + 30.0 + r * 1.6 + 60.0;
-    t.frustum(r * 1.4 + 30.0, bonnet_top, rb * 0.8, rb * 0.5, d.seg(rb * 0.8), (true, true));
+    t.frustum(
+        r * 1.4 + 30.0,
+        bonnet_top,
+        rb * 0.8,
+        rb * 0.5,
+        d.seg(rb * 0.8),
+        (true, true),
+    );
     // Stem and handwheel.
     let stem_top = bonnet_top + r * 1.2 + 120.0;
     let rs = (r * 0.08).max(8.0);
@@ -456,16 +528,19 @@ fn valve(t: &mut Tess, d: &Detail, dn: u8) {
     if d.fine {
         for k in 0..3 {
             let a = TAU * k as f32 / 3.0;
-            t.xf = along(Vec3::new(0.0, 0.0, stem_top), Vec3::new(a.cos(), a.sin(), 0.0));
+            t.xf = along(
+                Vec3::new(0.0, 0.0, stem_top),
+                Vec3::new(a.cos(), a.sin(), 0.0),
+            );
             t.cylinder(rs, rw - tube * 0.5, tube * 0.6, 6);
         }
     }
 }
 
 /// A nozzle of size `dn` leaving a shell at `at` along the unit `dir`: a stub
-/// from `inset` inside the shell to `NOZZLE` past `at`, then a flange. Returns
-/// the flange face.
-fn nozzle(t: &mut Tess, d: &Detail, at: Vec3, dir: Vec3, inset: f32, dn: u8, blind: bool) -> Vec3 {
+/// from `inset` inside the shell to `NOZZLE` past `at`, then a flange, blind
+/// or open for a pipe.
+fn nozzle(t: &mut Tess, d: &Detail, at: Vec3, dir: Vec3, inset: f32, dn: u8, blind: bool) {
     let p = DNS[dn as usize];
     let r = p.od * 0.5;
     let saved = (t.xf, t.material);
@@ -475,14 +550,19 @@ fn nozzle(t: &mut Tess, d: &Detail, at: Vec3, dir: Vec3, inset: f32, dn: u8, bli
     if blind {
         let disc = (p.flange_len as f32 * 0.4).max(14.0);
         let face = NOZZLE + p.flange_len as f32;
-        t.cylinder(face, face + disc, p.flange_od * 0.5, d.seg(p.flange_od * 0.5));
+        t.cylinder(
+            face,
+            face + disc,
+            p.flange_od * 0.5,
+            d.seg(p.flange_od * 0.5),
+        );
     }
     (t.xf, t.material) = saved;
-    at + dir * (NOZZLE + p.flange_len as f32)
 }
 
 fn vessel(t: &mut Tess, d: &Detail, dia: u32, h: u32, dn: u8, seed: u16) {
-    let mut rng = crate::samples::Rng::new(u64::from(seed) ^ u64::from(dia) << 20 ^ u64::from(h) << 40);
+    let mut rng =
+        crate::samples::Rng::new(u64::from(seed) ^ (u64::from(dia) << 20) ^ (u64::from(h) << 40));
     let r = dia as f32 * 0.5;
     let (skirt, h) = (vessel_skirt(dia) as f32, h as f32);
     let seg = d.seg(r);
@@ -496,33 +576,59 @@ fn vessel(t: &mut Tess, d: &Detail, dia: u32, h: u32, dn: u8, seed: u16) {
     t.dish(r, r * 0.5, d.rings, seg);
     t.xf = Affine3A::IDENTITY;
     // The top nozzle, where a pipe connects, and blind side nozzles.
-    nozzle(t, d, Vec3::new(0.0, 0.0, skirt + h + r * 0.5), Vec3::Z, 20.0, dn, false);
+    nozzle(
+        t,
+        d,
+        Vec3::new(0.0, 0.0, skirt + h + r * 0.5),
+        Vec3::Z,
+        20.0,
+        dn,
+        false,
+    );
     let side = 2 + rng.below(3) as u32;
     for k in 0..side {
         let a = TAU * (k as f32 + rng.unit() as f32 * 0.6) / side as f32;
         let z = skirt + h * (0.15 + 0.7 * rng.unit() as f32);
         let dir = Vec3::new(a.cos(), a.sin(), 0.0);
         let size = rng.below(u64::from(dn) + 1) as u8;
-        nozzle(t, d, Vec3::new(0.0, 0.0, z) + dir * r, dir, 30.0, size, true);
+        nozzle(
+            t,
+            d,
+            Vec3::new(0.0, 0.0, z) + dir * r,
+            dir,
+            30.0,
+            size,
+            true,
+        );
     }
     if h > 1500.0 {
         let a = TAU * rng.unit() as f32;
         let dir = Vec3::new(a.cos(), a.sin(), 0.0);
-        nozzle(t, d, Vec3::new(0.0, 0.0, skirt + 600.0) + dir * r, dir, 30.0, 8, true);
+        nozzle(
+            t,
+            d,
+            Vec3::new(0.0, 0.0, skirt + 600.0) + dir * r,
+            dir,
+            30.0,
+            8,
+            true,
+        );
     }
 }
 
 fn drum(t: &mut Tess, d: &Detail, dia: u32, l: u32, dn: u8, seed: u16, exchanger: bool) {
-    let mut rng = crate::samples::Rng::new(u64::from(seed) ^ u64::from(dia) << 20 ^ u64::from(l) << 40);
+    let mut rng =
+        crate::samples::Rng::new(u64::from(seed) ^ (u64::from(dia) << 20) ^ (u64::from(l) << 40));
     let r = dia as f32 * 0.5;
     let axis = drum_axis(dia) as f32;
     let half = l as f32 * 0.5;
     let seg = d.seg(r);
-    t.material = Mat::Vessel.id();
-    // Saddles.
     t.material = Mat::Steel.id();
     for x in [-0.3 * l as f32, 0.3 * l as f32] {
-        t.block(Vec3::new(x, 0.0, (axis - r * 0.4) * 0.5), Vec3::new(250.0, r * 1.6, axis - r * 0.4));
+        t.block(
+            Vec3::new(x, 0.0, (axis - r * 0.4) * 0.5),
+            Vec3::new(250.0, r * 1.6, axis - r * 0.4),
+        );
     }
     t.material = Mat::Vessel.id();
     t.xf = Affine3A::from_translation(Vec3::new(0.0, 0.0, axis));
@@ -532,33 +638,62 @@ fn drum(t: &mut Tess, d: &Detail, dia: u32, l: u32, dn: u8, seed: u16, exchanger
         t.frustum(-half + ch, half, r, r, seg, (false, false));
         let rf = r * 1.12 + 30.0;
         t.cylinder(-half + ch - 80.0, -half + ch, rf, d.seg(rf));
-        t.cylinder(-half + ch - 80.0 - (ch - 160.0), -half + ch - 80.0, r * 1.03, d.seg(r));
+        t.cylinder(
+            -half + ch - 80.0 - (ch - 160.0),
+            -half + ch - 80.0,
+            r * 1.03,
+            d.seg(r),
+        );
         t.cylinder(-half, -half + 80.0, rf, d.seg(rf));
         t.xf = frame(Vec3::new(-half, 0.0, axis), -Vec3::X, -Vec3::Y);
         t.dish(r, r * 0.35, d.rings, seg);
         t.xf = Affine3A::IDENTITY;
-        for x in [-half + ch * 0.5] {
-            nozzle(t, d, Vec3::new(x, 0.0, axis + r), Vec3::Z, 20.0, dn, true);
-            nozzle(t, d, Vec3::new(x, 0.0, axis - r), -Vec3::Z, 20.0, dn, true);
-        }
+        let x = -half + ch * 0.5;
+        nozzle(t, d, Vec3::new(x, 0.0, axis + r), Vec3::Z, 20.0, dn, true);
+        nozzle(t, d, Vec3::new(x, 0.0, axis - r), -Vec3::Z, 20.0, dn, true);
     } else {
         t.frustum(-half, half, r, r, seg, (false, false));
         t.xf = frame(Vec3::new(-half, 0.0, axis), -Vec3::X, -Vec3::Y);
         t.dish(r, r * 0.5, d.rings, seg);
         t.xf = Affine3A::IDENTITY;
         let x = -0.3 * l as f32;
-        nozzle(t, d, Vec3::new(x, 0.0, axis + r), Vec3::Z, 20.0, rng.below(u64::from(dn) + 1) as u8, true);
+        nozzle(
+            t,
+            d,
+            Vec3::new(x, 0.0, axis + r),
+            Vec3::Z,
+            20.0,
+            rng.below(u64::from(dn) + 1) as u8,
+            true,
+        );
     }
     t.xf = frame(Vec3::new(half, 0.0, axis), Vec3::X, Vec3::Y);
-    t.dish(r, r * if exchanger { 0.5 } else { 0.5 }, d.rings, seg);
+    t.dish(r, r * 0.5, d.rings, seg);
     t.xf = Affine3A::IDENTITY;
     let (nx, _) = drum_nozzle(dia, l, dn);
-    nozzle(t, d, Vec3::new(nx as f32, 0.0, axis + r), Vec3::Z, 20.0, dn, false);
+    nozzle(
+        t,
+        d,
+        Vec3::new(nx as f32, 0.0, axis + r),
+        Vec3::Z,
+        20.0,
+        dn,
+        false,
+    );
     for _ in 0..1 + rng.below(2) {
-        let x = (rng.unit() as f32 - 0.5) * l as f32 * 0.6;
+        // Between the saddles, clear of them.
+        let x = (rng.unit() as f32 - 0.5) * l as f32 * 0.3;
         let a = PI * (0.2 + 0.6 * rng.unit() as f32);
         let dir = Vec3::new(0.0, a.cos(), -a.sin());
-        nozzle(t, d, Vec3::new(x, 0.0, axis) + dir * r, dir, 30.0, rng.below(u64::from(dn) + 1) as u8, true);
+        nozzle(
+            t,
+            d,
+            Vec3::new(x, 0.0, axis) + dir * r,
+            dir,
+            30.0,
+            rng.below(u64::from(dn) + 1) as u8,
+            true,
+        );
     }
 }
 
@@ -568,32 +703,81 @@ fn pump(t: &mut Tess, d: &Detail, size: u8) {
     let (x0, x1) = (x0 as f32, x1 as f32);
     let dn = pump_dn(size);
     t.material = Mat::Steel.id();
-    t.block(Vec3::new((x0 + x1) * 0.5, 0.0, 60.0), Vec3::new(x1 - x0, rc * 2.4, 120.0));
+    t.block(
+        Vec3::new((x0 + x1) * 0.5, 0.0, 60.0),
+        Vec3::new(x1 - x0, rc * 2.4, 120.0),
+    );
     t.material = Mat::Pump.id();
     // Volute with its axis along X, pedestal, bearing frame.
     t.cylinder(-rc * 0.45, rc * 0.45, rc, d.seg(rc));
-    t.block(Vec3::new(0.0, 0.0, (axis - rc * 0.5 + 120.0) * 0.5), Vec3::new(rc * 1.2, rc * 1.0, axis - rc * 0.5 - 120.0));
+    t.block(
+        Vec3::new(0.0, 0.0, (axis - rc * 0.5 + 120.0) * 0.5),
+        Vec3::new(rc * 1.2, rc * 1.0, axis - rc * 0.5 - 120.0),
+    );
     t.xf = Affine3A::from_translation(Vec3::new(0.0, 0.0, axis));
     t.cylinder(-rc * 0.45, rc * 0.45, rc, d.seg(rc));
     let rbr = rc * 0.45;
-    t.frustum(rc * 0.45, rc * 0.45 + 420.0, rc * 0.6, rbr, d.seg(rbr), (true, true));
+    t.frustum(
+        rc * 0.45,
+        rc * 0.45 + 420.0,
+        rc * 0.6,
+        rbr,
+        d.seg(rbr),
+        (true, true),
+    );
     t.xf = Affine3A::IDENTITY;
     // Suction along -X, discharge up.
-    nozzle(t, d, Vec3::new(-rc * 0.45, 0.0, axis), -Vec3::X, 20.0, dn + 1, false);
-    nozzle(t, d, Vec3::new(0.0, 0.0, axis + rc), Vec3::Z, 20.0, dn, false);
+    nozzle(
+        t,
+        d,
+        Vec3::new(-rc * 0.45, 0.0, axis),
+        -Vec3::X,
+        20.0,
+        dn + 1,
+        false,
+    );
+    nozzle(
+        t,
+        d,
+        Vec3::new(0.0, 0.0, axis + rc),
+        Vec3::Z,
+        20.0,
+        dn,
+        false,
+    );
     // Coupling guard, motor with fan cowl, terminal box.
     let xm = rc * 0.45 + 420.0;
     t.material = Mat::Safety.id();
-    t.block(Vec3::new(xm + 130.0, 0.0, axis), Vec3::new(260.0, rbr * 2.2, rbr * 2.2));
+    t.block(
+        Vec3::new(xm + 130.0, 0.0, axis),
+        Vec3::new(260.0, rbr * 2.2, rbr * 2.2),
+    );
     t.material = Mat::Motor.id();
     let rm = rc * 0.95;
     let motor_end = x1 - 120.0;
-    t.block(Vec3::new((xm + 260.0 + motor_end) * 0.5, 0.0, (axis - rm + 120.0) * 0.5 + 60.0), Vec3::new(motor_end - xm - 300.0, rm * 1.6, axis - rm - 120.0));
+    t.block(
+        Vec3::new(
+            (xm + 260.0 + motor_end) * 0.5,
+            0.0,
+            (axis - rm + 120.0) * 0.5 + 60.0,
+        ),
+        Vec3::new(motor_end - xm - 300.0, rm * 1.6, axis - rm - 120.0),
+    );
     t.xf = Affine3A::from_translation(Vec3::new(0.0, 0.0, axis));
     t.cylinder(xm + 260.0, motor_end - 160.0, rm, d.seg(rm));
-    t.frustum(motor_end - 160.0, motor_end, rm * 0.97, rm * 0.75, d.seg(rm), (true, true));
+    t.frustum(
+        motor_end - 160.0,
+        motor_end,
+        rm * 0.97,
+        rm * 0.75,
+        d.seg(rm),
+        (true, true),
+    );
     t.xf = Affine3A::IDENTITY;
-    t.block(Vec3::new((xm + motor_end) * 0.5, 0.0, axis + rm + 80.0), Vec3::new(260.0, 220.0, 160.0));
+    t.block(
+        Vec3::new((xm + motor_end) * 0.5, 0.0, axis + rm + 80.0),
+        Vec3::new(260.0, 220.0, 160.0),
+    );
 }
 
 fn cabinet(t: &mut Tess, w: u32) {
@@ -607,15 +791,24 @@ fn cabinet(t: &mut Tess, w: u32) {
     t.material = Mat::Steel.id();
     for k in 0..doors {
         let x = -w * 0.5 + pitch * (k as f32 + 0.5);
-        t.block(Vec3::new(x + pitch * 0.35, -310.0, 1100.0), Vec3::new(20.0, 20.0, 200.0));
-        t.block(Vec3::new(x, -305.0, 1900.0), Vec3::new(pitch * 0.6, 10.0, 160.0));
+        t.block(
+            Vec3::new(x + pitch * 0.35, -310.0, 1100.0),
+            Vec3::new(20.0, 20.0, 200.0),
+        );
+        t.block(
+            Vec3::new(x, -305.0, 1900.0),
+            Vec3::new(pitch * 0.6, 10.0, 160.0),
+        );
     }
 }
 
 fn hvac(t: &mut Tess, d: &Detail, l: u32) {
     let l = l as f32;
     t.material = Mat::Steel.id();
-    t.block(Vec3::new(0.0, 0.0, 100.0), Vec3::new(l + 200.0, 2200.0, 200.0));
+    t.block(
+        Vec3::new(0.0, 0.0, 100.0),
+        Vec3::new(l + 200.0, 2200.0, 200.0),
+    );
     t.material = Mat::Hvac.id();
     t.block(Vec3::new(0.0, 0.0, 950.0), Vec3::new(l, 2000.0, 1500.0));
     let fans = (l / 1600.0).floor().max(1.0) as u32;
@@ -646,7 +839,8 @@ fn ladder(t: &mut Tess, d: &Detail, h: u32) {
         let open = 0.45f32;
         let mut z = 2300.0;
         while z < h - 50.0 {
-            t.xf = Affine3A::from_translation(c + Vec3::Z * z) * Affine3A::from_rotation_z(-PI + open);
+            t.xf =
+                Affine3A::from_translation(c + Vec3::Z * z) * Affine3A::from_rotation_z(-PI + open);
             t.torus(rc, 8.0, TAU - 2.0 * open, d.seg(rc), 6, true);
             z += 900.0;
         }
@@ -654,7 +848,10 @@ fn ladder(t: &mut Tess, d: &Detail, h: u32) {
         for k in 0..5 {
             let a = -PI + open + (TAU - 2.0 * open) * (k as f32 + 0.5) / 5.0;
             let p = c + Vec3::new(a.cos(), a.sin(), 0.0) * (rc + 14.0);
-            t.block(Vec3::new(p.x, p.y, (2300.0 + h) * 0.5), Vec3::new(10.0, 10.0, h - 2300.0));
+            t.block(
+                Vec3::new(p.x, p.y, (2300.0 + h) * 0.5),
+                Vec3::new(10.0, 10.0, h - 2300.0),
+            );
         }
     }
 }
@@ -676,7 +873,10 @@ fn handrail(t: &mut Tess, d: &Detail, len: u32) {
     t.xf.translation = Vec3::new(0.0, 0.0, 550.0).into();
     t.cylinder(a + 10.0, b - 10.0, 17.0, d.seg(17.0));
     t.xf = Affine3A::IDENTITY;
-    t.block(Vec3::new(0.0, 30.0, 50.0), Vec3::new(len - 80.0, 8.0, 100.0));
+    t.block(
+        Vec3::new(0.0, 30.0, 50.0),
+        Vec3::new(len - 80.0, 8.0, 100.0),
+    );
 }
 
 fn tray(t: &mut Tess, d: &Detail, len: u32, w: u32) {
@@ -687,18 +887,26 @@ fn tray(t: &mut Tess, d: &Detail, len: u32, w: u32) {
     // Left rail with its flanges pointing inwards (+y), right rail mirrored by a turn.
     t.xf = Affine3A::from_translation(Vec3::new(0.0, -w * 0.5, 0.0));
     t.extrude(&outline, &cap, -half, half);
-    t.xf = Affine3A::from_translation(Vec3::new(0.0, w * 0.5, 0.0)) * Affine3A::from_rotation_x(0.0) * Affine3A::from_mat3(Mat3::from_cols(-Vec3::X, -Vec3::Y, Vec3::Z));
+    t.xf = Affine3A::from_translation(Vec3::new(0.0, w * 0.5, 0.0))
+        * Affine3A::from_rotation_x(0.0)
+        * Affine3A::from_mat3(Mat3::from_cols(-Vec3::X, -Vec3::Y, Vec3::Z));
     t.extrude(&outline, &cap, -half, half);
     t.xf = Affine3A::IDENTITY;
     let pitch = if d.fine { 300.0 } else { 600.0 };
     let rungs = ((len - 100.0) / pitch).floor() as u32;
     let first = -(rungs as f32 - 1.0) * pitch * 0.5;
     for k in 0..rungs {
-        t.block(Vec3::new(first + pitch * k as f32, 0.0, 10.0), Vec3::new(40.0, w - 8.0, 20.0));
+        t.block(
+            Vec3::new(first + pitch * k as f32, 0.0, 10.0),
+            Vec3::new(40.0, w - 8.0, 20.0),
+        );
     }
     // The cables.
     t.material = Mat::Cabinet.id();
-    t.block(Vec3::new(0.0, 0.0, 50.0), Vec3::new(len - 10.0, w - 60.0, 60.0));
+    t.block(
+        Vec3::new(0.0, 0.0, 50.0),
+        Vec3::new(len - 10.0, w - 60.0, 60.0),
+    );
 }
 
 fn tank(t: &mut Tess, d: &Detail, dia: u32, h: u32) {
@@ -715,7 +923,23 @@ fn tank(t: &mut Tess, d: &Detail, dia: u32, h: u32) {
     t.xf = Affine3A::IDENTITY;
     nozzle(t, d, Vec3::new(0.0, -r, 600.0), -Vec3::Y, 30.0, 5, false);
     nozzle(t, d, Vec3::new(r, 0.0, 600.0), Vec3::X, 30.0, 4, true);
-    nozzle(t, d, Vec3::new(-r * 0.7071, -r * 0.7071, 900.0), Vec3::new(-0.7071, -0.7071, 0.0), 30.0, 8, true);
+    nozzle(
+        t,
+        d,
+        Vec3::new(-r * FRAC_1_SQRT_2, -r * FRAC_1_SQRT_2, 900.0),
+        Vec3::new(-FRAC_1_SQRT_2, -FRAC_1_SQRT_2, 0.0),
+        30.0,
+        8,
+        true,
+    );
     let top = h + r * 0.2 * 0.5;
-    nozzle(t, d, Vec3::new(r * 0.5, 0.0, top - 100.0), Vec3::Z, 60.0, 3, true);
+    nozzle(
+        t,
+        d,
+        Vec3::new(r * 0.5, 0.0, top - 100.0),
+        Vec3::Z,
+        60.0,
+        3,
+        true,
+    );
 }

@@ -111,7 +111,10 @@ pub(super) const ALONG_Y: DMat3 = DMat3::from_cols(DVec3::Y, DVec3::NEG_X, DVec3
 impl UnitPlan {
     /// A plan whose origin sits at `anchor` in its plot.
     pub(super) fn new(anchor: DVec3) -> Self {
-        Self { anchor, ..Self::default() }
+        Self {
+            anchor,
+            ..Self::default()
+        }
     }
 
     /// Adds an area at elevation `z`.
@@ -122,7 +125,12 @@ impl UnitPlan {
 
     /// Adds a part.
     pub(super) fn put(&mut self, area: u16, system: System, spec: Spec, at: DAffine3) {
-        self.parts.push(PlanPart { area, system, spec, at });
+        self.parts.push(PlanPart {
+            area,
+            system,
+            spec,
+            at,
+        });
     }
 
     /// Orders the parts by area, then system, keeping their order inside each:
@@ -132,22 +140,36 @@ impl UnitPlan {
     }
 
     /// Plans a pipe run: straight spools (joined by flange pairs past
-    /// [`MAX_SPOOL`]), elbows at the corners, end flanges and maybe a valve.
-    /// Plans nothing and returns false when a leg is too short for its fittings.
-    pub(super) fn pipe(&mut self, area: u16, route: &Route) -> bool {
+    /// [`MAX_SPOOL`]), elbows at the corners, end flanges and maybe a valve,
+    /// its stem level (clear of the pipes in the lanes above). Returns the
+    /// valve's centre if it got one; plans nothing and returns `None` when a leg
+    /// is too short for its fittings.
+    pub(super) fn pipe(&mut self, area: u16, route: &Route) -> Option<Option<DVec3>> {
         let points = simplify(&route.points);
         if points.len() < 2 {
-            return false;
+            return None;
         }
+        let mut valve = None;
         let p = DNS[route.dn as usize];
-        let (bend, fl, fp) = (f64::from(p.bend), f64::from(p.flange_len), f64::from(flange_pair_len(route.dn)));
+        let (bend, fl, fp) = (
+            f64::from(p.bend),
+            f64::from(p.flange_len),
+            f64::from(flange_pair_len(route.dn)),
+        );
         let end_len = |end: End| match end {
             End::Nozzle => fl,
             End::Blind => fp,
         };
         let legs = points.len() - 1;
         let mut plan = Vec::new();
-        let mut put = |spec: Spec, at: DAffine3| plan.push(PlanPart { area, system: System::Pipe, spec, at });
+        let mut put = |spec: Spec, at: DAffine3| {
+            plan.push(PlanPart {
+                area,
+                system: System::Pipe,
+                spec,
+                at,
+            })
+        };
         let (dn, mat) = (route.dn, route.mat);
         for leg in 0..legs {
             let (a, b) = (points[leg], points[leg + 1]);
@@ -156,15 +178,22 @@ impl UnitPlan {
             if leg > 0 {
                 let before = (a - points[leg - 1]).normalize();
                 if before.dot(dir).abs() > 1e-9 {
-                    return false;
+                    return None;
                 }
-                put(Spec::Elbow { dn, mat }, place(DMat3::from_cols(before, dir, before.cross(dir)), a));
+                put(
+                    Spec::Elbow { dn, mat },
+                    place(DMat3::from_cols(before, dir, before.cross(dir)), a),
+                );
             }
             let s0 = if leg == 0 { end_len(route.start) } else { bend };
-            let s1 = if leg + 1 == legs { end_len(route.end) } else { bend };
+            let s1 = if leg + 1 == legs {
+                end_len(route.end)
+            } else {
+                bend
+            };
             let avail = len - s0 - s1;
             if avail < MIN_PIECE {
-                return false;
+                return None;
             }
             let from = a + dir * s0;
             let valve_len = f64::from(p.valve_len);
@@ -172,8 +201,22 @@ impl UnitPlan {
             if route.valve_leg == Some(leg) && left >= MIN_PIECE + 200.0 {
                 straight(&mut put, dn, mat, from, dir, left, fp);
                 let valve_at = from + dir * (left + valve_len * 0.5);
-                put(Spec::Valve { dn }, place(basis(dir, DVec3::Z), valve_at));
-                straight(&mut put, dn, mat, from + dir * (left + valve_len), dir, avail - left - valve_len, fp);
+                let stem = if dir.x.abs() > 0.5 {
+                    DVec3::Y
+                } else {
+                    DVec3::X
+                };
+                put(Spec::Valve { dn }, place(basis(dir, stem), valve_at));
+                valve = Some(valve_at);
+                straight(
+                    &mut put,
+                    dn,
+                    mat,
+                    from + dir * (left + valve_len),
+                    dir,
+                    avail - left - valve_len,
+                    fp,
+                );
             } else {
                 straight(&mut put, dn, mat, from, dir, avail, fp);
             }
@@ -182,31 +225,68 @@ impl UnitPlan {
         let last_dir = (points[legs] - points[legs - 1]).normalize();
         let (first, last) = (points[0], points[legs]);
         match route.start {
-            End::Nozzle => put(Spec::Flange { dn, mat }, place(basis(-first_dir, DVec3::Z), first + first_dir * fl * 0.5)),
-            End::Blind => put(Spec::FlangePair { dn, mat }, place(basis(first_dir, DVec3::Z), first + first_dir * fp * 0.5)),
+            End::Nozzle => put(
+                Spec::Flange { dn, mat },
+                place(basis(-first_dir, DVec3::Z), first + first_dir * fl * 0.5),
+            ),
+            End::Blind => put(
+                Spec::FlangePair { dn, mat },
+                place(basis(first_dir, DVec3::Z), first + first_dir * fp * 0.5),
+            ),
         }
         match route.end {
-            End::Nozzle => put(Spec::Flange { dn, mat }, place(basis(last_dir, DVec3::Z), last - last_dir * fl * 0.5)),
-            End::Blind => put(Spec::FlangePair { dn, mat }, place(basis(last_dir, DVec3::Z), last - last_dir * fp * 0.5)),
+            End::Nozzle => put(
+                Spec::Flange { dn, mat },
+                place(basis(last_dir, DVec3::Z), last - last_dir * fl * 0.5),
+            ),
+            End::Blind => put(
+                Spec::FlangePair { dn, mat },
+                place(basis(last_dir, DVec3::Z), last - last_dir * fp * 0.5),
+            ),
         }
         self.parts.append(&mut plan);
-        true
+        Some(valve)
     }
 }
 
 /// Straight pipe from `from` along `dir` for `len`: spools of at most
 /// [`MAX_SPOOL`] joined by flange pairs `fp` long.
-fn straight(put: &mut impl FnMut(Spec, DAffine3), dn: u8, mat: Mat, from: DVec3, dir: DVec3, len: f64, fp: f64) {
+fn straight(
+    put: &mut impl FnMut(Spec, DAffine3),
+    dn: u8,
+    mat: Mat,
+    from: DVec3,
+    dir: DVec3,
+    len: f64,
+    fp: f64,
+) {
     let rotation = basis(dir, DVec3::Z);
     let mut pos = from;
     let mut left = len;
     while left > MAX_SPOOL + fp + MIN_PIECE * 2.0 {
-        put(Spec::Pipe { dn, len: MAX_SPOOL as u32, mat }, place(rotation, pos + dir * MAX_SPOOL * 0.5));
-        put(Spec::FlangePair { dn, mat }, place(rotation, pos + dir * (MAX_SPOOL + fp * 0.5)));
+        put(
+            Spec::Pipe {
+                dn,
+                len: MAX_SPOOL as u32,
+                mat,
+            },
+            place(rotation, pos + dir * MAX_SPOOL * 0.5),
+        );
+        put(
+            Spec::FlangePair { dn, mat },
+            place(rotation, pos + dir * (MAX_SPOOL + fp * 0.5)),
+        );
         pos += dir * (MAX_SPOOL + fp);
         left -= MAX_SPOOL + fp;
     }
-    put(Spec::Pipe { dn, len: left.round() as u32, mat }, place(rotation, pos + dir * left * 0.5));
+    put(
+        Spec::Pipe {
+            dn,
+            len: left.round() as u32,
+            mat,
+        },
+        place(rotation, pos + dir * left * 0.5),
+    );
 }
 
 /// Drops repeated points and the middle of three collinear ones.
