@@ -50,6 +50,9 @@ struct TreeArgs {
     /// Cell triangle budget.
     #[arg(long, default_value_t = TreeOptions::default().cell_triangles)]
     cell_triangles: u32,
+    /// Nodes the re-insertion search may expand (0: unlimited, the exact branch and bound).
+    #[arg(long, default_value_t = TreeOptions::default().insert_search_nodes)]
+    insert_search_nodes: usize,
     /// Maximum triangles per chunk.
     #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES)]
     chunk_triangles: u32,
@@ -189,6 +192,7 @@ fn bench_tree(args: &TreeArgs) -> anyhow::Result<()> {
         "cells": fresh.cell_count(),
         "depth": fresh.depth(),
         "cell_triangles": args.cell_triangles,
+        "insert_search_nodes": args.insert_search_nodes,
         "chunk_triangles": args.chunk_triangles,
         "load_ms": loaded.load_ms,
         "build_ms": build_s * 1e3,

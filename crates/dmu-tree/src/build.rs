@@ -50,6 +50,7 @@ impl Tree {
             part_entries,
             bvhs: ChunkBvhCache::new(scene.chunks().len()),
             stats: UpdateStats::default(),
+            search_scratch: Vec::new(),
         };
         let mut ids: Vec<u32> = (0..tree.entries.len() as u32).collect();
         let built = build_range(&tree.entries, &mut ids, &options);

@@ -20,6 +20,9 @@ pub struct TreeOptions {
     pub sah_bins: usize,
     /// At most this many tree rotations after each move (incremental re-optimisation).
     pub rotations_per_move: usize,
+    /// At most this many nodes expanded when searching the best cell for a
+    /// re-inserted chunk (`usize::MAX`: the exact branch and bound).
+    pub insert_search_nodes: usize,
 }
 
 impl Default for TreeOptions {
@@ -28,6 +31,7 @@ impl Default for TreeOptions {
             cell_triangles: 4096,
             sah_bins: 16,
             rotations_per_move: 32,
+            insert_search_nodes: 64,
         }
     }
 }
@@ -119,6 +123,8 @@ pub struct Tree {
     pub(crate) part_entries: Vec<Range<u32>>,
     pub(crate) bvhs: ChunkBvhCache,
     pub(crate) stats: UpdateStats,
+    /// Reused by the insertion search, so a move allocates nothing for it.
+    pub(crate) search_scratch: Vec<crate::update::Candidate>,
 }
 
 impl Tree {

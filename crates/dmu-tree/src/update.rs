@@ -27,7 +27,7 @@ impl Tree {
         self.stats.moves += 1;
         let world = scene.part_world(part);
         let mut touched: Vec<u32> = Vec::new();
-        let mut reinsert: Vec<u32> = Vec::new();
+        let mut reinsert: Vec<(u32, u32)> = Vec::new(); // (entry, its former cell)
         for e in self.part_entries[part.index()].clone() {
             let entry = &mut self.entries[e as usize];
             entry.bounds = scene.chunk(entry.chunk).bounds.transformed(&world);
@@ -41,7 +41,7 @@ impl Tree {
                 let c = &mut self.cells[cell as usize];
                 c.entries.retain(|&x| x != e);
                 c.triangles -= self.entries[e as usize].triangles;
-                reinsert.push(e);
+                reinsert.push((e, cell));
             }
             touched.push(cell);
         }
@@ -56,9 +56,11 @@ impl Tree {
                 paths.push(node);
             }
         }
-        for e in reinsert {
+        for (e, cell) in reinsert {
             self.stats.reinserted += 1;
-            paths.push(self.insert_entry(e));
+            // The former cell, if it still exists, seeds the search.
+            let node = self.cells[cell as usize].node;
+            paths.push(self.insert_entry(e, (node != NONE).then_some(node)));
         }
         self.rotate_paths(&paths);
         debug_assert_eq!(self.validate(), Ok(()));
@@ -151,8 +153,8 @@ impl Tree {
 
     /// Inserts entry `e` into the cell where it raises the SAH cost least, splitting
     /// the cell if it overflows. Returns the node the insertion ended at.
-    fn insert_entry(&mut self, e: u32) -> u32 {
-        let leaf = self.best_leaf(e);
+    fn insert_entry(&mut self, e: u32, hint: Option<u32>) -> u32 {
+        let leaf = self.best_leaf(e, hint);
         let Kind::Leaf(cell) = self.nodes[leaf as usize].kind else {
             unreachable!("best_leaf returns a leaf")
         };
@@ -176,54 +178,68 @@ impl Tree {
 
     /// Branch and bound over the tree for the cell whose SAH cost grows least when
     /// `e` joins it: each ancestor costs its area growth, the cell its area times
-    /// triangles growth; a subtree is skipped once even its lower bound (the
-    /// ancestors' growth so far plus `e`'s own area times triangles) is no better.
-    fn best_leaf(&self, e: u32) -> u32 {
+    /// triangles growth. The search starts from the cell `e` came from (`hint`),
+    /// whose cost is usually close to the best, skips a subtree once its lower
+    /// bound is no better, and expands at most `insert_search_nodes` nodes (a knob:
+    /// `dmu bench tree` measures its time and the SAH cost it leaves).
+    fn best_leaf(&mut self, e: u32, hint: Option<u32>) -> u32 {
         let eb = self.entries[e as usize].bounds;
         let et = f64::from(self.entries[e as usize].triangles);
-        let floor = eb.surface_area() * et;
         let mut best = (f64::INFINITY, self.root);
-        let mut heap = BinaryHeap::from([Candidate {
-            bound: floor,
-            inherited: 0.0,
-            node: self.root,
-        }]);
-        while let Some(Candidate {
-            bound,
-            inherited,
-            node,
-        }) = heap.pop()
-        {
-            if bound >= best.0 {
+        if let Some(leaf) = hint.filter(|&h| matches!(self.nodes[h as usize].kind, Kind::Leaf(_))) {
+            best = (self.ancestors_growth(leaf, &eb) + self.leaf_growth(leaf, &eb, et), leaf);
+        }
+        let mut heap = BinaryHeap::from(std::mem::take(&mut self.search_scratch));
+        heap.clear();
+        heap.push(Candidate { bound: floor(&eb, &self.nodes[self.root as usize].bounds, et), inherited: 0.0, node: self.root });
+        let mut budget = self.options.insert_search_nodes;
+        while let Some(Candidate { bound, inherited, node }) = heap.pop() {
+            if bound >= best.0 || budget == 0 {
                 break;
             }
+            budget -= 1;
             let n = &self.nodes[node as usize];
-            let union = n.bounds.union(eb);
             match n.kind {
-                Kind::Leaf(cell) => {
-                    let t = f64::from(self.cells[cell as usize].triangles);
-                    let cost =
-                        inherited + union.surface_area() * (t + et) - n.bounds.surface_area() * t;
+                Kind::Leaf(_) => {
+                    let cost = inherited + self.leaf_growth(node, &eb, et);
                     if cost < best.0 {
                         best = (cost, node);
                     }
                 }
                 Kind::Internal(children) => {
-                    let inherited = inherited + union.surface_area() - n.bounds.surface_area();
-                    if inherited + floor < best.0 {
-                        for child in children {
-                            heap.push(Candidate {
-                                bound: inherited + floor,
-                                inherited,
-                                node: child,
-                            });
+                    let inherited = inherited + n.bounds.union(eb).surface_area() - n.bounds.surface_area();
+                    for child in children {
+                        let bound = inherited + floor(&eb, &self.nodes[child as usize].bounds, et);
+                        if bound < best.0 {
+                            heap.push(Candidate { bound, inherited, node: child });
                         }
                     }
                 }
                 Kind::Free => unreachable!("free node in the tree"),
             }
         }
+        self.search_scratch = heap.into_vec();
         best.1
+    }
+
+    /// SAH growth of leaf `node` when an entry of box `eb` and `et` triangles joins it.
+    fn leaf_growth(&self, node: u32, eb: &Aabb3d, et: f64) -> f64 {
+        let n = &self.nodes[node as usize];
+        let Kind::Leaf(cell) = n.kind else { unreachable!("a leaf") };
+        let t = f64::from(self.cells[cell as usize].triangles);
+        n.bounds.union(*eb).surface_area() * (t + et) - n.bounds.surface_area() * t
+    }
+
+    /// Area growth of the ancestors of `node` when they must also hold `eb`.
+    fn ancestors_growth(&self, node: u32, eb: &Aabb3d) -> f64 {
+        let mut growth = 0.0;
+        let mut at = self.nodes[node as usize].parent;
+        while at != NONE {
+            let b = self.nodes[at as usize].bounds;
+            growth += b.union(*eb).surface_area() - b.surface_area();
+            at = self.nodes[at as usize].parent;
+        }
+        growth
     }
 
     /// Splits a cell over budget in two by SAH, repeatedly, while it has more
@@ -345,9 +361,17 @@ impl Tree {
     }
 }
 
+/// A lower bound on the growth of any leaf inside a node with box `node` when an
+/// entry `eb` of `et` triangles joins it: the leaf must at least span `eb` and
+/// reach into the node's box, i.e. `eb` stretched across any gap to the node.
+fn floor(eb: &Aabb3d, node: &Aabb3d, et: f64) -> f64 {
+    let stretched = Aabb3d::new(eb.min.min(node.max), eb.max.max(node.min));
+    stretched.surface_area() * et
+}
+
 /// A subtree waiting in the branch-and-bound queue, cheapest bound first.
 #[derive(Clone, Copy, Debug)]
-struct Candidate {
+pub(crate) struct Candidate {
     bound: f64,
     inherited: f64,
     node: u32,
