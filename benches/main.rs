@@ -6,10 +6,10 @@ use std::hint::black_box;
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use dmu_geom::Ray3d;
-use dmu_tree::{Tree, TreeOptions};
-use glam::{DAffine3, DVec3};
 use dmu_scene::samples::{PlantOptions, plant};
 use dmu_scene::{ImportOptions, export_gltf, import_gltf};
+use dmu_tree::{Tree, TreeOptions};
+use glam::{DAffine3, DVec3};
 
 fn plant_triangles() -> u64 {
     std::env::var("DMU_BENCH_TRIANGLES")
@@ -92,15 +92,25 @@ fn remap_to_mesh(scene: &dmu_scene::Scene, mesh: &dmu_scene::Mesh) -> Vec<u32> {
 /// The cell tree on a 1M-triangle plant: build, a pick, a move of the largest
 /// part (and back), a rebuild.
 fn tree(c: &mut Criterion) {
-    let mut scene = plant(&PlantOptions { triangles: 1_000_000, ..PlantOptions::default() });
+    let mut scene = plant(&PlantOptions {
+        triangles: 1_000_000,
+        ..PlantOptions::default()
+    });
     let options = TreeOptions::default();
     let mut group = c.benchmark_group("tree");
-    group.bench_function("build_1M", |b| b.iter(|| black_box(Tree::build(&scene, options))));
+    group.bench_function("build_1M", |b| {
+        b.iter(|| black_box(Tree::build(&scene, options)))
+    });
     let mut tree = Tree::build(&scene, options);
     let bounds = scene.world_bounds();
     let ray = Ray3d::new(bounds.min, bounds.extent().normalize());
-    group.bench_function("pick_diagonal_1M", |b| b.iter(|| black_box(tree.pick(&scene, &ray))));
-    let part = scene.part_ids().max_by_key(|&p| scene.part_mesh(p).triangle_count()).expect("a part");
+    group.bench_function("pick_diagonal_1M", |b| {
+        b.iter(|| black_box(tree.pick(&scene, &ray)))
+    });
+    let part = scene
+        .part_ids()
+        .max_by_key(|&p| scene.part_mesh(p).triangle_count())
+        .expect("a part");
     let home = scene.part_world(part);
     let away = DAffine3::from_translation(DVec3::new(1000.0, 0.0, 0.0)) * home;
     group.bench_function("move_largest_part_1m_and_back", |b| {
@@ -110,7 +120,11 @@ fn tree(c: &mut Criterion) {
         })
     });
     group.bench_function("rebuild_1M", |b| {
-        b.iter_batched(|| Tree::build(&scene, options), |mut t| t.rebuild(), BatchSize::LargeInput)
+        b.iter_batched(
+            || Tree::build(&scene, options),
+            |mut t| t.rebuild(),
+            BatchSize::LargeInput,
+        )
     });
     group.finish();
 }

@@ -282,7 +282,9 @@ impl Scene {
                 self.part_mesh(part)
                     .positions
                     .iter()
-                    .fold(Aabb3d::EMPTY, |b, v| b.grown(world.transform_point3(v.as_dvec3())))
+                    .fold(Aabb3d::EMPTY, |b, v| {
+                        b.grown(world.transform_point3(v.as_dvec3()))
+                    })
             })
             .reduce(|| Aabb3d::EMPTY, Aabb3d::union)
     }

@@ -274,7 +274,10 @@ fn sparse_and_quantized_attributes_decode() {
     let mut got: Vec<[f32; 3]> = m.positions.iter().map(|p| p.to_array()).collect();
     got.sort_by(|a, b| a.partial_cmp(b).unwrap());
     assert_eq!(got, vec![[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]);
-    assert_eq!(scene.tight_world_bounds().max, DVec3::new(1000.0, 1000.0, 0.0));
+    assert_eq!(
+        scene.tight_world_bounds().max,
+        DVec3::new(1000.0, 1000.0, 0.0)
+    );
     assert!(scene.world_bounds().contains(&scene.tight_world_bounds()));
 }
 

@@ -187,13 +187,25 @@ impl Tree {
         let et = f64::from(self.entries[e as usize].triangles);
         let mut best = (f64::INFINITY, self.root);
         if let Some(leaf) = hint.filter(|&h| matches!(self.nodes[h as usize].kind, Kind::Leaf(_))) {
-            best = (self.ancestors_growth(leaf, &eb) + self.leaf_growth(leaf, &eb, et), leaf);
+            best = (
+                self.ancestors_growth(leaf, &eb) + self.leaf_growth(leaf, &eb, et),
+                leaf,
+            );
         }
         let mut heap = BinaryHeap::from(std::mem::take(&mut self.search_scratch));
         heap.clear();
-        heap.push(Candidate { bound: floor(&eb, &self.nodes[self.root as usize].bounds, et), inherited: 0.0, node: self.root });
+        heap.push(Candidate {
+            bound: floor(&eb, &self.nodes[self.root as usize].bounds, et),
+            inherited: 0.0,
+            node: self.root,
+        });
         let mut budget = self.options.insert_search_nodes;
-        while let Some(Candidate { bound, inherited, node }) = heap.pop() {
+        while let Some(Candidate {
+            bound,
+            inherited,
+            node,
+        }) = heap.pop()
+        {
             if bound >= best.0 || budget == 0 {
                 break;
             }
@@ -207,11 +219,16 @@ impl Tree {
                     }
                 }
                 Kind::Internal(children) => {
-                    let inherited = inherited + n.bounds.union(eb).surface_area() - n.bounds.surface_area();
+                    let inherited =
+                        inherited + n.bounds.union(eb).surface_area() - n.bounds.surface_area();
                     for child in children {
                         let bound = inherited + floor(&eb, &self.nodes[child as usize].bounds, et);
                         if bound < best.0 {
-                            heap.push(Candidate { bound, inherited, node: child });
+                            heap.push(Candidate {
+                                bound,
+                                inherited,
+                                node: child,
+                            });
                         }
                     }
                 }
@@ -225,7 +242,9 @@ impl Tree {
     /// SAH growth of leaf `node` when an entry of box `eb` and `et` triangles joins it.
     fn leaf_growth(&self, node: u32, eb: &Aabb3d, et: f64) -> f64 {
         let n = &self.nodes[node as usize];
-        let Kind::Leaf(cell) = n.kind else { unreachable!("a leaf") };
+        let Kind::Leaf(cell) = n.kind else {
+            unreachable!("a leaf")
+        };
         let t = f64::from(self.cells[cell as usize].triangles);
         n.bounds.union(*eb).surface_area() * (t + et) - n.bounds.surface_area() * t
     }
