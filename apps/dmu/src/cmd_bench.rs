@@ -25,6 +25,8 @@ pub struct Args {
 enum What {
     /// The cell tree: build, pick, move, rebuild-versus-move and SAH after moves.
     Tree(TreeArgs),
+    /// Collision checks per second for a part dragged through the model, with and without the tree.
+    Collide(crate::bench_collide::CollideArgs),
 }
 
 #[derive(Debug, clap::Args)]
@@ -66,6 +68,7 @@ struct TreeArgs {
 pub fn run(args: &Args) -> anyhow::Result<()> {
     match &args.what {
         What::Tree(t) => bench_tree(t),
+        What::Collide(c) => crate::bench_collide::bench_collide(c),
     }
 }
 

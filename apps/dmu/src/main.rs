@@ -1,6 +1,8 @@
 //! `dmu`: the command line of the dmu digital-mockup viewer.
 
+mod bench_collide;
 mod cmd_bench;
+mod cmd_collide;
 mod cmd_generate;
 mod cmd_info;
 mod cmd_move;
@@ -15,7 +17,8 @@ use clap::{Parser, Subcommand};
 /// dmu: walk, pick, move and clash-check massive CAD assemblies.
 ///
 /// Commands that take a FILE read glTF 2.0 (.glb, .gltf); with no FILE they use the
-/// built-in procedural plant. Exit codes: 0 success, 2 error.
+/// built-in procedural plant. Exit codes: 0 success, 1 clashes found (collide),
+/// 2 error.
 #[derive(Debug, Parser)]
 #[command(name = "dmu", version, about, long_about)]
 struct Cli {
@@ -29,6 +32,7 @@ enum Command {
     Info(cmd_info::Args),
     Pick(cmd_pick::Args),
     Move(cmd_move::Args),
+    Collide(cmd_collide::Args),
     Bench(cmd_bench::Args),
 }
 
@@ -39,6 +43,10 @@ fn main() -> ExitCode {
         Command::Info(args) => cmd_info::run(&args),
         Command::Pick(args) => cmd_pick::run(&args),
         Command::Move(args) => cmd_move::run(&args),
+        Command::Collide(args) => match cmd_collide::run(&args) {
+            Ok(code) => return code,
+            Err(e) => Err(e),
+        },
         Command::Bench(args) => cmd_bench::run(&args),
     };
     match result {

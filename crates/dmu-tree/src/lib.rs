@@ -40,6 +40,7 @@
 
 mod build;
 mod chunk_bvh;
+mod overlap;
 mod query;
 mod tree;
 mod update;

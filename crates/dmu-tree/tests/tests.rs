@@ -1,3 +1,4 @@
 mod hard_cases;
+mod overlap;
 mod queries;
 mod support;

@@ -1,0 +1,6 @@
+mod analytic;
+mod continuous;
+mod property;
+mod record;
+mod support;
+mod triangles;
