@@ -11,6 +11,7 @@ use dmu_tree::{Tree, TreeOptions};
 use glam::{DAffine3, DVec3};
 use serde_json::json;
 
+use crate::cmd_bench::{median, percentile};
 use crate::load::{ModelArgs, load};
 use crate::units::parse_count;
 
@@ -47,18 +48,6 @@ pub struct CollideArgs {
     /// Print JSON.
     #[arg(long)]
     json: bool,
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    percentile(v, 0.5)
-}
-
-fn percentile(v: &mut [f64], q: f64) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    v[((v.len() - 1) as f64 * q).round() as usize]
 }
 
 /// The poses of the dragged part: from home, a straight line towards the

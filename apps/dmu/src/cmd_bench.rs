@@ -72,11 +72,13 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     }
 }
 
-fn median(v: &mut [f64]) -> f64 {
+/// The median of `v` (sorts it).
+pub(crate) fn median(v: &mut [f64]) -> f64 {
     percentile(v, 0.5)
 }
 
-fn percentile(v: &mut [f64], q: f64) -> f64 {
+/// The `q` quantile of `v` (sorts it); NaN when empty.
+pub(crate) fn percentile(v: &mut [f64], q: f64) -> f64 {
     if v.is_empty() {
         return f64::NAN;
     }

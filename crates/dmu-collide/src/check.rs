@@ -197,6 +197,17 @@ pub(crate) struct ChunkPair {
     pub cb: ChunkId,
 }
 
+/// The end of the run of (sorted) chunk pairs starting at `start` that share its
+/// part pair: the narrow phase and the sweep handle one part pair at a time.
+pub(crate) fn run_end(pairs: &[ChunkPair], start: usize) -> usize {
+    let (a, b) = (pairs[start].a, pairs[start].b);
+    start
+        + pairs[start..]
+            .iter()
+            .take_while(|p| p.a == a && p.b == b)
+            .count()
+}
+
 /// Collision checks on one scene, with the per-chunk meshes they build on first
 /// use and scratch buffers reused from call to call (no allocation per call
 /// once warm, except for what a report grows to).
@@ -352,11 +363,7 @@ impl Checker {
         let mut start = 0;
         while start < self.pairs.len() {
             let (a, b) = (self.pairs[start].a, self.pairs[start].b);
-            let end = start
-                + self.pairs[start..]
-                    .iter()
-                    .take_while(|p| p.a == a && p.b == b)
-                    .count();
+            let end = run_end(&self.pairs, start);
             report.part_pairs_tested += 1;
             let world_a = scene.part_world(a);
             let origin = world_a.translation;

@@ -14,7 +14,7 @@ use dmu_scene::{PartId, Scene};
 use dmu_tree::Tree;
 use glam::{DAffine3, DMat3, DQuat, DVec3};
 
-use crate::check::{Checker, ChunkPair, Impact, Report, Settings};
+use crate::check::{Checker, ChunkPair, Impact, Report, Settings, run_end};
 use crate::narrow::{PairSearch, Placement, box_gap_squared, chunk_pair, part_tolerance};
 
 /// Conservative advancement gives up after this many steps for one pair of parts
@@ -193,12 +193,7 @@ impl Checker {
         self.pairs.sort_unstable();
         let mut start = 0;
         while start < self.pairs.len() {
-            let (a, b) = (self.pairs[start].a, self.pairs[start].b);
-            let end = start
-                + self.pairs[start..]
-                    .iter()
-                    .take_while(|p| p.a == a && p.b == b)
-                    .count();
+            let end = run_end(&self.pairs, start);
             report.part_pairs_tested += 1;
             if let Some(impact) = self.advance(scene, settings, start..end, report) {
                 report.impacts.push(impact);

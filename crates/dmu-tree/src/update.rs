@@ -91,14 +91,7 @@ impl Tree {
         if parent == NONE || self.cells[cell as usize].triangles >= budget / 4 {
             return None;
         }
-        let Kind::Internal(children) = self.nodes[parent as usize].kind else {
-            unreachable!("parent is internal")
-        };
-        let sibling = if children[0] == node {
-            children[1]
-        } else {
-            children[0]
-        };
+        let sibling = self.sibling(node);
         let Kind::Leaf(other) = self.nodes[sibling as usize].kind else {
             return None;
         };
@@ -123,14 +116,7 @@ impl Tree {
     /// and the parent nodes; returns the grandparent (or NONE at the root).
     fn remove_leaf(&mut self, node: u32) -> u32 {
         let parent = self.nodes[node as usize].parent;
-        let Kind::Internal(children) = self.nodes[parent as usize].kind else {
-            unreachable!("parent is internal")
-        };
-        let sibling = if children[0] == node {
-            children[1]
-        } else {
-            children[0]
-        };
+        let sibling = self.sibling(node);
         let grandparent = self.nodes[parent as usize].parent;
         self.nodes[sibling as usize].parent = grandparent;
         if grandparent == NONE {
@@ -141,6 +127,15 @@ impl Tree {
         self.free_node(node);
         self.free_node(parent);
         grandparent
+    }
+
+    /// The other child of `node`'s parent; `node` must not be the root.
+    fn sibling(&self, node: u32) -> u32 {
+        let parent = self.nodes[node as usize].parent;
+        let Kind::Internal([a, b]) = self.nodes[parent as usize].kind else {
+            unreachable!("parent is internal")
+        };
+        if a == node { b } else { a }
     }
 
     fn replace_child(&mut self, parent: u32, old: u32, new: u32) {
