@@ -5,6 +5,7 @@
 use std::hint::black_box;
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
+use dmu_collide::{Checker, Report, Settings};
 use dmu_geom::Ray3d;
 use dmu_scene::samples::{PlantOptions, plant};
 use dmu_scene::{ImportOptions, export_gltf, import_gltf};
@@ -129,5 +130,31 @@ fn tree(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, scene_io, chunking, tree);
+/// Collision: one check of the largest part of a 1M-triangle plant against
+/// everything near it (it rests on its floor, so contacts are examined), with
+/// the tree and without it.
+fn collide(c: &mut Criterion) {
+    let scene = plant(&PlantOptions {
+        triangles: 1_000_000,
+        ..PlantOptions::default()
+    });
+    let tree = Tree::build(&scene, TreeOptions::default());
+    let part = scene
+        .part_ids()
+        .max_by_key(|&p| scene.part_mesh(p).triangle_count())
+        .expect("a part");
+    let settings = Settings::with_clearance(5.0);
+    let mut checker = Checker::new(&scene);
+    let mut report = Report::default();
+    let mut group = c.benchmark_group("collide");
+    group.bench_function("check_largest_part_1M", |b| {
+        b.iter(|| checker.check(&scene, &tree, &[part], &settings, &mut report))
+    });
+    group.bench_function("check_largest_part_1M_no_tree", |b| {
+        b.iter(|| checker.check_without_tree(&scene, &[part], &settings, &mut report))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, scene_io, chunking, tree, collide);
 criterion_main!(benches);
