@@ -17,6 +17,14 @@ if ! scripts/fetch-testdata.sh; then
 fi
 [ -d ../shared/data ] || echo "note: ../shared/data is absent; tests that read it will print SKIPPED" >&2
 
+# GPU tests run on lavapipe (CPU Vulkan), the same driver everywhere.
+LVP_ICD=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json
+if [ ! -f "$LVP_ICD" ] && command -v apt-get >/dev/null 2>&1; then
+    (apt-get update -qq && apt-get install -y -qq mesa-vulkan-drivers) >/dev/null ||
+        echo "warning: could not install mesa-vulkan-drivers; GPU tests will print SKIPPED" >&2
+fi
+export WGPU_BACKEND=vulkan VK_ICD_FILENAMES="$LVP_ICD"
+
 set -x
 cargo fmt --all --check
 cargo clippy --workspace --all-targets --locked -- -D warnings

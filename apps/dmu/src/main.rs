@@ -7,6 +7,7 @@ mod cmd_generate;
 mod cmd_info;
 mod cmd_move;
 mod cmd_pick;
+mod cmd_render;
 mod load;
 mod units;
 
@@ -34,6 +35,7 @@ enum Command {
     Move(cmd_move::Args),
     Collide(cmd_collide::Args),
     Bench(cmd_bench::Args),
+    Render(cmd_render::Args),
 }
 
 fn main() -> ExitCode {
@@ -48,6 +50,7 @@ fn main() -> ExitCode {
             Err(e) => Err(e),
         },
         Command::Bench(args) => cmd_bench::run(&args),
+        Command::Render(args) => cmd_render::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,78 @@
+//! The per-view decision whether occlusion queries pay: they cost query
+//! passes and round trips, and save the triangles they cull. Both are measured
+//! every frame; a view where queries cost more than they save draws with
+//! frustum culling only and tries queries again later.
+
+use crate::renderer::Renderer;
+use crate::view::{Culling, FrameStats, OcclusionDecision, View};
+
+/// Frames queries run after (re)enabling before they may be switched off; the
+/// first [`WARMUP_FRAMES`] of them build visibility and are not measured.
+const PROBE_FRAMES: u32 = 8;
+const WARMUP_FRAMES: u32 = 3;
+/// Frames a view draws without queries before trying them again.
+const RETRY_FRAMES: u32 = 60;
+/// Weight of the newest frame in the running averages.
+const ALPHA: f64 = 0.3;
+
+fn blend(old: f64, new: f64, first: bool) -> f64 {
+    if first {
+        new
+    } else {
+        old + ALPHA * (new - old)
+    }
+}
+
+impl Renderer {
+    pub(crate) fn decide(&self, view: &mut View, stats: &mut FrameStats) {
+        if view.culling != Culling::Occlusion {
+            stats.occlusion = OcclusionDecision::default();
+            return;
+        }
+        // Drawing time: the passes that drew, by timestamps where there are any.
+        let draw_ms = if stats.gpu_draw_ms > 0.0 {
+            stats.gpu_draw_ms
+        } else {
+            stats.cpu_ms
+        };
+        // The frame minus drawing: culling, uploads and, with queries, the query
+        // passes and the waits between rounds.
+        let overhead_ms = (stats.cpu_ms - draw_ms).max(0.0);
+        if stats.triangles_drawn >= 10_000 {
+            let ns = draw_ms * 1e6 / stats.triangles_drawn as f64;
+            view.ns_per_triangle = blend(view.ns_per_triangle, ns, view.ns_per_triangle == 0.0);
+        }
+        let d = &mut view.decision;
+        if d.enabled {
+            view.probe_frames += 1;
+            if view.probe_frames > WARMUP_FRAMES {
+                let first = view.probe_frames == WARMUP_FRAMES + 1;
+                let culled = stats
+                    .triangles_in_frustum
+                    .saturating_sub(stats.triangles_drawn);
+                let saved = culled as f64 * view.ns_per_triangle * 1e-6;
+                let cost = (overhead_ms - view.baseline_overhead_ms).max(0.0);
+                d.saved_ms = blend(d.saved_ms, saved, first);
+                d.cost_ms = blend(d.cost_ms, cost, first);
+            }
+            if view.options.adaptive && view.probe_frames >= PROBE_FRAMES && d.cost_ms > d.saved_ms
+            {
+                d.enabled = false;
+                d.retry_in_frames = RETRY_FRAMES;
+            }
+        } else {
+            view.baseline_overhead_ms = blend(
+                view.baseline_overhead_ms,
+                overhead_ms,
+                view.baseline_overhead_ms == 0.0,
+            );
+            d.retry_in_frames = d.retry_in_frames.saturating_sub(1);
+            if d.retry_in_frames == 0 {
+                d.enabled = true;
+                view.probe_frames = 0;
+                view.entries.clear();
+            }
+        }
+        stats.occlusion = *d;
+    }
+}

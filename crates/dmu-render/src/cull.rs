@@ -1,0 +1,560 @@
+//! A frame of a view: culling (none, frustum, coherent occlusion) and the
+//! rounds of drawing and querying it issues; the exact-visibility oracle.
+
+use std::time::Instant;
+
+use dmu_geom::{Aabb3d, Frustum};
+use dmu_scene::Scene;
+use dmu_tree::Tree;
+use glam::{DAffine3, DVec3};
+
+use crate::RenderError;
+use crate::capture::{Capture, IdImage};
+use crate::geometry::GeometrySource;
+use crate::gpu::QueryBox;
+use crate::hierarchy::{Hierarchy, NodeKind};
+use crate::renderer::{Draw, FrameTarget, Renderer, RoundResult, Shading};
+use crate::view::{Culling, EntryState, FrameStats, View};
+
+/// Per-frame culling context of one view.
+struct Cull {
+    eye: DVec3,
+    frustum: Frustum,
+    view_matrix: DAffine3,
+    /// Pixels per unit of `radius / distance`.
+    pixel_scale: f64,
+    min_pixels: f64,
+    /// How far the near plane's corners reach from the eye.
+    near_reach: f64,
+}
+
+impl Cull {
+    fn new(view: &View) -> Self {
+        let c = &view.camera;
+        let t = (c.fov_y_rad * 0.5).tan();
+        let a = view.aspect();
+        Self {
+            eye: c.eye,
+            frustum: c.frustum(a),
+            view_matrix: DAffine3::from_mat4(c.view_matrix()),
+            pixel_scale: f64::from(view.size.1) / t,
+            min_pixels: view.options.min_pixels,
+            near_reach: c.near * (1.0 + t * t * (1.0 + a * a)).sqrt(),
+        }
+    }
+
+    /// Bounding-sphere coverage below the knob (never when the eye is inside).
+    fn too_small(&self, b: &Aabb3d) -> bool {
+        if self.min_pixels <= 0.0 {
+            return false;
+        }
+        let r = b.extent().length() * 0.5;
+        let d = (b.center() - self.eye).length();
+        d > r && r / d * self.pixel_scale < self.min_pixels
+    }
+
+    /// Rounding between the f64 boxes and the f32 geometry: queried boxes grow
+    /// by this so that a box never hides behind the geometry it encloses.
+    fn margin(&self, b: &Aabb3d) -> f64 {
+        1e-5 * ((b.center() - self.eye).length() + b.extent().length())
+    }
+
+    /// True when the near plane may cut the box: its query would be wrong, so
+    /// the node counts as visible without one.
+    fn eye_near(&self, b: &Aabb3d) -> bool {
+        b.inflated(self.near_reach + self.margin(b))
+            .contains_point(self.eye)
+    }
+
+    /// The box as the query pipeline draws it, in view space.
+    fn query_box(&self, b: &Aabb3d) -> QueryBox {
+        let b = b.inflated(self.margin(b));
+        let c = self.view_matrix.transform_point3(b.center());
+        let h = b.extent() * 0.5;
+        let m = self.view_matrix.matrix3;
+        let v = |d: DVec3| [d.x as f32, d.y as f32, d.z as f32, 0.0];
+        QueryBox {
+            center: v(c),
+            axis_x: v(m.x_axis * h.x),
+            axis_y: v(m.y_axis * h.y),
+            axis_z: v(m.z_axis * h.z),
+        }
+    }
+}
+
+/// The canonical draw order of every mode: cells front to back by box
+/// distance, then tree order. Modes that draw the same visible set draw it in
+/// the same order, so depth ties resolve alike and their images are equal.
+fn sort_draws(h: &Hierarchy, cell_distance: &[f64], draws: &mut [Draw]) {
+    draws.sort_unstable_by(|a, b| {
+        let (ca, cb) = (
+            h.entry_cell[a.entry as usize],
+            h.entry_cell[b.entry as usize],
+        );
+        cell_distance[ca as usize]
+            .total_cmp(&cell_distance[cb as usize])
+            .then(h.entry_node[a.entry as usize].cmp(&h.entry_node[b.entry as usize]))
+    });
+}
+
+fn box_distance_sq(b: &Aabb3d, p: DVec3) -> f64 {
+    (b.min - p).max(p - b.max).max(DVec3::ZERO).length_squared()
+}
+
+impl Renderer {
+    /// Renders one frame of `view` into `target`: culls, draws and (with
+    /// [`Culling::Occlusion`]) queries in rounds, waits for the GPU, and
+    /// returns what it did. `geometry` supplies chunks not yet on the GPU.
+    pub fn render(
+        &mut self,
+        view: &mut View,
+        scene: &Scene,
+        tree: &Tree,
+        geometry: &dyn GeometrySource,
+        target: FrameTarget<'_>,
+    ) -> Result<FrameStats, RenderError> {
+        let start = Instant::now();
+        view.frame += 1;
+        self.hierarchy.sync(tree);
+        if view.entries.len() != tree.entries().len() {
+            view.entries = vec![EntryState::default(); tree.entries().len()];
+        }
+        let mut stats = FrameStats {
+            frame: view.frame,
+            ..FrameStats::default()
+        };
+        let cull = Cull::new(view);
+        let cell_distance = self.cell_distances(cull.eye);
+        let use_queries = view.culling == Culling::Occlusion && view.decision.enabled;
+        let mut gpu = view.gpu.take();
+        self.prepare_view(
+            &mut gpu,
+            scene,
+            view.camera.projection(view.aspect()),
+            cull.view_matrix,
+        );
+        let mut gpu_state = gpu.expect("prepared");
+        view.drawn.clear();
+        let outcome = if use_queries {
+            self.frame_occlusion(
+                view,
+                &mut gpu_state,
+                scene,
+                tree,
+                geometry,
+                target,
+                &cull,
+                &cell_distance,
+                &mut stats,
+            )
+        } else {
+            let mut draws = match view.culling {
+                Culling::None => self.all_draws(scene, tree, &mut stats),
+                Culling::Frustum | Culling::Occlusion => {
+                    self.frustum_draws(scene, tree, &cull, &mut stats)
+                }
+            };
+            sort_draws(&self.hierarchy, &cell_distance, &mut draws);
+            stats.triangles_in_frustum = draws
+                .iter()
+                .map(|d| u64::from(tree.entries()[d.entry as usize].triangles))
+                .sum();
+            view.drawn.extend(draws.iter().map(|d| d.entry));
+            stats.rounds = 1;
+            self.run_round(
+                &mut gpu_state,
+                target,
+                Shading::Color,
+                true,
+                geometry,
+                tree,
+                &draws,
+                &[],
+            )
+            .map(|r| add_round(&mut stats, &r))
+        };
+        view.gpu = Some(gpu_state);
+        outcome?;
+        stats.cpu_ms = start.elapsed().as_secs_f64() * 1e3;
+        self.decide(view, &mut stats);
+        view.last = stats;
+        Ok(stats)
+    }
+
+    /// The chunk instances owning at least one pixel of `view`, by drawing
+    /// every non-hidden chunk instance in the frustum (no occlusion culling)
+    /// as ids; `capture` must have the view's size.
+    pub fn render_ids(
+        &mut self,
+        view: &mut View,
+        scene: &Scene,
+        tree: &Tree,
+        geometry: &dyn GeometrySource,
+        capture: &Capture,
+    ) -> Result<IdImage, RenderError> {
+        assert_eq!(capture.size(), view.size, "capture and view sizes differ");
+        self.hierarchy.sync(tree);
+        let cull = Cull {
+            min_pixels: 0.0,
+            ..Cull::new(view)
+        };
+        let cell_distance = self.cell_distances(cull.eye);
+        let mut gpu = view.gpu.take();
+        self.prepare_view(
+            &mut gpu,
+            scene,
+            view.camera.projection(view.aspect()),
+            cull.view_matrix,
+        );
+        let mut gpu_state = gpu.expect("prepared");
+        let mut scratch = FrameStats::default();
+        let mut draws = self.frustum_draws(scene, tree, &cull, &mut scratch);
+        sort_draws(&self.hierarchy, &cell_distance, &mut draws);
+        let result = self.run_round(
+            &mut gpu_state,
+            capture.id_target(),
+            Shading::Ids,
+            true,
+            geometry,
+            tree,
+            &draws,
+            &[],
+        );
+        view.gpu = Some(gpu_state);
+        result?;
+        capture.read_ids(&self.device, &self.queue)
+    }
+
+    /// Squared eye distance of every cell node's box (0 inside); other nodes 0.
+    fn cell_distances(&self, eye: DVec3) -> Vec<f64> {
+        self.hierarchy
+            .nodes
+            .iter()
+            .map(|n| match n.kind {
+                NodeKind::Cell(_) => box_distance_sq(&n.bounds, eye),
+                _ => 0.0,
+            })
+            .collect()
+    }
+
+    fn all_draws(&self, scene: &Scene, tree: &Tree, stats: &mut FrameStats) -> Vec<Draw> {
+        let mut draws = Vec::with_capacity(tree.entries().len());
+        for (e, entry) in tree.entries().iter().enumerate() {
+            stats.nodes_visited += 1;
+            if scene.part(entry.part).hidden {
+                stats.hidden += 1;
+            } else {
+                draws.push(Draw {
+                    entry: e as u32,
+                    query: false,
+                });
+            }
+        }
+        draws
+    }
+
+    /// Frustum and coverage culling with the tree's own traversal, then per
+    /// chunk instance in the surviving cells.
+    fn frustum_draws(
+        &self,
+        scene: &Scene,
+        tree: &Tree,
+        cull: &Cull,
+        stats: &mut FrameStats,
+    ) -> Vec<Draw> {
+        let mut draws = Vec::new();
+        let (mut visited, mut expected) = (0u64, 1u64);
+        tree.visit_frustum(&cull.frustum, &mut |node| {
+            visited += 1;
+            if cull.too_small(&node.bounds) {
+                stats.culled_coverage += 1;
+                return false;
+            }
+            let Some(cell) = node.cell else {
+                expected += 2;
+                return true;
+            };
+            let cell_node = self.hierarchy.cell_node[cell.0 as usize];
+            for &e in self.hierarchy.leaves(cell_node) {
+                let entry = &tree.entries()[e as usize];
+                stats.nodes_visited += 1;
+                if !cull.frustum.intersects_aabb(&entry.bounds) {
+                    stats.culled_frustum += 1;
+                } else if cull.too_small(&entry.bounds) {
+                    stats.culled_coverage += 1;
+                } else if scene.part(entry.part).hidden {
+                    stats.hidden += 1;
+                } else {
+                    draws.push(Draw {
+                        entry: e,
+                        query: false,
+                    });
+                }
+            }
+            false
+        });
+        stats.nodes_visited += visited;
+        stats.culled_frustum += expected - visited;
+        draws
+    }
+
+    /// Coherent hierarchical culling (CHC, Bittner et al. 2004, with CHC++'s
+    /// randomised re-checks): draw what was visible last frame, query the
+    /// invisible frontier by boxes against that depth, draw what turns out
+    /// visible and query below visible inner nodes, for a bounded number of
+    /// rounds; what is left is carried to the next frame.
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "the frame's context, passed through once"
+    )]
+    fn frame_occlusion(
+        &mut self,
+        view: &mut View,
+        gpu: &mut crate::renderer::ViewGpu,
+        scene: &Scene,
+        tree: &Tree,
+        geometry: &dyn GeometrySource,
+        target: FrameTarget<'_>,
+        cull: &Cull,
+        cell_distance: &[f64],
+        stats: &mut FrameStats,
+    ) -> Result<(), RenderError> {
+        let frame = view.frame;
+        let h = std::mem::take(&mut self.hierarchy);
+        let nodes = h.nodes.len();
+        // Last frame's visibility, pulled up: a node is visible when any
+        // chunk instance below was. Children follow parents in the mirror.
+        let mut was_visible = vec![false; nodes];
+        for n in (0..nodes).rev() {
+            was_visible[n] = match h.nodes[n].kind {
+                NodeKind::Entry(e) => view.entries[e.0 as usize].visible_frame + 1 == frame,
+                _ => h
+                    .children(n as u32)
+                    .iter()
+                    .any(|&c| was_visible[c as usize]),
+            };
+        }
+        let interval = u64::from(view.options.requery_interval.max(1));
+        // A per-chunk offset spreads re-checks evenly over frames.
+        let schedule =
+            |e: u32| frame + interval + (u64::from(e).wrapping_mul(0x9E37_79B9) >> 7) % interval;
+
+        let mut walk = Walk {
+            h: &h,
+            scene,
+            tree,
+            cull,
+            stats,
+            draws: Vec::new(),
+            queries: Vec::new(),
+            in_frustum_entries: 0,
+        };
+        if nodes > 0 {
+            let mut stack = vec![0u32];
+            while let Some(n) = stack.pop() {
+                let Some(kind) = walk.admit(n) else { continue };
+                let node = &h.nodes[n as usize];
+                let open = was_visible[n as usize] || cull.eye_near(&node.bounds);
+                match kind {
+                    NodeKind::Entry(e) if open => {
+                        let state = &mut view.entries[e.0 as usize];
+                        let query = state.requery_frame <= frame && !cull.eye_near(&node.bounds);
+                        if !query {
+                            state.visible_frame = frame;
+                        }
+                        walk.draws.push(Draw { entry: e.0, query });
+                    }
+                    _ if open => stack.extend_from_slice(h.children(n)),
+                    _ => walk.queries.push(n),
+                }
+            }
+        }
+        let expand_levels = view.options.expand_levels.max(1);
+        let max_rounds = view.options.max_rounds.max(1);
+        let mut result = Ok(());
+        for round in 0..max_rounds {
+            let mut draws = std::mem::take(&mut walk.draws);
+            let queries = std::mem::take(&mut walk.queries);
+            sort_draws(&h, cell_distance, &mut draws);
+            let boxes: Vec<QueryBox> = queries
+                .iter()
+                .map(|&n| cull.query_box(&h.nodes[n as usize].bounds))
+                .collect();
+            let r = match self.run_round(
+                gpu,
+                target,
+                Shading::Color,
+                round == 0,
+                geometry,
+                tree,
+                &draws,
+                &boxes,
+            ) {
+                Ok(r) => r,
+                Err(e) => {
+                    result = Err(e);
+                    break;
+                }
+            };
+            add_round(walk.stats, &r);
+            walk.stats.rounds = round + 1;
+            walk.stats.queries += (r.draw_samples.len() + r.box_samples.len()) as u64;
+            view.drawn.extend(draws.iter().map(|d| d.entry));
+            let mut samples = r.draw_samples.iter();
+            for d in draws.iter().filter(|d| d.query) {
+                let state = &mut view.entries[d.entry as usize];
+                if *samples.next().expect("one result per query") > 0 {
+                    walk.stats.queries_visible += 1;
+                    state.visible_frame = frame;
+                    state.requery_frame = schedule(d.entry);
+                }
+            }
+            let last = round + 1 == max_rounds;
+            for (&n, &s) in queries.iter().zip(&r.box_samples) {
+                let kind = h.nodes[n as usize].kind;
+                if s == 0 {
+                    // Chunk instances were counted when admitted; inner nodes
+                    // count what they hide.
+                    if !matches!(kind, NodeKind::Entry(_)) {
+                        walk.count_below(n);
+                    }
+                    continue;
+                }
+                walk.stats.queries_visible += 1;
+                match kind {
+                    NodeKind::Entry(e) => {
+                        let state = &mut view.entries[e.0 as usize];
+                        state.visible_frame = frame;
+                        state.requery_frame = schedule(e.0);
+                        walk.stats.newly_visible += 1;
+                        if !last {
+                            walk.draws.push(Draw {
+                                entry: e.0,
+                                query: false,
+                            });
+                        }
+                    }
+                    _ if last => {
+                        // Out of rounds: assume everything below visible next
+                        // frame and check it then, rather than start over.
+                        walk.count_below(n);
+                        for &e in h.leaves(n) {
+                            let state = &mut view.entries[e as usize];
+                            state.visible_frame = frame;
+                            state.requery_frame = frame + 1;
+                        }
+                    }
+                    _ => walk.expand(n, expand_levels, view, frame),
+                }
+            }
+            if walk.draws.is_empty() && walk.queries.is_empty() {
+                break;
+            }
+        }
+        let in_frustum = walk.in_frustum_entries;
+        walk.stats.culled_occlusion = in_frustum.saturating_sub(view.drawn.len() as u64);
+        self.hierarchy = h;
+        result
+    }
+}
+
+/// The state of an occlusion-culling traversal within a frame.
+struct Walk<'a> {
+    h: &'a Hierarchy,
+    scene: &'a Scene,
+    tree: &'a Tree,
+    cull: &'a Cull,
+    stats: &'a mut FrameStats,
+    /// Draws of the next round.
+    draws: Vec<Draw>,
+    /// Nodes whose boxes the next round queries.
+    queries: Vec<u32>,
+    /// Chunk instances that passed frustum, coverage and hidden tests.
+    in_frustum_entries: u64,
+}
+
+impl Walk<'_> {
+    /// Frustum, coverage and hidden tests of a node, counted; its kind if it
+    /// passes. Admitted chunk instances count towards what frustum culling
+    /// alone would draw.
+    fn admit(&mut self, n: u32) -> Option<NodeKind> {
+        let node = &self.h.nodes[n as usize];
+        self.stats.nodes_visited += 1;
+        if !self.cull.frustum.intersects_aabb(&node.bounds) {
+            self.stats.culled_frustum += 1;
+            return None;
+        }
+        if self.cull.too_small(&node.bounds) {
+            self.stats.culled_coverage += 1;
+            return None;
+        }
+        if let NodeKind::Entry(e) = node.kind {
+            let entry = &self.tree.entries()[e.0 as usize];
+            if self.scene.part(entry.part).hidden {
+                self.stats.hidden += 1;
+                return None;
+            }
+            self.in_frustum_entries += 1;
+            self.stats.triangles_in_frustum += u64::from(entry.triangles);
+        }
+        Some(node.kind)
+    }
+
+    /// Counts what frustum culling would draw below a node occlusion culled,
+    /// for the stats and the adaptive decision (not as visited nodes).
+    fn count_below(&mut self, n: u32) {
+        let mut stack = vec![n];
+        while let Some(n) = stack.pop() {
+            let node = &self.h.nodes[n as usize];
+            if !self.cull.frustum.intersects_aabb(&node.bounds) || self.cull.too_small(&node.bounds)
+            {
+                continue;
+            }
+            match node.kind {
+                NodeKind::Entry(e) => {
+                    let entry = &self.tree.entries()[e.0 as usize];
+                    if !self.scene.part(entry.part).hidden {
+                        self.in_frustum_entries += 1;
+                        self.stats.triangles_in_frustum += u64::from(entry.triangles);
+                    }
+                }
+                _ => stack.extend_from_slice(self.h.children(n)),
+            }
+        }
+    }
+
+    /// A queried inner node turned out visible: its descendants `levels` down
+    /// (or chunk instances, if reached first) are queried in the next round;
+    /// ones the eye is in are opened without a query.
+    fn expand(&mut self, n: u32, levels: u32, view: &mut View, frame: u64) {
+        let mut stack: Vec<(u32, u32)> = self.h.children(n).iter().map(|&c| (c, 1)).collect();
+        while let Some((c, depth)) = stack.pop() {
+            let Some(kind) = self.admit(c) else { continue };
+            let near = self.cull.eye_near(&self.h.nodes[c as usize].bounds);
+            match kind {
+                NodeKind::Entry(e) if near => {
+                    view.entries[e.0 as usize].visible_frame = frame;
+                    self.stats.newly_visible += 1;
+                    self.draws.push(Draw {
+                        entry: e.0,
+                        query: false,
+                    });
+                }
+                NodeKind::Entry(_) => self.queries.push(c),
+                _ if near || depth < levels => {
+                    stack.extend(self.h.children(c).iter().map(|&g| (g, depth + 1)));
+                }
+                _ => self.queries.push(c),
+            }
+        }
+    }
+}
+
+fn add_round(stats: &mut FrameStats, r: &RoundResult) {
+    stats.passes += r.passes;
+    stats.not_resident += r.not_resident;
+    stats.chunks_drawn += r.chunks;
+    stats.triangles_drawn += r.triangles;
+    stats.gpu_ms += r.gpu_ms;
+    stats.gpu_draw_ms += r.gpu_draw_ms;
+}

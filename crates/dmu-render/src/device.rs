@@ -1,0 +1,62 @@
+//! A headless device for captures, tests and benchmarks, and buffer readback.
+
+use crate::RenderError;
+
+/// A device and queue with no surface, with the optional features the renderer
+/// uses (timestamp queries) when the adapter has them. Honours `WGPU_BACKEND`
+/// and the other `wgpu` environment variables.
+pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, wgpu::AdapterInfo), RenderError> {
+    let instance =
+        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+        power_preference: wgpu::PowerPreference::HighPerformance,
+        compatible_surface: None,
+        ..Default::default()
+    }))
+    .map_err(|e| RenderError::NoAdapter {
+        reason: e.to_string(),
+    })?;
+    let info = adapter.get_info();
+    let required_features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("dmu headless"),
+        required_features,
+        required_limits: adapter.limits(),
+        ..Default::default()
+    }))
+    .map_err(|e| RenderError::RequestDevice {
+        adapter: info.name.clone(),
+        reason: e.to_string(),
+    })?;
+    Ok((device, queue, info))
+}
+
+/// Maps `buffer[..size]` for reading, waits, and hands the bytes to `read`.
+pub(crate) fn map_read<T>(
+    device: &wgpu::Device,
+    buffer: &wgpu::Buffer,
+    size: u64,
+    what: &'static str,
+    read: impl FnOnce(&[u8]) -> T,
+) -> Result<T, RenderError> {
+    let fail = |reason: String| RenderError::Readback { what, reason };
+    let (tx, rx) = std::sync::mpsc::channel();
+    buffer.map_async(wgpu::MapMode::Read, ..size, move |r| {
+        // The receiver outlives the poll below; a send error cannot happen.
+        let _ = tx.send(r);
+    });
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| fail(e.to_string()))?;
+    rx.recv()
+        .map_err(|e| fail(e.to_string()))?
+        .map_err(|e| fail(e.to_string()))?;
+    let result = {
+        let view = buffer
+            .get_mapped_range(..size)
+            .map_err(|e| fail(e.to_string()))?;
+        read(&view)
+    };
+    buffer.unmap();
+    Ok(result)
+}

@@ -1,0 +1,284 @@
+//! Chunk geometry on the GPU: where it comes from ([`GeometrySource`]) and the
+//! pooled buffers it lives in ([`GeometryPool`]).
+
+use bytemuck::{Pod, Zeroable};
+use dmu_scene::{ChunkId, Scene};
+use glam::Vec3;
+
+/// One chunk's geometry, part-local f32, indices relative to its first vertex.
+#[derive(Clone, Copy, Debug)]
+pub struct ChunkGeometry<'a> {
+    /// Positions.
+    pub positions: &'a [Vec3],
+    /// Unit normals, parallel to `positions`.
+    pub normals: &'a [Vec3],
+    /// Chunk-local indices, three per triangle, each `< positions.len()`.
+    pub indices: &'a [u32],
+}
+
+/// Where the renderer gets chunk geometry: "give me this chunk if it is resident".
+///
+/// The in-memory [`Scene`] always has it; the store's residency manager answers
+/// `None` for chunks not loaded yet, which the renderer skips for the frame (and
+/// counts in [`crate::FrameStats::not_resident`]).
+pub trait GeometrySource {
+    /// The chunk's geometry, or `None` when it is not resident.
+    fn chunk_geometry(&self, chunk: ChunkId) -> Option<ChunkGeometry<'_>>;
+}
+
+impl GeometrySource for Scene {
+    fn chunk_geometry(&self, chunk: ChunkId) -> Option<ChunkGeometry<'_>> {
+        let c = self.chunk(chunk);
+        let mesh = self.mesh(c.mesh);
+        let v = c.vertices.start as usize..c.vertices.end as usize;
+        let t = 3 * c.triangles.start as usize..3 * c.triangles.end as usize;
+        Some(ChunkGeometry {
+            positions: &mesh.positions[v.clone()],
+            normals: &mesh.normals[v],
+            indices: &mesh.indices[t],
+        })
+    }
+}
+
+/// A vertex in the pool: position and a normal packed to snorm8, which is all a
+/// headlight needs and keeps a vertex at 16 bytes.
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub(crate) struct PoolVertex {
+    /// Part-local position.
+    pub position: [f32; 3],
+    /// Unit normal in snorm8 (w unused, 0).
+    pub normal: [i8; 4],
+}
+const _: () = assert!(size_of::<PoolVertex>() == 16);
+
+/// Where a resident chunk lives in the pool.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct ChunkSlot {
+    /// Vertex page.
+    pub vertex_page: u32,
+    /// First vertex in the page (the draw's base vertex).
+    pub first_vertex: u32,
+    /// Vertices reserved.
+    pub vertex_count: u32,
+    /// Index page.
+    pub index_page: u32,
+    /// First index in the page, in units of the chunk's index format.
+    pub first_index: u32,
+    /// Indices (three per triangle).
+    pub index_count: u32,
+    /// Indices are u16 (chunks under 65 536 vertices), else u32.
+    pub short_indices: bool,
+}
+
+impl ChunkSlot {
+    /// Bytes reserved in the index page (padded to 4 for copy alignment).
+    fn index_bytes(&self) -> u64 {
+        let unit = if self.short_indices { 2 } else { 4 };
+        (u64::from(self.index_count) * unit).next_multiple_of(4)
+    }
+
+    /// Byte offset of the first index.
+    fn index_offset(&self) -> u64 {
+        let unit = if self.short_indices { 2 } else { 4 };
+        u64::from(self.first_index) * unit
+    }
+}
+
+/// A page: one GPU buffer, bump-allocated, with a first-fit list of freed ranges.
+#[derive(Debug)]
+struct Page {
+    buffer: wgpu::Buffer,
+    /// Bytes handed out from the start.
+    used: u64,
+    /// Freed `(offset, bytes)` ranges, reused first-fit.
+    free: Vec<(u64, u64)>,
+}
+
+impl Page {
+    fn alloc(&mut self, bytes: u64, capacity: u64) -> Option<u64> {
+        if let Some(i) = self.free.iter().position(|&(_, len)| len >= bytes) {
+            let (offset, len) = self.free[i];
+            if len == bytes {
+                self.free.swap_remove(i);
+            } else {
+                self.free[i] = (offset + bytes, len - bytes);
+            }
+            return Some(offset);
+        }
+        (self.used + bytes <= capacity).then(|| {
+            self.used += bytes;
+            self.used - bytes
+        })
+    }
+}
+
+/// Resident chunks in a few large vertex and index buffers, so a frame binds a
+/// buffer per page rather than per chunk. Chunks are uploaded once and shared
+/// by every part that instances them.
+#[derive(Debug)]
+pub struct GeometryPool {
+    vertex_pages: Vec<Page>,
+    index_pages: Vec<Page>,
+    page_bytes: u64,
+    /// Slot per chunk id, `None` when not resident.
+    slots: Vec<Option<ChunkSlot>>,
+    resident_bytes: u64,
+    /// Reused staging for one chunk's packed data.
+    scratch: Vec<u8>,
+}
+
+impl GeometryPool {
+    /// An empty pool whose buffers are `page_bytes` each (chunks larger than a
+    /// page get a page of their own size).
+    pub(crate) fn new(chunk_count: usize, page_bytes: u64) -> Self {
+        Self {
+            vertex_pages: Vec::new(),
+            index_pages: Vec::new(),
+            page_bytes,
+            slots: vec![None; chunk_count],
+            resident_bytes: 0,
+            scratch: Vec::new(),
+        }
+    }
+
+    /// Bytes of geometry resident on the GPU.
+    pub fn resident_bytes(&self) -> u64 {
+        self.resident_bytes
+    }
+
+    /// Chunks resident on the GPU.
+    pub fn resident_chunks(&self) -> usize {
+        self.slots.iter().filter(|s| s.is_some()).count()
+    }
+
+    pub(crate) fn vertex_buffer(&self, page: u32) -> &wgpu::Buffer {
+        &self.vertex_pages[page as usize].buffer
+    }
+
+    pub(crate) fn index_buffer(&self, page: u32) -> &wgpu::Buffer {
+        &self.index_pages[page as usize].buffer
+    }
+
+    /// The chunk's slot, uploading it from `source` first if needed; `None` when
+    /// the source does not have it.
+    pub(crate) fn ensure(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        source: &dyn GeometrySource,
+        chunk: ChunkId,
+    ) -> Option<ChunkSlot> {
+        if let Some(slot) = self.slots[chunk.index()] {
+            return Some(slot);
+        }
+        let geometry = source.chunk_geometry(chunk)?;
+        let vertex_count = geometry.positions.len() as u32;
+        let short_indices = vertex_count <= u32::from(u16::MAX) + 1;
+        let vertex_bytes = u64::from(vertex_count) * size_of::<PoolVertex>() as u64;
+        let mut slot = ChunkSlot {
+            vertex_page: 0,
+            first_vertex: 0,
+            vertex_count,
+            index_page: 0,
+            first_index: 0,
+            index_count: geometry.indices.len() as u32,
+            short_indices,
+        };
+        let index_bytes = slot.index_bytes();
+        let (vp, vo) = Self::alloc(
+            device,
+            &mut self.vertex_pages,
+            self.page_bytes,
+            vertex_bytes,
+            wgpu::BufferUsages::VERTEX,
+        );
+        let (ip, io) = Self::alloc(
+            device,
+            &mut self.index_pages,
+            self.page_bytes,
+            index_bytes,
+            wgpu::BufferUsages::INDEX,
+        );
+        slot.vertex_page = vp;
+        slot.first_vertex = (vo / size_of::<PoolVertex>() as u64) as u32;
+        slot.index_page = ip;
+        slot.first_index = (io / if short_indices { 2 } else { 4 }) as u32;
+
+        self.scratch.clear();
+        for (p, n) in geometry.positions.iter().zip(geometry.normals) {
+            let snorm = |x: f32| (x.clamp(-1.0, 1.0) * 127.0).round() as i8;
+            let v = PoolVertex {
+                position: p.to_array(),
+                normal: [snorm(n.x), snorm(n.y), snorm(n.z), 0],
+            };
+            self.scratch.extend_from_slice(bytemuck::bytes_of(&v));
+        }
+        if vertex_bytes > 0 {
+            queue.write_buffer(self.vertex_buffer(vp), vo, &self.scratch);
+        }
+        self.scratch.clear();
+        if short_indices {
+            for &i in geometry.indices {
+                self.scratch.extend_from_slice(&(i as u16).to_le_bytes());
+            }
+        } else {
+            self.scratch
+                .extend_from_slice(bytemuck::cast_slice(geometry.indices));
+        }
+        self.scratch.resize(index_bytes as usize, 0);
+        if index_bytes > 0 {
+            queue.write_buffer(self.index_buffer(ip), io, &self.scratch);
+        }
+        self.resident_bytes += vertex_bytes + index_bytes;
+        self.slots[chunk.index()] = Some(slot);
+        Some(slot)
+    }
+
+    /// Frees a chunk's ranges for reuse (the residency manager evicted it).
+    pub fn evict(&mut self, chunk: ChunkId) {
+        if let Some(slot) = self.slots[chunk.index()].take() {
+            let vertex_bytes = u64::from(slot.vertex_count) * size_of::<PoolVertex>() as u64;
+            let vertex_offset = u64::from(slot.first_vertex) * size_of::<PoolVertex>() as u64;
+            self.vertex_pages[slot.vertex_page as usize]
+                .free
+                .push((vertex_offset, vertex_bytes));
+            self.index_pages[slot.index_page as usize]
+                .free
+                .push((slot.index_offset(), slot.index_bytes()));
+            self.resident_bytes -= vertex_bytes + slot.index_bytes();
+        }
+    }
+
+    /// `(page, byte offset)` of `bytes` in some page, adding a page when none fits.
+    fn alloc(
+        device: &wgpu::Device,
+        pages: &mut Vec<Page>,
+        page_bytes: u64,
+        bytes: u64,
+        usage: wgpu::BufferUsages,
+    ) -> (u32, u64) {
+        // Vertex offsets must be whole vertices: every size is a multiple of 16
+        // (vertices) or 4 (indices), and pages hold one kind only.
+        for (i, page) in pages.iter_mut().enumerate() {
+            if let Some(offset) = page.alloc(bytes, page.buffer.size()) {
+                return (i as u32, offset);
+            }
+        }
+        let size = page_bytes.max(bytes).max(16);
+        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("dmu geometry page"),
+            size,
+            usage: usage | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut page = Page {
+            buffer,
+            used: 0,
+            free: Vec::new(),
+        };
+        let offset = page.alloc(bytes, size).expect("a fresh page fits");
+        pages.push(page);
+        (pages.len() as u32 - 1, offset)
+    }
+}

@@ -1,0 +1,80 @@
+//! The dmu renderer: chunk geometry in pooled GPU buffers, any number of views
+//! over one cell tree, frustum, coverage and coherent occlusion culling, and
+//! headless capture, on wgpu.
+//!
+//! Design choices:
+//! - The renderer owns no window: it takes a device, a queue and target views
+//!   ([`FrameTarget`]), so the desktop viewer, an XR session and headless
+//!   captures ([`Capture`]) drive it alike.
+//! - Geometry comes through [`GeometrySource`] ("this chunk, if resident"),
+//!   which the in-memory scene implements now and the store's residency manager
+//!   later. Chunks are uploaded once into large pooled buffers ([`GeometryPool`])
+//!   with u16 indices where they fit and a base vertex per draw, and shared by
+//!   every part instancing them.
+//! - Parts are never pre-transformed: each frame every part's model-view is
+//!   formed in f64 on the CPU, camera-relative, and narrowed to f32 into a
+//!   storage buffer, so millimetres survive at 1e7 from the origin and moving a
+//!   part uploads nothing but its transform.
+//! - A draw is one chunk instance; its instance index is its entry id, which
+//!   selects part, material and selection state in storage buffers, and is what
+//!   the chunk-id oracle ([`Renderer::render_ids`]) writes.
+//! - Every mode draws in one canonical order (cells front to back, then tree
+//!   order), so the same visible set gives the same image whatever culled the
+//!   rest: the occlusion-culled image is compared with the unculled one exactly.
+//! - Occlusion culling is CHC-style with temporal coherence over a mirror of
+//!   the tree that goes down to chunk instances: last frame's visible set is
+//!   drawn first, the invisible frontier is queried by boxes against its depth,
+//!   newly visible nodes are drawn or expanded in further rounds (wgpu returns
+//!   results only after a submit), and leftovers wait a frame. At most 512
+//!   queries go in one render pass (a Mesa 22 lavapipe bug past ~536). Each view
+//!   measures what queries cost against what they save and switches them off
+//!   where they do not pay ([`OcclusionDecision`]).
+//!
+//! Conventions: right-handed world, model units, f64 world and f32 local as in
+//! `dmu-geom`; cameras look down -Z; reverse-Z depth (Depth32Float cleared to 0,
+//! compared with Greater) and an infinite far plane; counter-clockwise fronts,
+//! but nothing is culled by winding and shading is two-sided, a headlight at
+//! the eye. Colours are linear; captures are sRGB.
+//!
+//! ```no_run
+//! use dmu_render::{Camera, Capture, Culling, Renderer, View, headless_device};
+//! use dmu_geom::glam::DVec3;
+//!
+//! let scene = dmu_scene::samples::grid(4, 10.0, 4.0, 2048);
+//! let tree = dmu_tree::Tree::build(&scene, Default::default());
+//! let (device, queue, _) = headless_device()?;
+//! let mut renderer = Renderer::new(&device, &queue, &scene, &tree, Default::default());
+//! let camera = Camera {
+//!     eye: DVec3::new(-40.0, -30.0, 50.0),
+//!     target: DVec3::splat(15.0),
+//!     up: DVec3::Z,
+//!     fov_y_rad: 60f64.to_radians(),
+//!     near: 0.1,
+//! };
+//! let mut view = View::new(camera, (640, 360), Culling::Occlusion);
+//! let capture = Capture::new(&device, view.size);
+//! let stats = renderer.render(&mut view, &scene, &tree, &scene, capture.frame_target())?;
+//! println!("{} triangles, {} queries", stats.triangles_drawn, stats.queries);
+//! let image = capture.read_color(&device, &queue)?;
+//! dmu_render::save_png(&image, "grid.png".as_ref())?;
+//! # Ok::<(), dmu_render::RenderError>(())
+//! ```
+
+mod adapt;
+mod capture;
+mod cull;
+mod device;
+mod error;
+mod geometry;
+mod gpu;
+mod hierarchy;
+mod renderer;
+mod view;
+
+pub use capture::{CAPTURE_FORMAT, Capture, DEPTH_FORMAT, ID_FORMAT, IdImage, save_png};
+pub use device::headless_device;
+pub use error::RenderError;
+pub use geometry::{ChunkGeometry, GeometryPool, GeometrySource};
+pub use renderer::{FrameTarget, Renderer, RendererOptions};
+pub use view::{Camera, Culling, CullingOptions, FrameStats, OcclusionDecision, View};
+pub use wgpu;

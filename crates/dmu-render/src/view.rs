@@ -1,0 +1,219 @@
+//! Views: a camera, a viewport, a culling mode and the per-node visibility
+//! state that coherent occlusion culling carries from frame to frame.
+
+use dmu_geom::{Frustum, look_at, reverse_z_perspective};
+use glam::{DMat4, DVec3};
+
+/// A perspective camera in world coordinates (f64).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Eye position.
+    pub eye: DVec3,
+    /// Point looked at.
+    pub target: DVec3,
+    /// Screen up direction (any length, not parallel to the view direction).
+    pub up: DVec3,
+    /// Vertical field of view, radians.
+    pub fov_y_rad: f64,
+    /// Near plane distance, world units; the far plane is at infinity.
+    pub near: f64,
+}
+
+impl Camera {
+    /// World to view (right-handed, looking down -Z).
+    pub fn view_matrix(&self) -> DMat4 {
+        look_at(self.eye, self.target, self.up)
+    }
+
+    /// View to clip, reverse-Z with an infinite far plane.
+    pub fn projection(&self, aspect: f64) -> DMat4 {
+        reverse_z_perspective(self.fov_y_rad, aspect, self.near, None)
+    }
+
+    /// The world-space culling frustum.
+    pub fn frustum(&self, aspect: f64) -> Frustum {
+        Frustum::from_view_proj_reverse_z(&(self.projection(aspect) * self.view_matrix()))
+    }
+}
+
+/// How a view decides what to draw.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Culling {
+    /// Everything that is not hidden: the reference image.
+    None,
+    /// Frustum and screen-coverage culling on the tree.
+    #[default]
+    Frustum,
+    /// Frustum, coverage and coherent hierarchical occlusion culling (CHC).
+    Occlusion,
+}
+
+/// Knobs of culling, each with its cost shown in [`FrameStats`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CullingOptions {
+    /// Nodes whose bounding sphere projects to fewer pixels across are dropped
+    /// (0 keeps everything: images stay exact).
+    pub min_pixels: f64,
+    /// Rounds of query-then-draw per frame; what is left waits for the next frame.
+    pub max_rounds: u32,
+    /// A visible chunk is re-checked every `requery_interval` frames (plus a
+    /// per-chunk random offset, so re-checks spread over frames).
+    pub requery_interval: u32,
+    /// Tree levels a visible internal node is expanded by before querying again.
+    pub expand_levels: u32,
+    /// Switch occlusion queries off in a view where they cost more than they save.
+    pub adaptive: bool,
+}
+
+impl Default for CullingOptions {
+    fn default() -> Self {
+        Self {
+            min_pixels: 0.0,
+            max_rounds: 6,
+            requery_interval: 8,
+            expand_levels: 2,
+            adaptive: true,
+        }
+    }
+}
+
+/// Whether occlusion queries are on in a view, and why.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct OcclusionDecision {
+    /// Queries are used this frame.
+    pub enabled: bool,
+    /// Average milliseconds a frame spent on queries and waiting for them.
+    pub cost_ms: f64,
+    /// Average milliseconds of drawing saved (culled triangles at the measured
+    /// cost per triangle).
+    pub saved_ms: f64,
+    /// Frames until a disabled view tries queries again.
+    pub retry_in_frames: u32,
+}
+
+/// What a frame of one view did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FrameStats {
+    /// Frame number of the view (1 for its first frame).
+    pub frame: u64,
+    /// Tree nodes (internal, cells and chunk instances) looked at.
+    pub nodes_visited: u64,
+    /// Nodes dropped by the frustum.
+    pub culled_frustum: u64,
+    /// Nodes dropped for covering too few pixels.
+    pub culled_coverage: u64,
+    /// Chunk instances in the frustum that occlusion culling did not draw.
+    pub culled_occlusion: u64,
+    /// Chunk instances skipped because their part is hidden.
+    pub hidden: u64,
+    /// Chunk instances skipped because their geometry is not resident.
+    pub not_resident: u64,
+    /// Occlusion queries issued.
+    pub queries: u64,
+    /// Queries that found something visible.
+    pub queries_visible: u64,
+    /// Query-and-draw rounds (submissions) this frame.
+    pub rounds: u32,
+    /// Render passes this frame.
+    pub passes: u32,
+    /// Chunk instances drawn.
+    pub chunks_drawn: u64,
+    /// Triangles drawn.
+    pub triangles_drawn: u64,
+    /// Triangles of the chunk instances that passed frustum and coverage culling.
+    pub triangles_in_frustum: u64,
+    /// Chunk instances found newly visible this frame (0 once converged).
+    pub newly_visible: u64,
+    /// Wall time of the frame on the CPU (culling, recording, waiting), ms.
+    pub cpu_ms: f64,
+    /// GPU time of the frame's passes from timestamp queries, ms (0 when the
+    /// device has no timestamps).
+    pub gpu_ms: f64,
+    /// GPU time of the passes that drew geometry, ms.
+    pub gpu_draw_ms: f64,
+    /// Occlusion culling's decision for this view.
+    pub occlusion: OcclusionDecision,
+}
+
+/// Visibility state of one chunk instance in one view.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct EntryState {
+    /// Last frame the chunk instance was drawn as visible (0: never).
+    pub visible_frame: u64,
+    /// Frame at which a visible chunk instance is queried again.
+    pub requery_frame: u64,
+}
+
+/// A view: camera, viewport, culling and its own visibility state over the
+/// renderer's shared tree and geometry.
+#[derive(Debug)]
+pub struct View {
+    /// The camera.
+    pub camera: Camera,
+    /// Viewport size in pixels (the target's size).
+    pub size: (u32, u32),
+    /// Culling mode.
+    pub culling: Culling,
+    /// Culling knobs.
+    pub options: CullingOptions,
+    pub(crate) frame: u64,
+    pub(crate) entries: Vec<EntryState>,
+    pub(crate) decision: OcclusionDecision,
+    /// Per-frame averages behind the decision.
+    pub(crate) ns_per_triangle: f64,
+    /// Frames of the current adaptive probe (queries on while measuring).
+    pub(crate) probe_frames: u32,
+    /// Average non-drawing time of frames without queries, ms.
+    pub(crate) baseline_overhead_ms: f64,
+    pub(crate) last: FrameStats,
+    /// Chunk instances drawn in the last frame, in draw order.
+    pub(crate) drawn: Vec<u32>,
+    /// GPU resources, made by the renderer on the first frame.
+    pub(crate) gpu: Option<crate::renderer::ViewGpu>,
+}
+
+impl View {
+    /// A view with fresh visibility state.
+    pub fn new(camera: Camera, size: (u32, u32), culling: Culling) -> Self {
+        assert!(size.0 > 0 && size.1 > 0, "view size must be positive");
+        Self {
+            camera,
+            size,
+            culling,
+            options: CullingOptions::default(),
+            frame: 0,
+            entries: Vec::new(),
+            decision: OcclusionDecision {
+                enabled: true,
+                ..OcclusionDecision::default()
+            },
+            ns_per_triangle: 0.0,
+            probe_frames: 0,
+            baseline_overhead_ms: 0.0,
+            last: FrameStats::default(),
+            drawn: Vec::new(),
+            gpu: None,
+        }
+    }
+
+    /// Width over height.
+    pub fn aspect(&self) -> f64 {
+        f64::from(self.size.0) / f64::from(self.size.1)
+    }
+
+    /// The stats of the last frame.
+    pub fn last_stats(&self) -> &FrameStats {
+        &self.last
+    }
+
+    /// The chunk instances the last frame drew, in draw order.
+    pub fn drawn_entries(&self) -> impl ExactSizeIterator<Item = dmu_tree::EntryId> + '_ {
+        self.drawn.iter().map(|&e| dmu_tree::EntryId(e))
+    }
+
+    /// Forgets visibility (after a jump of the camera, say): the next frame
+    /// starts occlusion culling from scratch.
+    pub fn reset_visibility(&mut self) {
+        self.entries.clear();
+    }
+}

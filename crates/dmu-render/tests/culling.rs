@@ -1,0 +1,163 @@
+//! Culling modes against the unculled reference and the exact-visibility oracle.
+
+use std::collections::BTreeSet;
+
+use dmu_geom::glam::DVec3;
+use dmu_render::{Camera, Culling, View};
+use dmu_scene::Scene;
+use dmu_scene::samples::{PlantOptions, plant};
+use dmu_tree::{EntryId, Tree, TreeOptions};
+
+use crate::support::{Rig, camera, differing, image_path};
+
+fn small_plant() -> (Scene, Tree) {
+    let scene = plant(&PlantOptions {
+        triangles: 400_000,
+        ..Default::default()
+    });
+    let tree = Tree::build(&scene, TreeOptions::default());
+    (scene, tree)
+}
+
+/// Viewpoints inside the plant: at eye level along the rack, across the
+/// buildings, inside a building, and from above.
+fn viewpoints() -> Vec<Camera> {
+    let o = DVec3::new(4_512_000.0, 5_342_750.0, 12_000.0);
+    let at = |x: f64, y: f64, z: f64| o + DVec3::new(x, y, z);
+    vec![
+        camera(
+            at(-3_000.0, 7_000.0, 1_700.0),
+            at(60_000.0, 9_000.0, 2_000.0),
+            50.0,
+        ),
+        camera(
+            at(2_000.0, 3_000.0, 1_700.0),
+            at(60_000.0, 60_000.0, 3_000.0),
+            50.0,
+        ),
+        camera(
+            at(24_000.0, 20_000.0, 1_700.0),
+            at(40_000.0, 30_000.0, 1_500.0),
+            50.0,
+        ),
+        camera(
+            at(-20_000.0, -20_000.0, 30_000.0),
+            at(40_000.0, 30_000.0, 0.0),
+            50.0,
+        ),
+    ]
+}
+
+#[test]
+fn frustum_image_equals_unculled_image() {
+    let (scene, tree) = small_plant();
+    let size = (480, 270);
+    let Some(mut rig) = Rig::new(&scene, &tree, size) else {
+        return;
+    };
+    for (i, cam) in viewpoints().into_iter().enumerate() {
+        let none = rig.shot(cam, Culling::None, &scene, &tree);
+        let mut view = View::new(cam, size, Culling::Frustum);
+        let stats = rig.frame(&mut view, &scene, &tree);
+        let frustum = rig.image();
+        frustum
+            .save(image_path(&format!("plant_frustum_{i}.png")))
+            .unwrap();
+        // The view from above sees the whole site.
+        assert!(
+            i == 3 || stats.culled_frustum > 0,
+            "view {i}: nothing culled"
+        );
+        assert_eq!(
+            differing(&none, &frustum).len(),
+            0,
+            "view {i}: frustum image differs"
+        );
+    }
+}
+
+/// Converged occlusion culling draws the unculled image exactly, and draws
+/// every chunk instance that owns a pixel.
+#[test]
+fn occlusion_converges_to_the_unculled_image() {
+    let (scene, tree) = small_plant();
+    let size = (480, 270);
+    let Some(mut rig) = Rig::new(&scene, &tree, size) else {
+        return;
+    };
+    for (i, cam) in viewpoints().into_iter().enumerate() {
+        let none = rig.shot(cam, Culling::None, &scene, &tree);
+        none.save(image_path(&format!("plant_none_{i}.png")))
+            .unwrap();
+        let mut view = View::new(cam, size, Culling::Occlusion);
+        view.options.adaptive = false;
+        let mut converged = None;
+        for _ in 0..12 {
+            let stats = rig.frame(&mut view, &scene, &tree);
+            if stats.newly_visible == 0 && stats.frame > 1 {
+                converged = Some(stats);
+                break;
+            }
+        }
+        let stats = converged.unwrap_or_else(|| panic!("view {i}: no convergence in 12 frames"));
+        let chc = rig.image();
+        chc.save(image_path(&format!("plant_chc_{i}.png"))).unwrap();
+        let diff = differing(&none, &chc);
+        assert_eq!(
+            diff.len(),
+            0,
+            "view {i}: {} pixels differ, first {:?}",
+            diff.len(),
+            diff.first()
+        );
+        let drawn: BTreeSet<EntryId> = view.drawn_entries().collect();
+        let exact = rig.ids(&mut view, &scene, &tree).visible_entries();
+        let missing: Vec<_> = exact.difference(&drawn).collect();
+        assert!(
+            missing.is_empty(),
+            "view {i}: exactly visible but not drawn: {missing:?}"
+        );
+        assert!(
+            stats.triangles_drawn < stats.triangles_in_frustum,
+            "view {i}: nothing occluded: {stats:?}"
+        );
+    }
+}
+
+/// Views keep their own visibility state over shared buffers: interleaving
+/// two views gives each the image it gets alone.
+#[test]
+fn views_are_independent() {
+    let (scene, tree) = small_plant();
+    let size = (320, 180);
+    let Some(mut rig) = Rig::new(&scene, &tree, size) else {
+        return;
+    };
+    let cams = viewpoints();
+    let alone: Vec<_> = cams[..2]
+        .iter()
+        .map(|&c| rig.shot(c, Culling::None, &scene, &tree))
+        .collect();
+    let mut views: Vec<View> = cams[..2]
+        .iter()
+        .map(|&c| View::new(c, size, Culling::Occlusion))
+        .collect();
+    for v in &mut views {
+        v.options.adaptive = false;
+    }
+    let mut images = [None, None];
+    for _ in 0..8 {
+        for (k, v) in views.iter_mut().enumerate() {
+            rig.frame(v, &scene, &tree);
+            images[k] = Some(rig.image());
+        }
+    }
+    for k in 0..2 {
+        let img = images[k].take().unwrap();
+        assert_eq!(
+            differing(&alone[k], &img).len(),
+            0,
+            "view {k} differs when interleaved"
+        );
+    }
+}

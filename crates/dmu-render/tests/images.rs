@@ -1,0 +1,291 @@
+//! Images against analytic and CPU references on the real driver.
+
+use dmu_geom::Ray3d;
+use dmu_geom::glam::{DAffine3, DVec2, DVec3, DVec4};
+use dmu_render::{Camera, Culling, View};
+use dmu_scene::samples::grid;
+use dmu_tree::{Tree, TreeOptions};
+
+use crate::support::{Rig, camera, differing, image_path};
+
+/// Pixel position of a world point.
+fn project(camera: &Camera, size: (u32, u32), p: DVec3) -> DVec2 {
+    let aspect = f64::from(size.0) / f64::from(size.1);
+    let clip = camera.projection(aspect) * camera.view_matrix() * DVec4::new(p.x, p.y, p.z, 1.0);
+    let ndc = clip.truncate().truncate() / clip.w;
+    DVec2::new(
+        (ndc.x + 1.0) * 0.5 * f64::from(size.0),
+        (1.0 - ndc.y) * 0.5 * f64::from(size.1),
+    )
+}
+
+/// Convex hull, counter-clockwise in a y-down frame's sense of orientation.
+fn hull(mut pts: Vec<DVec2>) -> Vec<DVec2> {
+    pts.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    let cross = |o: DVec2, a: DVec2, b: DVec2| (a - o).perp_dot(b - o);
+    let mut h: Vec<DVec2> = Vec::new();
+    for pass in 0..2 {
+        let start = h.len();
+        let iter: Box<dyn Iterator<Item = &DVec2>> = if pass == 0 {
+            Box::new(pts.iter())
+        } else {
+            Box::new(pts.iter().rev())
+        };
+        for &p in iter {
+            while h.len() >= start + 2 && cross(h[h.len() - 2], h[h.len() - 1], p) <= 0.0 {
+                h.pop();
+            }
+            h.push(p);
+        }
+        h.pop();
+    }
+    h
+}
+
+fn inside(h: &[DVec2], p: DVec2) -> bool {
+    (0..h.len()).all(|i| (h[(i + 1) % h.len()] - h[i]).perp_dot(p - h[i]) >= 0.0)
+}
+
+fn edge_distance(h: &[DVec2], p: DVec2) -> f64 {
+    (0..h.len())
+        .map(|i| {
+            let (a, b) = (h[i], h[(i + 1) % h.len()]);
+            let t = ((p - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+            (a + (b - a) * t - p).length()
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Every box of a grid covers exactly the pixels inside the hull of its
+/// projected corners, up to a 1-pixel border.
+#[test]
+fn grid_boxes_cover_their_projected_hulls() {
+    let scene = grid(3, 10.0, 4.0, 2048);
+    let tree = Tree::build(&scene, TreeOptions::default());
+    let size = (320, 240);
+    let Some(mut rig) = Rig::new(&scene, &tree, size) else {
+        return;
+    };
+    let cam = camera(DVec3::new(-25.0, -35.0, 40.0), DVec3::splat(10.0), 0.5);
+    let image = rig.shot(cam, Culling::None, &scene, &tree);
+    image.save(image_path("grid_hulls.png")).unwrap();
+    let hulls: Vec<Vec<DVec2>> = scene
+        .part_ids()
+        .map(|p| {
+            let b = scene.part_world_bounds(p);
+            hull(
+                b.corners()
+                    .iter()
+                    .map(|&c| project(&cam, size, c))
+                    .collect(),
+            )
+        })
+        .collect();
+    // The camera sees no box in the top-left corner: that is the background.
+    let background = *image.get_pixel(0, 0);
+    let covered = |p: &image::Rgba<u8>| *p != background;
+    let (mut expected_count, mut bad) = (0, Vec::new());
+    for (x, y, px) in image.enumerate_pixels() {
+        let centre = DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5);
+        let expected = hulls.iter().any(|h| inside(h, centre));
+        expected_count += usize::from(expected);
+        if expected != covered(px) {
+            let near_edge = hulls.iter().any(|h| edge_distance(h, centre) <= 1.0);
+            if !near_edge {
+                bad.push((x, y));
+            }
+        }
+    }
+    assert!(
+        expected_count > 5000,
+        "boxes cover only {expected_count} pixels"
+    );
+    assert!(
+        bad.is_empty(),
+        "{} pixels away from hull borders differ: {:?}",
+        bad.len(),
+        &bad[..bad.len().min(10)]
+    );
+}
+
+/// The chunk-id oracle agrees with exact CPU picking through pixel centres.
+#[test]
+fn id_oracle_agrees_with_cpu_pick() {
+    let scene = dmu_scene::samples::plant(&dmu_scene::samples::PlantOptions {
+        triangles: 200_000,
+        ..Default::default()
+    });
+    let tree = Tree::build(&scene, TreeOptions::default());
+    let size = (480, 270);
+    let Some(mut rig) = Rig::new(&scene, &tree, size) else {
+        return;
+    };
+    let o = DVec3::new(4_512_000.0, 5_342_750.0, 12_000.0);
+    let cam = camera(
+        o + DVec3::new(-8_000.0, 5_000.0, 6_000.0),
+        o + DVec3::new(30_000.0, 25_000.0, 2_000.0),
+        50.0,
+    );
+    let mut view = View::new(cam, size, Culling::None);
+    let ids = rig.ids(&mut view, &scene, &tree);
+    let t = (cam.fov_y_rad * 0.5).tan();
+    let rot = DAffine3::from_mat4(cam.view_matrix()).matrix3.transpose();
+    let (mut samples, mut hits, mut edge_only) = (0, 0, 0);
+    for y in (2..size.1).step_by(6) {
+        for x in (2..size.0).step_by(6) {
+            let ndc = DVec2::new(
+                (f64::from(x) + 0.5) / f64::from(size.0) * 2.0 - 1.0,
+                1.0 - (f64::from(y) + 0.5) / f64::from(size.1) * 2.0,
+            );
+            let dir = rot * DVec3::new(ndc.x * t * view.aspect(), ndc.y * t, -1.0);
+            let pick = tree
+                .pick(&scene, &Ray3d::new(cam.eye, dir))
+                .map(|h| (h.part, h.chunk));
+            let id = ids.at(x, y).map(|e| {
+                let entry = &tree.entries()[e.0 as usize];
+                (entry.part, entry.chunk)
+            });
+            samples += 1;
+            hits += usize::from(pick.is_some());
+            if pick != id {
+                // Only where the pixel centre grazes an edge may the two differ:
+                // then a neighbour pixel shows what the ray hit.
+                let neighbour = (-1i32..=1)
+                    .flat_map(|dy| (-1i32..=1).map(move |dx| (dx, dy)))
+                    .any(|(dx, dy)| {
+                        let (nx, ny) = (x as i32 + dx, y as i32 + dy);
+                        let e = ids.at(nx as u32, ny as u32).map(|e| {
+                            let entry = &tree.entries()[e.0 as usize];
+                            (entry.part, entry.chunk)
+                        });
+                        e == pick
+                    });
+                assert!(neighbour, "pixel ({x},{y}): GPU {id:?}, CPU pick {pick:?}");
+                edge_only += 1;
+            }
+        }
+    }
+    assert!(
+        hits > samples / 5,
+        "only {hits} of {samples} rays hit the plant"
+    );
+    assert!(
+        edge_only * 50 < samples,
+        "{edge_only} of {samples} samples differ at edges"
+    );
+}
+
+/// Moving a part changes only the pixels it covered before or covers after.
+#[test]
+fn moving_a_part_changes_only_its_pixels() {
+    let mut scene = grid(3, 10.0, 4.0, 2048);
+    let mut tree = Tree::build(&scene, TreeOptions::default());
+    let size = (320, 240);
+    let Some(mut rig) = Rig::new(&scene, &tree, size) else {
+        return;
+    };
+    let cam = camera(DVec3::new(-25.0, -35.0, 40.0), DVec3::splat(10.0), 0.5);
+    let mut view = View::new(cam, size, Culling::Frustum);
+    rig.frame(&mut view, &scene, &tree);
+    let before = rig.image();
+    let ids_before = rig.ids(&mut view, &scene, &tree);
+    let part = scene.find_part("box_1_1_2").unwrap();
+    let moved = scene.part_world(part) * DAffine3::from_translation(DVec3::new(3.0, -6.0, 1.0));
+    tree.move_part(&mut scene, part, moved);
+    rig.frame(&mut view, &scene, &tree);
+    let after = rig.image();
+    let ids_after = rig.ids(&mut view, &scene, &tree);
+    after.save(image_path("grid_moved.png")).unwrap();
+    let of_part = |ids: &dmu_render::IdImage, x, y| {
+        ids.at(x, y)
+            .is_some_and(|e| tree.entries()[e.0 as usize].part == part)
+    };
+    let diff = differing(&before, &after);
+    assert!(
+        diff.len() > 100,
+        "the move changed only {} pixels",
+        diff.len()
+    );
+    for (x, y) in diff {
+        assert!(
+            of_part(&ids_before, x, y) || of_part(&ids_after, x, y),
+            "pixel ({x},{y}) changed but the part is not there"
+        );
+    }
+}
+
+/// Camera-relative f64 model-views: the same scene and camera shifted by 1e7
+/// give the same image.
+#[test]
+fn image_is_stable_far_from_the_origin() {
+    let near_scene = grid(3, 10.0, 4.0, 2048);
+    let mut far_scene = near_scene.clone();
+    let offset = DVec3::new(1.0e7, -2.0e7, 1.0e7);
+    for p in far_scene.part_ids() {
+        let w = far_scene.part_world(p);
+        far_scene.set_part_world(p, DAffine3::from_translation(offset) * w);
+    }
+    let size = (320, 240);
+    let cam = camera(DVec3::new(-25.0, -35.0, 40.0), DVec3::splat(10.0), 0.5);
+    let far_cam = Camera {
+        eye: cam.eye + offset,
+        target: cam.target + offset,
+        ..cam
+    };
+    let near_tree = Tree::build(&near_scene, TreeOptions::default());
+    let far_tree = Tree::build(&far_scene, TreeOptions::default());
+    let Some(mut rig) = Rig::new(&near_scene, &near_tree, size) else {
+        return;
+    };
+    let a = rig.shot(cam, Culling::Frustum, &near_scene, &near_tree);
+    let mut far_rig = Rig::new(&far_scene, &far_tree, size).expect("device");
+    let b = far_rig.shot(far_cam, Culling::Frustum, &far_scene, &far_tree);
+    b.save(image_path("grid_far.png")).unwrap();
+    let diff = differing(&a, &b);
+    assert!(
+        diff.len() * 1000 < (size.0 * size.1) as usize,
+        "{} pixels differ at 1e7",
+        diff.len()
+    );
+}
+
+/// Hidden parts vanish from the image and the oracle; selected parts are
+/// highlighted and keep their pixels.
+#[test]
+fn hidden_and_selected_parts() {
+    let mut scene = grid(3, 10.0, 4.0, 2048);
+    let tree = Tree::build(&scene, TreeOptions::default());
+    let size = (320, 240);
+    let Some(mut rig) = Rig::new(&scene, &tree, size) else {
+        return;
+    };
+    let cam = camera(DVec3::new(-25.0, -35.0, 40.0), DVec3::splat(10.0), 0.5);
+    let mut view = View::new(cam, size, Culling::Frustum);
+    let part = scene.find_part("box_0_0_2").unwrap();
+    let ids = rig.ids(&mut view, &scene, &tree);
+    let of_part = |e: &dmu_tree::EntryId| tree.entries()[e.0 as usize].part == part;
+    assert!(
+        ids.visible_entries().iter().any(of_part),
+        "the part is visible to begin with"
+    );
+    rig.frame(&mut view, &scene, &tree);
+    let plain = rig.image();
+
+    rig.renderer.set_selected(part, true);
+    rig.frame(&mut view, &scene, &tree);
+    let selected = rig.image();
+    selected.save(image_path("grid_selected.png")).unwrap();
+    let diff = differing(&plain, &selected);
+    assert!(!diff.is_empty());
+    assert!(
+        diff.iter()
+            .all(|&(x, y)| ids.at(x, y).as_ref().is_some_and(of_part))
+    );
+    rig.renderer.set_selected(part, false);
+
+    scene.set_part_hidden(part, true);
+    let stats = rig.frame(&mut view, &scene, &tree);
+    assert!(stats.hidden > 0);
+    let hidden_ids = rig.ids(&mut view, &scene, &tree);
+    assert!(!hidden_ids.visible_entries().iter().any(of_part));
+}

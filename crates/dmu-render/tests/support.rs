@@ -1,0 +1,97 @@
+//! Shared test helpers: the device (or a clear skip), cameras, image output.
+
+use std::path::PathBuf;
+
+use dmu_geom::glam::DVec3;
+use dmu_render::{Camera, Capture, Culling, FrameStats, Renderer, View};
+use dmu_scene::Scene;
+use dmu_tree::Tree;
+
+/// The real driver's device, or `None` after printing why the test skips.
+pub fn gpu() -> Option<(dmu_render::wgpu::Device, dmu_render::wgpu::Queue)> {
+    match dmu_render::headless_device() {
+        Ok((device, queue, _)) => Some((device, queue)),
+        Err(e) => {
+            eprintln!("SKIPPED: no Vulkan adapter ({e})");
+            None
+        }
+    }
+}
+
+pub fn camera(eye: DVec3, target: DVec3, near: f64) -> Camera {
+    Camera {
+        eye,
+        target,
+        up: DVec3::Z,
+        fov_y_rad: 60f64.to_radians(),
+        near,
+    }
+}
+
+/// Where tests write the images they render, to be looked at.
+pub fn image_path(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target/test-images");
+    std::fs::create_dir_all(&dir).expect("create target/test-images");
+    dir.join(name)
+}
+
+/// A renderer, a capture and one frame of a fresh view.
+pub struct Rig {
+    pub device: dmu_render::wgpu::Device,
+    pub queue: dmu_render::wgpu::Queue,
+    pub renderer: Renderer,
+    pub capture: Capture,
+}
+
+impl Rig {
+    pub fn new(scene: &Scene, tree: &Tree, size: (u32, u32)) -> Option<Rig> {
+        let (device, queue) = gpu()?;
+        let renderer = Renderer::new(&device, &queue, scene, tree, Default::default());
+        let capture = Capture::new(&device, size);
+        Some(Rig {
+            device,
+            queue,
+            renderer,
+            capture,
+        })
+    }
+
+    pub fn frame(&mut self, view: &mut View, scene: &Scene, tree: &Tree) -> FrameStats {
+        self.renderer
+            .render(view, scene, tree, scene, self.capture.frame_target())
+            .expect("render")
+    }
+
+    pub fn image(&self) -> image::RgbaImage {
+        self.capture
+            .read_color(&self.device, &self.queue)
+            .expect("read colour")
+    }
+
+    pub fn ids(&mut self, view: &mut View, scene: &Scene, tree: &Tree) -> dmu_render::IdImage {
+        self.renderer
+            .render_ids(view, scene, tree, scene, &self.capture)
+            .expect("render ids")
+    }
+
+    /// One frame with `culling`, as an image.
+    pub fn shot(
+        &mut self,
+        camera: Camera,
+        culling: Culling,
+        scene: &Scene,
+        tree: &Tree,
+    ) -> image::RgbaImage {
+        let mut view = View::new(camera, self.capture.size(), culling);
+        self.frame(&mut view, scene, tree);
+        self.image()
+    }
+}
+
+/// Pixels that differ.
+pub fn differing(a: &image::RgbaImage, b: &image::RgbaImage) -> Vec<(u32, u32)> {
+    a.enumerate_pixels()
+        .filter(|(x, y, p)| b.get_pixel(*x, *y) != *p)
+        .map(|(x, y, _)| (x, y))
+        .collect()
+}

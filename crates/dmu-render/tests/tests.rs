@@ -1,0 +1,3 @@
+mod culling;
+mod images;
+mod support;

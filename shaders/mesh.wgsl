@@ -1,0 +1,122 @@
+// dmu-render: chunk geometry, chunk-id oracle and occlusion-query boxes.
+//
+// Positions arrive part-local (f32); each part's model-view was formed in f64 on
+// the CPU, camera-relative, so nothing here ever sees a large coordinate.
+// Depth is reverse-Z (1 at the near plane); front faces are counter-clockwise,
+// but CAD windings are unreliable, so nothing is culled and shading is two-sided.
+
+struct ViewUniform {
+    // View space to clip space (reverse-Z, infinite far plane).
+    proj: mat4x4<f32>,
+    // Colour mixed into selected parts.
+    highlight: vec4<f32>,
+}
+
+// Rows of a part's affine model-view (part-local to view space).
+struct ModelView {
+    r0: vec4<f32>,
+    r1: vec4<f32>,
+    r2: vec4<f32>,
+}
+
+// One chunk instance: the draw's instance index selects it.
+struct EntryGpu {
+    part: u32,
+    material: u32,
+}
+
+// A world-aligned box in view space: centre plus three half-axes, so the CPU
+// does the f64 work and the GPU only adds small vectors.
+struct QueryBox {
+    center: vec4<f32>,
+    axis_x: vec4<f32>,
+    axis_y: vec4<f32>,
+    axis_z: vec4<f32>,
+}
+
+@group(0) @binding(0) var<uniform> view: ViewUniform;
+@group(0) @binding(1) var<storage, read> model_views: array<ModelView>;
+@group(0) @binding(2) var<storage, read> entries: array<EntryGpu>;
+@group(0) @binding(3) var<storage, read> part_flags: array<u32>;
+@group(0) @binding(4) var<storage, read> materials: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read> boxes: array<QueryBox>;
+
+const PART_SELECTED: u32 = 1u;
+
+struct MeshOut {
+    // Invariant: the colour, id and query pipelines must cover identical pixels.
+    @builtin(position) @invariant clip: vec4<f32>,
+    @location(0) view_pos: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) @interpolate(flat) entry: u32,
+}
+
+@vertex
+fn vs_mesh(
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec4<f32>,
+    @builtin(instance_index) entry: u32,
+) -> MeshOut {
+    let m = model_views[entries[entry].part];
+    let p = vec4<f32>(position, 1.0);
+    let view_pos = vec3<f32>(dot(m.r0, p), dot(m.r1, p), dot(m.r2, p));
+    // Normals go through the cofactor matrix (the inverse transpose up to a
+    // scale), so scaled parts shade correctly without a second matrix.
+    let c0 = vec3<f32>(m.r0.x, m.r1.x, m.r2.x);
+    let c1 = vec3<f32>(m.r0.y, m.r1.y, m.r2.y);
+    let c2 = vec3<f32>(m.r0.z, m.r1.z, m.r2.z);
+    let n = normal.xyz;
+    let view_normal = cross(c1, c2) * n.x + cross(c2, c0) * n.y + cross(c0, c1) * n.z;
+    var out: MeshOut;
+    out.clip = view.proj * vec4<f32>(view_pos, 1.0);
+    out.view_pos = view_pos;
+    out.normal = view_normal;
+    out.entry = entry;
+    return out;
+}
+
+@fragment
+fn fs_shade(in: MeshOut) -> @location(0) vec4<f32> {
+    let e = entries[in.entry];
+    var base = materials[e.material];
+    if (part_flags[e.part] & PART_SELECTED) != 0u {
+        base = vec4<f32>(mix(base.rgb, view.highlight.rgb, view.highlight.a), base.a);
+    }
+    // Headlight: the light sits at the eye, so every visible face is lit and
+    // two-sided lighting hides inconsistent CAD windings.
+    let n = normalize(in.normal);
+    let l = normalize(-in.view_pos);
+    let lambert = abs(dot(n, l));
+    return vec4<f32>(base.rgb * (0.2 + 0.8 * lambert), 1.0);
+}
+
+@fragment
+fn fs_id(in: MeshOut) -> @location(0) u32 {
+    // 0 is the background.
+    return in.entry + 1u;
+}
+
+// The 36 corner indices of a box's 12 triangles (corner bit 0 = +x, 1 = +y, 2 = +z).
+const BOX_CORNERS = array<u32, 36>(
+    0u, 2u, 1u, 1u, 2u, 3u,
+    4u, 5u, 6u, 5u, 7u, 6u,
+    0u, 1u, 4u, 1u, 5u, 4u,
+    2u, 6u, 3u, 3u, 6u, 7u,
+    0u, 4u, 2u, 2u, 4u, 6u,
+    1u, 3u, 5u, 3u, 7u, 5u,
+);
+
+@vertex
+fn vs_box(@builtin(vertex_index) vertex: u32, @builtin(instance_index) index: u32) -> @builtin(position) @invariant vec4<f32> {
+    let b = boxes[index];
+    let corner = BOX_CORNERS[vertex];
+    let s = vec3<f32>(f32(corner & 1u), f32((corner >> 1u) & 1u), f32((corner >> 2u) & 1u)) * 2.0 - 1.0;
+    let p = b.center.xyz + b.axis_x.xyz * s.x + b.axis_y.xyz * s.y + b.axis_z.xyz * s.z;
+    return view.proj * vec4<f32>(p, 1.0);
+}
+
+@fragment
+fn fs_box() -> @location(0) vec4<f32> {
+    // Colour writes are masked off; the query counts depth-passing samples.
+    return vec4<f32>(0.0);
+}
