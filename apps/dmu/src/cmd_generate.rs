@@ -8,7 +8,8 @@ use dmu_scene::samples::{PlantOptions, grid, plant};
 
 use crate::units::{parse_count, parse_dvec3};
 
-/// Generate a sample model and write it as glTF (.glb, or .gltf with an embedded buffer).
+/// Generate a sample model and write it as glTF (.glb, or .gltf with an embedded
+/// buffer) or as a dmu store (.dmu).
 ///
 /// Models are deterministic: the same options give the same file.
 #[derive(Debug, clap::Args)]
@@ -32,7 +33,7 @@ pub struct Args {
     /// Maximum triangles per chunk.
     #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..))]
     chunk_triangles: u32,
-    /// Output file (.glb or .gltf).
+    /// Output file (.glb, .gltf or .dmu).
     #[arg(short, long)]
     output: PathBuf,
     /// Print a JSON summary instead of text.
@@ -71,8 +72,16 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     };
     let generate_ms = start.elapsed().as_secs_f64() * 1e3;
     let start = Instant::now();
-    dmu_scene::export_gltf(&scene, &args.output)
-        .with_context(|| format!("writing {}", args.output.display()))?;
+    let store = args
+        .output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("dmu"));
+    if store {
+        dmu_store::write_scene(&scene, &args.output, dmu_store::WriteOptions::default())?;
+    } else {
+        dmu_scene::export_gltf(&scene, &args.output)
+            .with_context(|| format!("writing {}", args.output.display()))?;
+    }
     let write_ms = start.elapsed().as_secs_f64() * 1e3;
     let bytes = std::fs::metadata(&args.output)
         .map(|m| m.len())

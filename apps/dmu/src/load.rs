@@ -20,7 +20,7 @@ pub struct Loaded {
 /// Shared clap arguments for commands that open a model.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ModelArgs {
-    /// Model file (.glb or .gltf); the built-in plant when omitted.
+    /// Model file (.glb, .gltf, or a .dmu store); the built-in plant when omitted.
     pub file: Option<PathBuf>,
     /// Maximum triangles per chunk (the unit of loading, drawing and picking).
     #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..))]
@@ -56,9 +56,17 @@ fn import(path: &Path, chunk_triangles: u32) -> anyhow::Result<(Scene, ImportRep
     let ext = path
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase());
+    if ext.as_deref() == Some("dmu") {
+        // A store is chunked already: its own chunks are kept.
+        let store = dmu_store::Store::open(path)?;
+        let scene = store
+            .load_scene()
+            .with_context(|| format!("loading {}", path.display()))?;
+        return Ok((scene, ImportReport::default()));
+    }
     if !matches!(ext.as_deref(), Some("glb" | "gltf")) {
         bail!(
-            "{}: unknown file type (dmu reads .glb and .gltf)",
+            "{}: unknown file type (dmu reads .glb, .gltf and .dmu)",
             path.display()
         );
     }

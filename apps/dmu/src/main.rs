@@ -4,12 +4,15 @@ mod bench_collide;
 mod cmd_bench;
 mod cmd_collide;
 mod cmd_generate;
+mod cmd_import;
 mod cmd_info;
 mod cmd_move;
 mod cmd_pick;
 mod cmd_render;
+mod cmd_walk;
 mod load;
 mod units;
+mod walk_render;
 
 use std::process::ExitCode;
 
@@ -17,8 +20,8 @@ use clap::{Parser, Subcommand};
 
 /// dmu: walk, pick, move and clash-check massive CAD assemblies.
 ///
-/// Commands that take a FILE read glTF 2.0 (.glb, .gltf); with no FILE they use the
-/// built-in procedural plant. Exit codes: 0 success, 1 clashes found (collide),
+/// Commands that take a FILE read glTF 2.0 (.glb, .gltf) or a dmu store (.dmu);
+/// with no FILE they use the built-in procedural plant. Exit codes: 0 success, 1 clashes found (collide),
 /// 2 error.
 #[derive(Debug, Parser)]
 #[command(name = "dmu", version, about, long_about)]
@@ -31,11 +34,13 @@ struct Cli {
 enum Command {
     Generate(cmd_generate::Args),
     Info(cmd_info::Args),
+    Import(cmd_import::Args),
     Pick(cmd_pick::Args),
     Move(cmd_move::Args),
     Collide(cmd_collide::Args),
-    Bench(cmd_bench::Args),
     Render(cmd_render::Args),
+    Walk(cmd_walk::Args),
+    Bench(cmd_bench::Args),
 }
 
 fn main() -> ExitCode {
@@ -43,14 +48,16 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Generate(args) => cmd_generate::run(&args),
         Command::Info(args) => cmd_info::run(&args),
+        Command::Import(args) => cmd_import::run(&args),
         Command::Pick(args) => cmd_pick::run(&args),
         Command::Move(args) => cmd_move::run(&args),
         Command::Collide(args) => match cmd_collide::run(&args) {
             Ok(code) => return code,
             Err(e) => Err(e),
         },
-        Command::Bench(args) => cmd_bench::run(&args),
         Command::Render(args) => cmd_render::run(&args),
+        Command::Walk(args) => cmd_walk::run(&args),
+        Command::Bench(args) => cmd_bench::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -21,6 +21,44 @@ pub fn parse_count(s: &str) -> anyhow::Result<u64> {
     Ok(v.round() as u64)
 }
 
+/// A byte size: `2GiB`, `256MiB`, `512KiB` (powers of 1024; `K`, `M`, `G`, `T`
+/// alone too), `100MB`, `1.5GB` (powers of 1000), or a plain number of bytes.
+pub fn parse_bytes(s: &str) -> anyhow::Result<u64> {
+    let t = s.trim();
+    let split = t.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(t.len());
+    let (num, unit) = t.split_at(split);
+    let mult: f64 = match unit.to_ascii_lowercase().as_str() {
+        "" | "b" => 1.0,
+        "k" | "kib" => 1024.0,
+        "m" | "mib" => 1024.0 * 1024.0,
+        "g" | "gib" => 1024.0 * 1024.0 * 1024.0,
+        "t" | "tib" => 1024.0 * 1024.0 * 1024.0 * 1024.0,
+        "kb" => 1e3,
+        "mb" => 1e6,
+        "gb" => 1e9,
+        "tb" => 1e12,
+        _ => bail!("{s:?}: unknown unit {unit:?} (use KiB, MiB, GiB, or kB, MB, GB)"),
+    };
+    let v: f64 = num
+        .trim()
+        .parse()
+        .with_context(|| format!("{s:?} is not a size (e.g. 256MiB, 2GiB, 1.5GB)"))?;
+    let v = v * mult;
+    if !(0.0..1e18).contains(&v) {
+        bail!("{s:?} is out of range");
+    }
+    Ok(v.round() as u64)
+}
+
+/// The process's peak resident set size in bytes (Linux `VmHWM`), or `None`
+/// where the kernel does not report it.
+pub fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
 /// `x,y,z` as f64.
 pub fn parse_dvec3(s: &str) -> anyhow::Result<glam::DVec3> {
     let parts: Vec<f64> = s
@@ -47,6 +85,19 @@ mod tests {
         assert!(parse_count("ten").is_err());
         assert!(parse_count("-5").is_err());
         assert!(parse_count("1e300").is_err());
+    }
+
+    #[test]
+    fn byte_sizes() {
+        assert_eq!(parse_bytes("2GiB").unwrap(), 2 << 30);
+        assert_eq!(parse_bytes("256MiB").unwrap(), 256 << 20);
+        assert_eq!(parse_bytes("256m").unwrap(), 256 << 20);
+        assert_eq!(parse_bytes("1.5GB").unwrap(), 1_500_000_000);
+        assert_eq!(parse_bytes("100 MB").unwrap(), 100_000_000);
+        assert_eq!(parse_bytes("4096").unwrap(), 4096);
+        assert!(parse_bytes("2 parsecs").is_err());
+        assert!(parse_bytes("-1GiB").is_err());
+        assert!(parse_bytes("GiB").is_err());
     }
 
     #[test]

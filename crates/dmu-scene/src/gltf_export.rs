@@ -17,7 +17,14 @@ use crate::scene::Scene;
 /// Writes `scene` to `path`: binary glTF for `.glb`, JSON with an embedded
 /// base64 buffer otherwise. Written to a temporary file then renamed, so a
 /// failed export leaves any previous file untouched.
+///
+/// # Panics
+/// When a mesh's geometry is not loaded (a store's skeleton): load it first.
 pub fn export_gltf(scene: &Scene, path: &Path) -> Result<(), ExportError> {
+    assert!(
+        scene.meshes().iter().all(crate::Mesh::is_loaded),
+        "export_gltf needs the geometry loaded"
+    );
     let binary = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("glb"));

@@ -37,6 +37,7 @@ pub use gltf_export::export_gltf;
 pub use gltf_import::{
     ImportOptions, ImportReport, SUPPORTED_REQUIRED, import_gltf, import_gltf_slice,
 };
+pub use gltf_import::{StreamOptions, import_gltf_streaming};
 pub use ids::{ChunkId, MaterialId, MeshId, NodeId, PartId};
 pub use scene::{
     AssemblyNode, Chunk, DEFAULT_CHUNK_TRIANGLES, Material, Mesh, Part, Scene, SceneBuilder,

@@ -6,7 +6,7 @@ use dmu_geom::{Aabb3d, Aabb3f};
 use glam::{DAffine3, Vec3};
 use serde::{Deserialize, Serialize};
 
-use crate::chunking::{ChunkedMesh, MeshData, chunk_mesh};
+use crate::chunking::{ChunkData, ChunkedMesh, MeshData, chunk_mesh};
 use crate::error::SceneError;
 use crate::ids::{ChunkId, MaterialId, MeshId, NodeId, PartId};
 
@@ -52,6 +52,16 @@ pub struct Part {
 
 /// Part-local geometry, f32, in chunks. Each chunk's vertices and triangles are
 /// contiguous and its indices count from its first vertex.
+///
+/// **Geometry not loaded.** A mesh may hold its chunk table (ranges, boxes,
+/// materials) and triangle count without its vertices: `positions`, `normals` and
+/// `indices` are then empty and [`Mesh::is_loaded`] is false. A store's skeleton
+/// holds a model this way while its geometry stays on disk
+/// ([`SceneBuilder::add_unloaded_mesh`]). Whatever reads structure, transforms and
+/// chunk boxes works on such a scene (the tree's build, moves and frustum queries,
+/// counts, [`Scene::world_bounds`]); whatever reads triangles (picking, collision,
+/// export, [`Scene::triangle_local`], [`Scene::tight_world_bounds`]) needs the
+/// geometry loaded.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Mesh {
     /// Name.
@@ -62,6 +72,8 @@ pub struct Mesh {
     pub normals: Vec<Vec3>,
     /// Chunk-local indices, three per triangle.
     pub indices: Vec<u32>,
+    /// Number of triangles, known also when the geometry is not loaded.
+    pub triangles: u32,
     /// This mesh's chunks, a contiguous range of the scene's chunks.
     pub chunks: Range<u32>,
     /// Local box of all positions (empty for a mesh without triangles).
@@ -71,9 +83,15 @@ pub struct Mesh {
 }
 
 impl Mesh {
-    /// Number of triangles.
+    /// Number of triangles (also when the geometry is not loaded).
     pub fn triangle_count(&self) -> u64 {
-        (self.indices.len() / 3) as u64
+        u64::from(self.triangles)
+    }
+
+    /// Whether the vertices and indices are held (always, for a mesh without
+    /// triangles); see [`Mesh`] for meshes whose geometry is not loaded.
+    pub fn is_loaded(&self) -> bool {
+        self.indices.len() == 3 * self.triangles as usize
     }
 
     /// The chunk ids of this mesh.
@@ -383,6 +401,11 @@ impl Scene {
                 ));
             }
             next_chunk = mesh.chunks.end;
+            let loaded = mesh.is_loaded();
+            let holds_vertices = !(mesh.positions.is_empty() && mesh.normals.is_empty());
+            if !loaded && holds_vertices {
+                return fail(format!("mesh {m}: vertices held but not indices"));
+            }
             if mesh.normals.len() != mesh.positions.len() || mesh.indices.len() % 3 != 0 {
                 return fail(format!("mesh {m}: attribute lengths disagree"));
             }
@@ -397,6 +420,14 @@ impl Scene {
                     return fail(format!("chunk {c}: ranges not contiguous"));
                 }
                 (tri, vert) = (chunk.triangles.end, chunk.vertices.end);
+                if !loaded {
+                    // Nothing to check the box against but its own sanity.
+                    if chunk.bounds.is_empty() || !chunk.bounds.is_finite() {
+                        return fail(format!("chunk {c}: box empty or not finite"));
+                    }
+                    bounds = bounds.union(chunk.bounds);
+                    continue;
+                }
                 let verts = chunk.vertices.end - chunk.vertices.start;
                 let idx = &mesh.indices
                     [3 * chunk.triangles.start as usize..3 * chunk.triangles.end as usize];
@@ -410,7 +441,12 @@ impl Scene {
                 }
                 bounds = bounds.union(chunk.bounds);
             }
-            if tri as usize * 3 != mesh.indices.len() || vert as usize != mesh.positions.len() {
+            let covered = if loaded {
+                vert as usize == mesh.positions.len()
+            } else {
+                true
+            };
+            if tri != mesh.triangles || !covered {
                 return fail(format!("mesh {m}: chunks do not cover the mesh"));
             }
             if bounds != mesh.bounds {
@@ -504,6 +540,40 @@ impl SceneBuilder {
 
     /// Adds a mesh chunked beforehand, e.g. on a rayon worker.
     pub fn add_chunked_mesh(&mut self, mesh: ChunkedMesh) -> MeshId {
+        let triangles = u32::try_from(mesh.indices.len() / 3).expect("mesh over 4G triangles");
+        self.push_mesh(mesh, triangles)
+    }
+
+    /// Adds a mesh whose geometry is not loaded: its chunk table and counts only
+    /// (see [`Mesh`]). A store's skeleton is built this way.
+    ///
+    /// # Panics
+    /// When the chunks' triangle and vertex ranges do not follow each other from 0
+    /// (as [`chunk_mesh`] makes them), or a chunk names an unknown material.
+    pub fn add_unloaded_mesh(
+        &mut self,
+        name: impl Into<String>,
+        chunks: Vec<ChunkData>,
+        degenerate_triangles: u32,
+    ) -> MeshId {
+        let (mut tri, mut vert) = (0, 0);
+        for c in &chunks {
+            assert!(
+                c.triangles.start == tri && c.vertices.start == vert,
+                "unloaded mesh: chunk ranges must follow each other from 0"
+            );
+            (tri, vert) = (c.triangles.end, c.vertices.end);
+        }
+        let mesh = ChunkedMesh {
+            name: name.into(),
+            chunks,
+            degenerate_triangles,
+            ..ChunkedMesh::default()
+        };
+        self.push_mesh(mesh, tri)
+    }
+
+    fn push_mesh(&mut self, mesh: ChunkedMesh, triangles: u32) -> MeshId {
         let id = MeshId::from_index(self.scene.meshes.len());
         let first = self.scene.chunks.len() as u32;
         let mut bounds = Aabb3f::EMPTY;
@@ -527,6 +597,7 @@ impl SceneBuilder {
             positions: mesh.positions,
             normals: mesh.normals,
             indices: mesh.indices,
+            triangles,
             chunks: first..self.scene.chunks.len() as u32,
             bounds,
             degenerate_triangles: mesh.degenerate_triangles,

@@ -101,7 +101,7 @@ pub(super) fn load_buffers<'a>(
         .collect()
 }
 
-fn is_meshopt_fallback(buffer: &json::Buffer) -> bool {
+pub(super) fn is_meshopt_fallback(buffer: &json::Buffer) -> bool {
     buffer
         .extensions
         .as_ref()
@@ -111,7 +111,7 @@ fn is_meshopt_fallback(buffer: &json::Buffer) -> bool {
         .unwrap_or(false)
 }
 
-fn percent_decode(uri: &str) -> String {
+pub(super) fn percent_decode(uri: &str) -> String {
     let bytes = uri.as_bytes();
     let mut out = Vec::with_capacity(bytes.len());
     let mut i = 0;
@@ -133,12 +133,20 @@ fn percent_decode(uri: &str) -> String {
     String::from_utf8_lossy(&out).into_owned()
 }
 
-/// The bytes of every buffer view, bounds-checked, with meshopt views decoded.
-pub(super) fn resolve_views<'a>(root: &json::Root, buffers: &'a [Bytes<'a>]) -> Vec<Bytes<'a>> {
+/// The bytes of the buffer views that `needed` selects, bounds-checked, with
+/// meshopt views decoded; the others are left as an error naming them.
+pub(super) fn resolve_views<'a>(
+    root: &json::Root,
+    buffers: &'a [Bytes<'a>],
+    needed: &dyn Fn(usize) -> bool,
+) -> Vec<Bytes<'a>> {
     root.buffer_views
         .iter()
         .enumerate()
         .map(|(i, view)| {
+            if !needed(i) {
+                return Err(format!("bufferViews[{i}] was not loaded (importer bug)"));
+            }
             let meshopt = view
                 .extensions
                 .as_ref()

@@ -8,6 +8,7 @@
 
 mod accessor;
 mod buffers;
+mod stream;
 
 use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -23,6 +24,8 @@ use crate::chunking::{ChunkedMesh, MeshData, chunk_mesh, compute_normals};
 use crate::error::ImportError;
 use crate::ids::{MaterialId, MeshId, NodeId};
 use crate::scene::{Scene, SceneBuilder};
+
+pub use stream::{StreamOptions, import_gltf_streaming};
 
 /// Required extensions dmu reads. Material, texture and light extensions change
 /// only shading that dmu does not draw (it shows base colours), so geometry is
@@ -111,90 +114,18 @@ pub fn import_gltf_slice(
     options: &ImportOptions<'_>,
 ) -> Result<(Scene, ImportReport), ImportError> {
     let (json_bytes, blob) = split_container(bytes)?;
-    let malformed = |e: serde_json::Error| ImportError::Malformed {
-        message: format!("JSON: {e}"),
-    };
-    let mut value: serde_json::Value = serde_json::from_slice(json_bytes).map_err(malformed)?;
-    // Node transforms first, as f64 from the untouched numbers.
-    let transforms = RawTransforms::deserialize(&value).map_err(malformed)?;
-    integral_floats_to_integers(&mut value);
-    // dmu shows geometry and base colours only: sections it never reads are dropped
-    // before typed parsing, so their schema quirks (e.g. an animation target
-    // without a node, valid since KHR_animation_pointer) cannot fail an import.
-    if let Some(top) = value.as_object_mut() {
-        for unused in [
-            "animations",
-            "skins",
-            "cameras",
-            "images",
-            "textures",
-            "samplers",
-        ] {
-            top.remove(unused);
-        }
-        // `scene.nodes` is optional in the spec but required by the `gltf` crate.
-        for scene in top
-            .get_mut("scenes")
-            .and_then(|s| s.as_array_mut())
-            .into_iter()
-            .flatten()
-        {
-            if let Some(scene) = scene.as_object_mut() {
-                scene
-                    .entry("nodes")
-                    .or_insert_with(|| serde_json::json!([]));
-            }
-        }
-    }
-    let root = json::Root::deserialize(&value).map_err(malformed)?;
-    if let Some(name) = root
-        .extensions_required
-        .iter()
-        .find(|e| !SUPPORTED_REQUIRED.contains(&e.as_str()))
-    {
-        return Err(ImportError::UnsupportedExtension { name: name.clone() });
-    }
-    let buffers = load_buffers(&root, blob, base_dir);
-    let views = resolve_views(&root, &buffers);
+    let doc = Document::parse(json_bytes)?;
+    let root = &doc.root;
+    let buffers = load_buffers(root, blob, base_dir);
+    let views = resolve_views(root, &buffers, &|_| true);
     let data = Data {
-        root: &root,
+        root,
         views: &views,
     };
-
-    let scene_index = match root.scene {
-        Some(s) => Some(s.value()),
-        None if root.scenes.is_empty() => None,
-        None => Some(0),
-    };
-    let scene_json = scene_index
-        .map(|s| {
-            root.scenes
-                .get(s)
-                .ok_or_else(|| invalid(format!("scene {s} does not exist")))
-        })
-        .transpose()?;
-    let name = scene_json
-        .and_then(|s| s.name.clone())
-        .unwrap_or_else(|| default_name.to_owned());
-    let mut builder = SceneBuilder::new(name, options.chunk_triangles);
-
-    for (i, m) in root.materials.iter().enumerate() {
-        let name = m.name.clone().unwrap_or_else(|| format!("material{i}"));
-        builder.add_material(name, base_color(m));
-    }
-    // A grey default only when some primitive names no material.
-    let default_material = MaterialId::from_index(root.materials.len());
-    if root
-        .meshes
-        .iter()
-        .flat_map(|m| &m.primitives)
-        .any(|p| p.material.is_none())
-    {
-        builder.add_material("default", [0.8, 0.8, 0.8, 1.0]);
-    }
+    let (mut builder, default_material) = doc.start(default_name, options.chunk_triangles);
 
     let mut report = ImportReport::default();
-    let used = used_meshes(&root, &transforms, scene_json)?;
+    let used = doc.used_meshes()?;
     let done = AtomicUsize::new(0);
     let total = used.iter().filter(|&&u| u).count();
     let meshes: Vec<Option<(ChunkedMesh, ImportReport)>> = root
@@ -217,16 +148,141 @@ pub fn import_gltf_slice(
     for (m, decoded) in meshes.into_iter().enumerate() {
         match decoded {
             Some((chunked, r)) => {
-                report.point_primitives_skipped += r.point_primitives_skipped;
-                report.line_primitives_skipped += r.line_primitives_skipped;
-                report.primitives_with_computed_normals += r.primitives_with_computed_normals;
+                report.add(&r);
                 mesh_ids[m] = Some(builder.add_chunked_mesh(chunked));
             }
             None => report.unused_meshes += 1,
         }
     }
-    add_nodes(&root, &transforms, scene_json, &mesh_ids, &mut builder)?;
+    doc.add_nodes(&mesh_ids, &mut builder)?;
     Ok((builder.finish(), report))
+}
+
+impl ImportReport {
+    /// Adds a mesh's counts of skipped and repaired primitives.
+    fn add(&mut self, r: &ImportReport) {
+        self.point_primitives_skipped += r.point_primitives_skipped;
+        self.line_primitives_skipped += r.line_primitives_skipped;
+        self.primitives_with_computed_normals += r.primitives_with_computed_normals;
+    }
+}
+
+/// A parsed glTF document: the typed JSON, the node transforms again as f64, and
+/// the scene to import.
+struct Document {
+    root: json::Root,
+    transforms: RawTransforms,
+    scene_index: Option<usize>,
+}
+
+impl Document {
+    fn parse(json_bytes: &[u8]) -> Result<Self, ImportError> {
+        let malformed = |e: serde_json::Error| ImportError::Malformed {
+            message: format!("JSON: {e}"),
+        };
+        let mut value: serde_json::Value = serde_json::from_slice(json_bytes).map_err(malformed)?;
+        // Node transforms first, as f64 from the untouched numbers.
+        let transforms = RawTransforms::deserialize(&value).map_err(malformed)?;
+        integral_floats_to_integers(&mut value);
+        // dmu shows geometry and base colours only: sections it never reads are dropped
+        // before typed parsing, so their schema quirks (e.g. an animation target
+        // without a node, valid since KHR_animation_pointer) cannot fail an import.
+        if let Some(top) = value.as_object_mut() {
+            for unused in [
+                "animations",
+                "skins",
+                "cameras",
+                "images",
+                "textures",
+                "samplers",
+            ] {
+                top.remove(unused);
+            }
+            // `scene.nodes` is optional in the spec but required by the `gltf` crate.
+            for scene in top
+                .get_mut("scenes")
+                .and_then(|s| s.as_array_mut())
+                .into_iter()
+                .flatten()
+            {
+                if let Some(scene) = scene.as_object_mut() {
+                    scene
+                        .entry("nodes")
+                        .or_insert_with(|| serde_json::json!([]));
+                }
+            }
+        }
+        let root = json::Root::deserialize(&value).map_err(malformed)?;
+        if let Some(name) = root
+            .extensions_required
+            .iter()
+            .find(|e| !SUPPORTED_REQUIRED.contains(&e.as_str()))
+        {
+            return Err(ImportError::UnsupportedExtension { name: name.clone() });
+        }
+        let scene_index = match root.scene {
+            Some(s) => Some(s.value()),
+            None if root.scenes.is_empty() => None,
+            None => Some(0),
+        };
+        if let Some(s) = scene_index
+            && s >= root.scenes.len()
+        {
+            return Err(invalid(format!("scene {s} does not exist")));
+        }
+        Ok(Self {
+            root,
+            transforms,
+            scene_index,
+        })
+    }
+
+    fn scene_json(&self) -> Option<&json::Scene> {
+        self.scene_index.map(|s| &self.root.scenes[s])
+    }
+
+    /// A builder named after the scene holding the file's materials, and the
+    /// material for primitives that name none (a grey added only when needed).
+    fn start(&self, default_name: &str, chunk_triangles: u32) -> (SceneBuilder, MaterialId) {
+        let root = &self.root;
+        let name = self
+            .scene_json()
+            .and_then(|s| s.name.clone())
+            .unwrap_or_else(|| default_name.to_owned());
+        let mut builder = SceneBuilder::new(name, chunk_triangles);
+        for (i, m) in root.materials.iter().enumerate() {
+            let name = m.name.clone().unwrap_or_else(|| format!("material{i}"));
+            builder.add_material(name, base_color(m));
+        }
+        let default_material = MaterialId::from_index(root.materials.len());
+        if root
+            .meshes
+            .iter()
+            .flat_map(|m| &m.primitives)
+            .any(|p| p.material.is_none())
+        {
+            builder.add_material("default", [0.8, 0.8, 0.8, 1.0]);
+        }
+        (builder, default_material)
+    }
+
+    fn used_meshes(&self) -> Result<Vec<bool>, ImportError> {
+        used_meshes(&self.root, &self.transforms, self.scene_json())
+    }
+
+    fn add_nodes(
+        &self,
+        mesh_ids: &[Option<MeshId>],
+        builder: &mut SceneBuilder,
+    ) -> Result<(), ImportError> {
+        add_nodes(
+            &self.root,
+            &self.transforms,
+            self.scene_json(),
+            mesh_ids,
+            builder,
+        )
+    }
 }
 
 /// JSON has one number type: `1.0` is a valid glTF integer (the validator accepts

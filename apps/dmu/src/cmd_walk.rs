@@ -1,0 +1,386 @@
+//! `dmu walk`: replays a camera path against the residency manager, no GPU.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use anyhow::{Context as _, bail};
+use dmu_render::Culling;
+use dmu_store::{
+    CameraFrame, LoadOrder, PrefetchOptions, Store, Viewport, WalkOptions, WalkReport, walk,
+};
+use dmu_tree::{Tree, TreeOptions};
+use glam::DVec3;
+
+use crate::units::parse_bytes;
+
+/// Replay a camera path through a store and report what the residency manager
+/// kept in memory: per frame and in total, the chunks wanted (in the frustum and
+/// at least --min-pixels on screen), those missing when the frame was drawn,
+/// bytes loaded, peak resident bytes and the queue.
+///
+/// By default the loaders read a fixed number of bytes per frame
+/// (--disk-per-frame), so results are the same on any machine; --real-time lets
+/// loader threads run freely while frames take 1/--fps seconds each.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The store (.dmu).
+    file: PathBuf,
+    /// Camera path: a JSON list of `{"eye": [x,y,z], "target": [x,y,z], "up":
+    /// [x,y,z], "fov": degrees}`, one per frame. Default: a built-in walk along
+    /// the aisles of the plant (`dmu generate plant`, default origin).
+    #[arg(long)]
+    path: Option<PathBuf>,
+    /// Residency budget: bytes (256MiB, 1GiB) or a percentage of the store's
+    /// decoded geometry (10%).
+    #[arg(long, default_value = "10%", value_parser = parse_budget)]
+    memory_budget: Budget,
+    /// Queue orders to compare, comma separated: visibility, area, fifo.
+    #[arg(long, value_delimiter = ',', default_value = "visibility")]
+    order: Vec<Order>,
+    /// Disk bytes the loaders may read per frame (deterministic mode); the
+    /// default is 1 GB/s at 60 frames per second.
+    #[arg(long, default_value = "16MiB", value_parser = parse_bytes)]
+    disk_per_frame: u64,
+    /// Let loader threads run in real time instead, frames paced at --fps.
+    #[arg(long)]
+    real_time: bool,
+    /// Frames per second of the path.
+    #[arg(long, default_value_t = 60.0)]
+    fps: f64,
+    /// Loader threads.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=64))]
+    loader_threads: u32,
+    /// Viewport width in pixels.
+    #[arg(long, default_value_t = 1920)]
+    width: u32,
+    /// Viewport height in pixels.
+    #[arg(long, default_value_t = 1080)]
+    height: u32,
+    /// Screen-coverage threshold: chunks whose box spans fewer pixels are not drawn.
+    #[arg(long, default_value_t = 1.0)]
+    min_pixels: f64,
+    /// Turn off prefetching along the predicted path.
+    #[arg(long)]
+    no_prefetch: bool,
+    /// Frames before the walk counts as warm.
+    #[arg(long, default_value_t = 60)]
+    warmup_frames: usize,
+    /// Print every frame (text mode).
+    #[arg(long)]
+    frames: bool,
+    /// Render every frame of the path on the GPU instead (lavapipe where there
+    /// is none), the whole model loaded, and report frame times and culling
+    /// stats at --width x --height.
+    #[arg(long)]
+    render: bool,
+    /// With --render: culling of the rendered frames.
+    #[arg(long, default_value = "chc", value_parser = ["none", "frustum", "chc"])]
+    culling: String,
+    /// With --render: run none, frustum and chc over the same frames in one
+    /// run, compare each image with none's pixel for pixel, count chc's
+    /// triangles against the exactly visible chunks', and print the ratios.
+    #[arg(long, requires = "render")]
+    compare: bool,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum Order {
+    Visibility,
+    Area,
+    Fifo,
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Budget {
+    Bytes(u64),
+    Percent(f64),
+}
+
+fn parse_budget(s: &str) -> anyhow::Result<Budget> {
+    match s.trim().strip_suffix('%') {
+        Some(p) => {
+            let p: f64 = p
+                .trim()
+                .parse()
+                .with_context(|| format!("{s:?} is not a percentage"))?;
+            if !(p > 0.0 && p <= 100.0) {
+                bail!("{s:?}: a percentage must be in (0, 100]");
+            }
+            Ok(Budget::Percent(p))
+        }
+        None => Ok(Budget::Bytes(parse_bytes(s)?)),
+    }
+}
+
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    let store = Arc::new(Store::open(&args.file)?);
+    let info = store.info();
+    let budget_bytes = match args.memory_budget {
+        Budget::Bytes(b) => b,
+        Budget::Percent(p) => (info.geometry_resident_bytes as f64 * p / 100.0) as u64,
+    };
+    let tree = Tree::build(store.skeleton(), TreeOptions::default());
+    let path = match &args.path {
+        Some(p) => {
+            let text =
+                std::fs::read(p).with_context(|| format!("reading the path {}", p.display()))?;
+            let frames: Vec<CameraFrame> = serde_json::from_slice(&text)
+                .with_context(|| format!("{}: not a JSON list of camera frames", p.display()))?;
+            frames
+        }
+        None => {
+            let path = plant_path(args.fps);
+            let bounds = tree.bounds();
+            if !(bounds.contains_point(path[0].eye.with_z(bounds.center().z))) {
+                bail!(
+                    "the built-in path walks the plant of `dmu generate plant` at its default origin, \
+                     outside this model; give --path"
+                );
+            }
+            path
+        }
+    };
+    if path.is_empty() {
+        bail!("the camera path has no frames");
+    }
+    if args.render {
+        let scene = store
+            .load_scene()
+            .with_context(|| format!("loading {}", args.file.display()))?;
+        let modes = if args.compare {
+            vec![Culling::None, Culling::Frustum, Culling::Occlusion]
+        } else {
+            vec![match args.culling.as_str() {
+                "none" => Culling::None,
+                "frustum" => Culling::Frustum,
+                _ => Culling::Occlusion,
+            }]
+        };
+        let report = crate::walk_render::run(
+            &scene,
+            &tree,
+            &path,
+            (args.width, args.height),
+            &modes,
+            args.compare,
+        )?;
+        print_render(args, &report)?;
+        return Ok(());
+    }
+    let viewport = Viewport {
+        width: args.width,
+        height: args.height,
+    };
+    let prefetch = (!args.no_prefetch).then(|| PrefetchOptions {
+        spacing: typical_cell_size(&tree),
+        horizon_s: 1.0,
+        fast_after_s: 1.0,
+        turn_deg: 30.0,
+        min_pixels: args.min_pixels,
+    });
+    let mut reports = Vec::new();
+    for order in &args.order {
+        let options = WalkOptions {
+            order: match order {
+                Order::Visibility => LoadOrder::Visibility,
+                Order::Area => LoadOrder::Area,
+                Order::Fifo => LoadOrder::Fifo,
+            },
+            budget_bytes,
+            loader_threads: args.loader_threads as usize,
+            disk_bytes_per_frame: (!args.real_time).then_some(args.disk_per_frame),
+            frame_rate_hz: args.fps,
+            viewport,
+            min_pixels: args.min_pixels,
+            prefetch,
+            warmup_frames: args.warmup_frames,
+        };
+        let report = walk(&store, &tree, &path, &options).map_err(anyhow::Error::msg)?;
+        reports.push(report);
+    }
+    if args.json {
+        let value = serde_json::json!({
+            "file": args.file.display().to_string(),
+            "geometry_resident_bytes": info.geometry_resident_bytes,
+            "geometry_file_bytes": info.geometry_file_bytes,
+            "budget_bytes": budget_bytes,
+            "frames": path.len(),
+            "walks": reports,
+        });
+        println!("{}", serde_json::to_string_pretty(&value)?);
+        return Ok(());
+    }
+    print_text(args, &info, budget_bytes, &reports);
+    Ok(())
+}
+
+fn print_render(args: &Args, report: &serde_json::Value) -> anyhow::Result<()> {
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(report)?);
+        return Ok(());
+    }
+    println!(
+        "{}: {} frames rendered at {}x{} on {}",
+        args.file.display(),
+        report["frames"],
+        args.width,
+        args.height,
+        report["adapter"].as_str().unwrap_or("?")
+    );
+    for t in report["totals"].as_array().into_iter().flatten() {
+        let differing = match t["frames_with_differing_pixels"].as_u64() {
+            Some(n) => format!(
+                "; {n} frames differ from none (worst {} pixels)",
+                t["worst_differing_pixels"]
+            ),
+            None => String::new(),
+        };
+        println!(
+            "  {:8} mean {:8.1} ms, median {:8.1}, p95 {:8.1}; {:.0} triangles, {:.0} queries a frame{differing}",
+            t["culling"].as_str().unwrap_or("?"),
+            t["mean_frame_ms"].as_f64().unwrap_or(f64::NAN),
+            t["median_frame_ms"].as_f64().unwrap_or(f64::NAN),
+            t["p95_frame_ms"].as_f64().unwrap_or(f64::NAN),
+            t["mean_triangles_drawn"].as_f64().unwrap_or(f64::NAN),
+            t["mean_queries"].as_f64().unwrap_or(f64::NAN),
+        );
+    }
+    for key in [
+        "frustum_over_chc_frame_time",
+        "none_over_chc_frame_time",
+        "chc_over_exact_triangles_mean",
+        "chc_over_exact_triangles_worst",
+        "chc_chunks_more_than_one_frame_late",
+    ] {
+        if !report[key].is_null() {
+            println!("  {key}: {}", report[key]);
+        }
+    }
+    Ok(())
+}
+
+fn print_text(args: &Args, info: &dmu_store::StoreInfo, budget: u64, reports: &[WalkReport]) {
+    let mb = |b: u64| b as f64 / 1e6;
+    println!(
+        "{}: {:.1} MB of geometry decoded; budget {:.1} MB ({:.1}%)",
+        args.file.display(),
+        mb(info.geometry_resident_bytes),
+        mb(budget),
+        100.0 * budget as f64 / info.geometry_resident_bytes.max(1) as f64
+    );
+    for r in reports {
+        let t = &r.total;
+        if args.frames {
+            println!("  frame  wanted  wanted MB  missing  loaded MB  resident MB  queue");
+            for (i, f) in r.frames.iter().enumerate() {
+                println!(
+                    "  {i:5}  {:6}  {:9.1}  {:7}  {:9.1}  {:11.1}  {:5}{}",
+                    f.wanted_chunks,
+                    mb(f.wanted_bytes),
+                    f.missing_chunks,
+                    mb(f.loaded_bytes),
+                    mb(f.resident_bytes),
+                    f.queue_len,
+                    if f.prefetch_rebuilt {
+                        "  prefetch rebuilt"
+                    } else {
+                        ""
+                    }
+                );
+            }
+        }
+        println!(
+            "  {:?}: {} frames, {} with a miss; warm: {} of {} ({:.2}%); {} misses; loaded {:.1} MB in {} chunks; peak resident {:.1} MB; most wanted {:.1} MB; mean queue {:.0}; {:.1} s",
+            r.options.order,
+            t.frames,
+            t.frames_with_miss,
+            t.warm_frames_with_miss,
+            t.warm_frames,
+            100.0 * t.warm_miss_fraction,
+            t.missing_chunks,
+            mb(t.loaded_bytes),
+            t.loads,
+            mb(t.peak_resident_bytes),
+            mb(t.max_wanted_bytes),
+            t.mean_queue_len,
+            t.wall_ms / 1e3
+        );
+        if let Some(e) = &r.first_error {
+            println!("  load errors: {} (first: {e})", t.failed_loads);
+        }
+    }
+}
+
+/// The median largest extent of the tree's cells: MMR's virtual cell, the step
+/// between predicted viewpoints.
+fn typical_cell_size(tree: &Tree) -> f64 {
+    let mut sizes: Vec<f64> = tree
+        .cell_ids()
+        .map(|c| tree.cell_bounds(c).extent().max_element())
+        .filter(|s| s.is_finite())
+        .collect();
+    if sizes.is_empty() {
+        return 1.0;
+    }
+    let mid = sizes.len() / 2;
+    sizes.select_nth_unstable_by(mid, f64::total_cmp);
+    sizes[mid].max(f64::MIN_POSITIVE)
+}
+
+/// A walk through the plant of `dmu generate plant` (default origin, 48 m plots
+/// in rows along X; each plot has its pipe rack at 2-10 m from its front edge
+/// and its building from 14 m): along the first row's aisle between racks and
+/// buildings at 3 m/s, a look around, a snap turn into the gap between two
+/// plots, across to the next row, a fast run along that row's aisle at 12 m/s
+/// with a snap turn before it, and a last look back. Eye height 1.7 m, 60 degree
+/// field of view; millimetres.
+fn plant_path(fps: f64) -> Vec<CameraFrame> {
+    /// Must match `dmu_scene::samples::plant`'s plot size.
+    const PLOT: f64 = 48_000.0;
+    const AISLE: f64 = 12_000.0;
+    const EYE: f64 = 1_700.0;
+    let origin = dmu_scene::samples::PlantOptions::default().origin;
+    let at = |x: f64, y: f64| origin + DVec3::new(x, y, EYE);
+    let mut path = Vec::new();
+    let mut push = |eye: DVec3, heading_deg: f64| {
+        let h = heading_deg.to_radians();
+        path.push(CameraFrame {
+            eye,
+            target: eye + DVec3::new(h.cos(), h.sin(), 0.0) * 1_000.0,
+            up: DVec3::Z,
+            fov_y_deg: 60.0,
+        });
+    };
+    let frames = |seconds: f64| (seconds * fps).round().max(1.0) as usize;
+    let walk = |push: &mut dyn FnMut(DVec3, f64), from: DVec3, to: DVec3, speed: f64| {
+        let heading = (to.y - from.y).atan2(to.x - from.x).to_degrees();
+        let n = frames(from.distance(to) / 1_000.0 / speed);
+        for i in 0..n {
+            push(from.lerp(to, i as f64 / n as f64), heading);
+        }
+    };
+    // Along the first row's aisle.
+    let a = at(4_000.0, AISLE);
+    let b = at(PLOT, AISLE);
+    walk(&mut push, a, b, 3.0);
+    // Look around: a full turn to the left in 4 s.
+    let n = frames(4.0);
+    for i in 0..n {
+        push(b, 360.0 * i as f64 / n as f64);
+    }
+    // Snap turn (90 degrees in one frame), then across to the next row.
+    let c = at(PLOT, PLOT + AISLE);
+    walk(&mut push, b, c, 3.0);
+    // Snap turn, then fast along the second row's aisle.
+    let d = at(4.0 * PLOT, PLOT + AISLE);
+    walk(&mut push, c, d, 12.0);
+    // Look back over 2 s.
+    let n = frames(2.0);
+    for i in 0..n {
+        push(d, 180.0 * i as f64 / n as f64);
+    }
+    path
+}

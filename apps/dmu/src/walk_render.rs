@@ -1,0 +1,224 @@
+//! `dmu walk --render`: every frame of a camera path rendered on the GPU, with
+//! frame times and culling stats per mode; with `--compare`, `none`, `frustum`
+//! and `chc` run in one process over the same frames, each image is compared
+//! with the unculled one pixel for pixel, and the chunks drawn by `chc` are set
+//! against the exactly visible ones (chunk ids rendered without occlusion
+//! culling).
+
+use std::collections::BTreeSet;
+
+use anyhow::Context as _;
+use dmu_render::{Camera, Capture, Culling, FrameStats, Renderer, View, headless_device};
+use dmu_scene::Scene;
+use dmu_store::CameraFrame;
+use dmu_tree::{EntryId, Tree};
+use serde::Serialize;
+
+use crate::cmd_bench::percentile;
+
+/// One mode's frame.
+#[derive(Debug, Serialize)]
+struct ModeFrame {
+    /// Frame time on the CPU, waiting for the GPU included, ms.
+    frame_ms: f64,
+    gpu_ms: f64,
+    triangles_drawn: u64,
+    chunks_drawn: u64,
+    queries: u64,
+    rounds: u32,
+    occlusion_enabled: bool,
+    /// Pixels differing from the `none` image (with `--compare`).
+    differing_pixels: Option<u64>,
+}
+
+/// One frame of the path.
+#[derive(Debug, Serialize)]
+struct PathFrame {
+    modes: Vec<ModeFrame>,
+    /// Triangles of the chunk instances owning at least one pixel.
+    exact_visible_triangles: Option<u64>,
+    /// Exactly visible chunk instances that `chc` did not draw.
+    chc_missing_chunks: Option<u64>,
+}
+
+/// Totals of one mode.
+#[derive(Debug, Serialize)]
+struct ModeTotals {
+    culling: &'static str,
+    mean_frame_ms: f64,
+    median_frame_ms: f64,
+    p95_frame_ms: f64,
+    mean_triangles_drawn: f64,
+    mean_queries: f64,
+    /// Frames whose image differs from `none` in any pixel.
+    frames_with_differing_pixels: Option<u64>,
+    worst_differing_pixels: Option<u64>,
+}
+
+fn culling_name(c: Culling) -> &'static str {
+    match c {
+        Culling::None => "none",
+        Culling::Frustum => "frustum",
+        Culling::Occlusion => "chc",
+    }
+}
+
+/// Renders `path` with each of `modes` (the first is the reference when
+/// `compare`) and returns the JSON report.
+pub fn run(
+    scene: &Scene,
+    tree: &Tree,
+    path: &[CameraFrame],
+    size: (u32, u32),
+    modes: &[Culling],
+    compare: bool,
+) -> anyhow::Result<serde_json::Value> {
+    let (device, queue, adapter) = headless_device().context("opening a GPU device")?;
+    let mut renderer = Renderer::new(&device, &queue, scene, tree, Default::default());
+    let near = (tree.bounds().extent().length() * 1e-4).max(1e-6);
+    let camera = |f: &CameraFrame| Camera {
+        eye: f.eye,
+        target: f.target,
+        up: f.up,
+        fov_y_rad: f.fov_y_deg.to_radians(),
+        near,
+    };
+    let captures: Vec<Capture> = modes.iter().map(|_| Capture::new(&device, size)).collect();
+    let mut views: Vec<View> = modes
+        .iter()
+        .map(|&m| View::new(camera(&path[0]), size, m))
+        .collect();
+    let mut oracle_view = View::new(camera(&path[0]), size, Culling::Frustum);
+    let chc = modes.iter().position(|&m| m == Culling::Occlusion);
+    let mut frames = Vec::with_capacity(path.len());
+    let mut missing_before: BTreeSet<EntryId> = BTreeSet::new();
+    let mut late_chunks = 0u64;
+    let progress = indicatif::ProgressBar::new(path.len() as u64);
+    for frame in path {
+        let mut reference: Option<Vec<u8>> = None;
+        let mut modes_out = Vec::with_capacity(modes.len());
+        for (i, view) in views.iter_mut().enumerate() {
+            view.camera = camera(frame);
+            let stats: FrameStats =
+                renderer.render(view, scene, tree, scene, captures[i].frame_target())?;
+            let differing_pixels = if compare {
+                let image = captures[i].read_color(&device, &queue)?;
+                match &reference {
+                    None => {
+                        reference = Some(image.into_raw());
+                        Some(0)
+                    }
+                    Some(r) => Some(
+                        r.chunks_exact(4)
+                            .zip(image.as_raw().chunks_exact(4))
+                            .filter(|(a, b)| a != b)
+                            .count() as u64,
+                    ),
+                }
+            } else {
+                None
+            };
+            modes_out.push(ModeFrame {
+                frame_ms: stats.cpu_ms,
+                gpu_ms: stats.gpu_ms,
+                triangles_drawn: stats.triangles_drawn,
+                chunks_drawn: stats.chunks_drawn,
+                queries: stats.queries,
+                rounds: stats.rounds,
+                occlusion_enabled: stats.occlusion.enabled,
+                differing_pixels,
+            });
+        }
+        let (exact_visible_triangles, chc_missing_chunks) = match (compare, chc) {
+            (true, Some(c)) => {
+                oracle_view.camera = camera(frame);
+                let exact = renderer
+                    .render_ids(&mut oracle_view, scene, tree, scene, &captures[c])?
+                    .visible_entries();
+                let drawn: BTreeSet<EntryId> = views[c].drawn_entries().collect();
+                let missing: BTreeSet<EntryId> = exact.difference(&drawn).copied().collect();
+                // Missing two frames running while visible: more than one frame late.
+                late_chunks += missing.intersection(&missing_before).count() as u64;
+                let triangles = exact
+                    .iter()
+                    .map(|e| u64::from(tree.entries()[e.0 as usize].triangles))
+                    .sum();
+                let count = missing.len() as u64;
+                missing_before = missing;
+                (Some(triangles), Some(count))
+            }
+            _ => (None, None),
+        };
+        frames.push(PathFrame {
+            modes: modes_out,
+            exact_visible_triangles,
+            chc_missing_chunks,
+        });
+        progress.inc(1);
+    }
+    progress.finish_and_clear();
+
+    let totals: Vec<ModeTotals> = modes
+        .iter()
+        .enumerate()
+        .map(|(i, &m)| {
+            let mut ms: Vec<f64> = frames.iter().map(|f| f.modes[i].frame_ms).collect();
+            let n = frames.len().max(1) as f64;
+            let differing: Vec<u64> = frames
+                .iter()
+                .filter_map(|f| f.modes[i].differing_pixels)
+                .collect();
+            ModeTotals {
+                culling: culling_name(m),
+                mean_frame_ms: ms.iter().sum::<f64>() / n,
+                median_frame_ms: percentile(&mut ms, 0.5),
+                p95_frame_ms: percentile(&mut ms, 0.95),
+                mean_triangles_drawn: frames
+                    .iter()
+                    .map(|f| f.modes[i].triangles_drawn as f64)
+                    .sum::<f64>()
+                    / n,
+                mean_queries: frames
+                    .iter()
+                    .map(|f| f.modes[i].queries as f64)
+                    .sum::<f64>()
+                    / n,
+                frames_with_differing_pixels: compare
+                    .then(|| differing.iter().filter(|&&d| d > 0).count() as u64),
+                worst_differing_pixels: compare
+                    .then(|| differing.iter().copied().max().unwrap_or(0)),
+            }
+        })
+        .collect();
+    let mean_of = |name: &str| {
+        totals
+            .iter()
+            .find(|t| t.culling == name)
+            .map(|t| t.mean_frame_ms)
+    };
+    let ratio = |a: &str, b: &str| Some(mean_of(a)? / mean_of(b)?);
+    let over_exact: Vec<f64> = match chc {
+        Some(c) => frames
+            .iter()
+            .filter_map(|f| {
+                let exact = f.exact_visible_triangles?;
+                Some(f.modes[c].triangles_drawn as f64 / exact.max(1) as f64)
+            })
+            .collect(),
+        None => Vec::new(),
+    };
+    Ok(serde_json::json!({
+        "adapter": adapter.name,
+        "size": [size.0, size.1],
+        "frames": path.len(),
+        "scene_triangles": scene.triangle_count(),
+        "totals": totals,
+        "frustum_over_chc_frame_time": ratio("frustum", "chc"),
+        "none_over_chc_frame_time": ratio("none", "chc"),
+        "chc_over_exact_triangles_mean": (!over_exact.is_empty())
+            .then(|| over_exact.iter().sum::<f64>() / over_exact.len() as f64),
+        "chc_over_exact_triangles_worst": over_exact.iter().copied().reduce(f64::max),
+        "chc_chunks_more_than_one_frame_late": compare.then_some(late_chunks),
+        "per_frame": frames,
+    }))
+}

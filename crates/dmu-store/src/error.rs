@@ -1,0 +1,101 @@
+//! Error types of the store.
+
+use std::path::PathBuf;
+
+/// Errors while reading, writing or importing a store. Each names the file and
+/// what in it is at fault; none of them is ever a panic.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum StoreError {
+    /// Reading, writing, syncing or renaming failed; a store being written is
+    /// left as it was before (writes go to a temporary file renamed at the end).
+    #[error("cannot access {}: {source}", path.display())]
+    Io {
+        /// The path.
+        path: PathBuf,
+        /// The cause.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file is not a dmu store at all.
+    #[error("{} is not a dmu store: it looks like {found}", path.display())]
+    NotAStore {
+        /// The path.
+        path: PathBuf,
+        /// What it looks like instead (e.g. "binary glTF; import it with `dmu import`").
+        found: String,
+    },
+    /// A store of a format version this build cannot read.
+    #[error(
+        "{} is a dmu store of format version {found}; this dmu reads version {supported} (re-import the model)",
+        path.display()
+    )]
+    UnsupportedVersion {
+        /// The path.
+        path: PathBuf,
+        /// The file's version.
+        found: u32,
+        /// The version this build reads.
+        supported: u32,
+    },
+    /// A store written with the other byte order.
+    #[error("{} was written big-endian; dmu stores are little-endian", path.display())]
+    ByteOrder {
+        /// The path.
+        path: PathBuf,
+    },
+    /// The file is shorter than its header says: an interrupted copy or download.
+    #[error("{} is truncated: {what} needs {expected} bytes, the file has {actual}", path.display())]
+    Truncated {
+        /// The path.
+        path: PathBuf,
+        /// What did not fit.
+        what: String,
+        /// Bytes needed.
+        expected: u64,
+        /// Bytes present.
+        actual: u64,
+    },
+    /// A segment's bytes do not match the checksum recorded for them.
+    #[error(
+        "{} is corrupt: {segment} fails its checksum (stored {stored:#018x}, computed {computed:#018x})",
+        path.display()
+    )]
+    Checksum {
+        /// The path.
+        path: PathBuf,
+        /// Which segment ("header", "table of contents", "skeleton", "chunk #12").
+        segment: String,
+        /// The checksum recorded.
+        stored: u64,
+        /// The checksum of the bytes.
+        computed: u64,
+    },
+    /// The structure is inconsistent although checksums pass (a writer bug or a
+    /// crafted file).
+    #[error("{} is corrupt: {what}", path.display())]
+    Corrupt {
+        /// The path.
+        path: PathBuf,
+        /// What is wrong, where.
+        what: String,
+    },
+    /// The glTF input of an import is unreadable.
+    #[error("importing {}: {source}", path.display())]
+    Import {
+        /// The glTF file.
+        path: PathBuf,
+        /// The cause.
+        #[source]
+        source: dmu_scene::ImportError,
+    },
+    /// Saving edits: the scene's structure differs from the store's (only
+    /// transforms and visibility may change).
+    #[error("the scene does not match {}: {what}", path.display())]
+    SceneMismatch {
+        /// The store.
+        path: PathBuf,
+        /// The first difference found.
+        what: String,
+    },
+}

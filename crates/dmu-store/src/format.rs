@@ -1,0 +1,327 @@
+//! The file layout: a header, segments, and the table of contents, and the
+//! checks that make any byte string either a valid layout or an error.
+//!
+//! ```text
+//! 0        header (64 bytes)
+//! 64       segment, segment, ...  each at a 16-byte boundary, zero padded to
+//!          the next one; a chunk's geometry, and one skeleton
+//! toc      table of contents: one 32-byte entry per segment (last in the file,
+//!          so a streaming writer needs no second pass)
+//! ```
+//!
+//! Every byte is covered by a checksum: the header by its own, the table by the
+//! one in the header, each segment (with its padding) by the one in its entry.
+//! Segments must tile the space between header and table exactly, so no byte is
+//! outside all of them.
+
+use std::path::Path;
+
+use bytemuck::{Pod, Zeroable};
+use xxhash_rust::xxh3::xxh3_64;
+
+use crate::error::StoreError;
+
+#[cfg(target_endian = "big")]
+compile_error!(
+    "dmu stores are little-endian and read by casting; big-endian hosts are not supported"
+);
+
+/// The first eight bytes of every store.
+pub(crate) const MAGIC: [u8; 8] = *b"DMUSTORE";
+/// The format version this build writes and reads.
+pub const FORMAT_VERSION: u32 = 1;
+/// Written as a native `u32` by a little-endian writer: reads back swapped on a
+/// big-endian one.
+const BYTE_ORDER_MARK: u32 = 0x0102_0304;
+/// Segment alignment: enough for any array cast from the mapping.
+pub(crate) const ALIGN: u64 = 16;
+pub(crate) const HEADER_LEN: u64 = size_of::<Header>() as u64;
+const ENTRY_LEN: u64 = size_of::<TocEntry>() as u64;
+
+/// Segment kinds.
+pub(crate) const KIND_SKELETON: u32 = 1;
+pub(crate) const KIND_CHUNK: u32 = 2;
+
+/// The file header. Little-endian like everything in the file.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub(crate) struct Header {
+    /// [`MAGIC`].
+    pub magic: [u8; 8],
+    /// [`FORMAT_VERSION`]; checked before anything else after the magic, so a
+    /// later version may change all that follows.
+    pub version: u32,
+    /// [`BYTE_ORDER_MARK`].
+    pub byte_order: u32,
+    /// Size of this header (64).
+    pub header_len: u32,
+    /// Segment alignment ([`ALIGN`]).
+    pub align: u32,
+    /// Where the table of contents starts (aligned; the table ends the file).
+    pub toc_offset: u64,
+    /// Entries in the table.
+    pub toc_entries: u64,
+    /// xxh3-64 of the table's bytes.
+    pub toc_checksum: u64,
+    /// Zero.
+    pub reserved: u64,
+    /// xxh3-64 of the 56 bytes before it.
+    pub header_checksum: u64,
+}
+const _: () = assert!(size_of::<Header>() == 64);
+
+/// One segment's entry in the table of contents.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq, Eq)]
+pub(crate) struct TocEntry {
+    /// The chunk id for chunk geometry; 0 for the skeleton.
+    pub id: u32,
+    /// [`KIND_SKELETON`] or [`KIND_CHUNK`].
+    pub kind: u32,
+    /// Start in the file, a multiple of [`ALIGN`].
+    pub offset: u64,
+    /// Payload bytes (the zero padding after it is not counted).
+    pub length: u64,
+    /// xxh3-64 of the payload and its padding.
+    pub checksum: u64,
+}
+const _: () = assert!(size_of::<TocEntry>() == 32);
+
+impl TocEntry {
+    /// The payload with its padding: what the checksum covers.
+    pub fn padded_len(&self) -> u64 {
+        self.length.next_multiple_of(ALIGN)
+    }
+}
+
+impl Header {
+    pub fn new(toc_offset: u64, toc: &[TocEntry]) -> Self {
+        let mut header = Header {
+            magic: MAGIC,
+            version: FORMAT_VERSION,
+            byte_order: BYTE_ORDER_MARK,
+            header_len: HEADER_LEN as u32,
+            align: ALIGN as u32,
+            toc_offset,
+            toc_entries: toc.len() as u64,
+            toc_checksum: xxh3_64(bytemuck::cast_slice(toc)),
+            reserved: 0,
+            header_checksum: 0,
+        };
+        header.header_checksum = header_checksum(bytemuck::bytes_of(&header));
+        header
+    }
+}
+
+fn header_checksum(header: &[u8]) -> u64 {
+    xxh3_64(&header[..HEADER_LEN as usize - 8])
+}
+
+/// A validated layout: where the skeleton and each chunk's geometry are.
+#[derive(Debug)]
+pub(crate) struct Layout {
+    pub skeleton: TocEntry,
+    /// Indexed by chunk id (the ids are exactly `0..n`).
+    pub chunks: Vec<TocEntry>,
+}
+
+/// What a file that is not a store looks like, for the error message.
+fn describe(bytes: &[u8]) -> String {
+    let start = &bytes[..bytes.len().min(8)];
+    if bytes.is_empty() {
+        "an empty file".into()
+    } else if start.starts_with(b"glTF") {
+        "binary glTF (.glb); make a store from it with `dmu import`".into()
+    } else if start.trim_ascii_start().starts_with(b"{") {
+        "JSON (a .gltf file? make a store from it with `dmu import`)".into()
+    } else {
+        format!("something else (it starts with {start:02x?})")
+    }
+}
+
+/// Checks the header and the table of contents of `bytes` (a whole file) and
+/// returns the layout; every offset and length is validated before use.
+pub(crate) fn parse(bytes: &[u8], path: &Path) -> Result<Layout, StoreError> {
+    let len = bytes.len() as u64;
+    let corrupt = |what: String| StoreError::Corrupt {
+        path: path.to_owned(),
+        what,
+    };
+    if !bytes.is_empty() && bytes.len() < MAGIC.len() && MAGIC.starts_with(bytes) {
+        return Err(StoreError::Truncated {
+            path: path.to_owned(),
+            what: "the header".into(),
+            expected: HEADER_LEN,
+            actual: len,
+        });
+    }
+    if bytes.len() < MAGIC.len() || bytes[..MAGIC.len()] != MAGIC {
+        return Err(StoreError::NotAStore {
+            path: path.to_owned(),
+            found: describe(bytes),
+        });
+    }
+    let Some(head) = bytes.get(..HEADER_LEN as usize) else {
+        return Err(StoreError::Truncated {
+            path: path.to_owned(),
+            what: "the header".into(),
+            expected: HEADER_LEN,
+            actual: len,
+        });
+    };
+    let header: Header = bytemuck::pod_read_unaligned(head);
+    if header.version != FORMAT_VERSION {
+        return Err(StoreError::UnsupportedVersion {
+            path: path.to_owned(),
+            found: header.version,
+            supported: FORMAT_VERSION,
+        });
+    }
+    if header.byte_order != BYTE_ORDER_MARK {
+        return Err(if header.byte_order == BYTE_ORDER_MARK.swap_bytes() {
+            StoreError::ByteOrder {
+                path: path.to_owned(),
+            }
+        } else {
+            corrupt(format!(
+                "byte order mark {:#010x} is neither order",
+                header.byte_order
+            ))
+        });
+    }
+    let computed = header_checksum(head);
+    if computed != header.header_checksum {
+        return Err(StoreError::Checksum {
+            path: path.to_owned(),
+            segment: "the header".into(),
+            stored: header.header_checksum,
+            computed,
+        });
+    }
+    if u64::from(header.header_len) != HEADER_LEN || u64::from(header.align) != ALIGN {
+        return Err(corrupt(format!(
+            "header length {} or alignment {} is not this version's",
+            header.header_len, header.align
+        )));
+    }
+    let toc_end = header
+        .toc_entries
+        .checked_mul(ENTRY_LEN)
+        .and_then(|l| l.checked_add(header.toc_offset))
+        .ok_or_else(|| corrupt("table of contents size overflows".into()))?;
+    if toc_end > len {
+        return Err(StoreError::Truncated {
+            path: path.to_owned(),
+            what: "the table of contents".into(),
+            expected: toc_end,
+            actual: len,
+        });
+    }
+    if toc_end < len {
+        return Err(corrupt(format!(
+            "{} bytes after the table of contents",
+            len - toc_end
+        )));
+    }
+    if header.toc_offset < HEADER_LEN || !header.toc_offset.is_multiple_of(ALIGN) {
+        return Err(corrupt(format!(
+            "table of contents at {} is misplaced",
+            header.toc_offset
+        )));
+    }
+    let toc_bytes = &bytes[header.toc_offset as usize..];
+    let computed = xxh3_64(toc_bytes);
+    if computed != header.toc_checksum {
+        return Err(StoreError::Checksum {
+            path: path.to_owned(),
+            segment: "the table of contents".into(),
+            stored: header.toc_checksum,
+            computed,
+        });
+    }
+    let entries: Vec<TocEntry> = toc_bytes
+        .chunks_exact(ENTRY_LEN as usize)
+        .map(bytemuck::pod_read_unaligned)
+        .collect();
+    validate_entries(&entries, header.toc_offset).map_err(corrupt)
+}
+
+/// Entries must tile `[HEADER_LEN, toc_offset)` in order, name one skeleton, and
+/// chunk ids `0..n` once each.
+fn validate_entries(entries: &[TocEntry], toc_offset: u64) -> Result<Layout, String> {
+    let mut by_offset: Vec<&TocEntry> = entries.iter().collect();
+    by_offset.sort_by_key(|e| e.offset);
+    let mut at = HEADER_LEN;
+    for e in &by_offset {
+        if e.offset != at {
+            return Err(format!(
+                "segment {} of kind {} starts at {}, expected {at}",
+                e.id, e.kind, e.offset
+            ));
+        }
+        at = e
+            .offset
+            .checked_add(e.padded_len())
+            .filter(|&end| end <= toc_offset)
+            .ok_or_else(|| {
+                format!(
+                    "segment {} of kind {} ({} bytes at {}) runs into the table of contents",
+                    e.id, e.kind, e.length, e.offset
+                )
+            })?;
+    }
+    if at != toc_offset {
+        return Err(format!("bytes {at}..{toc_offset} belong to no segment"));
+    }
+    let mut skeleton = None;
+    let chunk_count = entries.iter().filter(|e| e.kind == KIND_CHUNK).count();
+    let mut chunks = vec![None; chunk_count];
+    for e in entries {
+        match e.kind {
+            KIND_SKELETON if skeleton.is_none() => skeleton = Some(*e),
+            KIND_SKELETON => return Err("two skeleton segments".into()),
+            KIND_CHUNK => match chunks.get_mut(e.id as usize) {
+                Some(slot @ None) => *slot = Some(*e),
+                Some(Some(_)) => return Err(format!("chunk #{} has two segments", e.id)),
+                None => {
+                    return Err(format!(
+                        "chunk #{} is out of range ({chunk_count} chunk segments)",
+                        e.id
+                    ));
+                }
+            },
+            kind => return Err(format!("segment {} has unknown kind {kind}", e.id)),
+        }
+    }
+    Ok(Layout {
+        skeleton: skeleton.ok_or("no skeleton segment")?,
+        chunks: chunks.into_iter().flatten().collect(),
+    })
+}
+
+/// A segment's bytes (payload only) after checking its checksum.
+pub(crate) fn verified<'a>(
+    bytes: &'a [u8],
+    entry: &TocEntry,
+    name: impl FnOnce() -> String,
+    path: &Path,
+) -> Result<&'a [u8], StoreError> {
+    // The layout was validated, so the ranges are inside the file.
+    let start = entry.offset as usize;
+    let padded = &bytes[start..start + entry.padded_len() as usize];
+    let computed = xxh3_64(padded);
+    if computed != entry.checksum {
+        return Err(StoreError::Checksum {
+            path: path.to_owned(),
+            segment: name(),
+            stored: entry.checksum,
+            computed,
+        });
+    }
+    Ok(&padded[..entry.length as usize])
+}
+
+/// A segment's payload without checking (it was checked before).
+pub(crate) fn payload<'a>(bytes: &'a [u8], entry: &TocEntry) -> &'a [u8] {
+    &bytes[entry.offset as usize..(entry.offset + entry.length) as usize]
+}

@@ -1,0 +1,256 @@
+//! Replaying a camera path against a residency manager without a GPU: each
+//! frame's wanted set comes from the tree's frustum and screen-coverage culling,
+//! and a wanted chunk that is not resident when the frame is drawn is a miss.
+//!
+//! The frame model: the frame's requests go to the manager, the frame is drawn
+//! with what is resident (the drawn chunks are pinned while it is), then the
+//! loaders get the frame's time: a fixed number of disk bytes
+//! ([`WalkOptions::disk_bytes_per_frame`], deterministic), or one frame of wall
+//! time (real time). A chunk that comes into view can be drawn at the earliest
+//! the frame after it is requested, so only prefetching avoids misses when the
+//! view changes.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use dmu_scene::ChunkId;
+use dmu_tree::Tree;
+
+use crate::prefetch::{PrefetchOptions, Prefetcher};
+use crate::priority::{Class, LoadOrder, Request};
+use crate::read::Store;
+use crate::residency::{Pacing, Residency, ResidencyOptions};
+use crate::view::{CameraFrame, View, Viewport, Wanted, wanted};
+
+/// Settings of [`walk`].
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct WalkOptions {
+    /// Queue order.
+    pub order: LoadOrder,
+    /// Residency budget, decoded bytes.
+    pub budget_bytes: u64,
+    /// Loader threads.
+    pub loader_threads: usize,
+    /// Disk bytes the loaders read per frame; `None` lets them run freely while
+    /// each frame takes `1 / frame_rate_hz` of wall time.
+    pub disk_bytes_per_frame: Option<u64>,
+    /// Frames per second of the path (for velocities, and for real-time pacing).
+    pub frame_rate_hz: f64,
+    /// Output size.
+    pub viewport: Viewport,
+    /// Screen-coverage threshold: chunks smaller on screen (projected box
+    /// diagonal, pixels) are not drawn.
+    pub min_pixels: f64,
+    /// Prefetching along the predicted path, or none.
+    pub prefetch: Option<PrefetchOptions>,
+    /// Frames before the walk counts as warm (the first view loads from nothing).
+    pub warmup_frames: usize,
+}
+
+/// One frame of a walk.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct FrameReport {
+    /// Chunks drawn (wanted and at least the coverage threshold), each once.
+    pub wanted_chunks: u64,
+    /// Their decoded bytes.
+    pub wanted_bytes: u64,
+    /// Wanted chunks not resident when the frame was drawn.
+    pub missing_chunks: u64,
+    /// File bytes loaded during the frame.
+    pub loaded_bytes: u64,
+    /// Resident bytes at the end of the frame.
+    pub resident_bytes: u64,
+    /// Highest resident plus in-flight bytes so far.
+    pub peak_resident_bytes: u64,
+    /// Requests still queued at the end of the frame.
+    pub queue_len: u64,
+    /// Whether the prefetch queue was rebuilt this frame.
+    pub prefetch_rebuilt: bool,
+}
+
+/// Totals of a walk.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct WalkTotals {
+    /// Frames walked.
+    pub frames: u64,
+    /// Frames after the warm-up.
+    pub warm_frames: u64,
+    /// Frames with at least one miss.
+    pub frames_with_miss: u64,
+    /// Warm frames with at least one miss.
+    pub warm_frames_with_miss: u64,
+    /// `warm_frames_with_miss / warm_frames`.
+    pub warm_miss_fraction: f64,
+    /// Misses over all frames (a chunk missing on three frames counts three).
+    pub missing_chunks: u64,
+    /// Wanted chunks over all frames.
+    pub wanted_chunks: u64,
+    /// Most bytes wanted by one frame.
+    pub max_wanted_bytes: u64,
+    /// File bytes loaded.
+    pub loaded_bytes: u64,
+    /// Chunks loaded.
+    pub loads: u64,
+    /// Chunks evicted.
+    pub evictions: u64,
+    /// Highest resident plus in-flight bytes: never above `budget_bytes`.
+    pub peak_resident_bytes: u64,
+    /// The budget.
+    pub budget_bytes: u64,
+    /// Mean requests queued at the end of a frame.
+    pub mean_queue_len: f64,
+    /// Prefetch queue rebuilds.
+    pub prefetch_rebuilds: u64,
+    /// Chunk loads that failed (corrupt segments).
+    pub failed_loads: u64,
+    /// Wall time of the walk, milliseconds.
+    pub wall_ms: f64,
+}
+
+/// A walk's frames and totals.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct WalkReport {
+    /// The options it ran with.
+    pub options: WalkOptions,
+    /// Per frame.
+    pub frames: Vec<FrameReport>,
+    /// In total.
+    pub total: WalkTotals,
+    /// The first load error, if any.
+    pub first_error: Option<String>,
+}
+
+/// Walks `path` through `store` (whose skeleton `tree` was built from) with a
+/// new residency manager. Fails on a frame that is not a camera, naming it.
+pub fn walk(
+    store: &Arc<Store>,
+    tree: &Tree,
+    path: &[CameraFrame],
+    options: &WalkOptions,
+) -> Result<WalkReport, String> {
+    let start = Instant::now();
+    let scene = store.skeleton();
+    let residency = Residency::new(
+        Arc::clone(store),
+        ResidencyOptions {
+            budget_bytes: options.budget_bytes,
+            loader_threads: options.loader_threads,
+            order: options.order,
+            pacing: if options.disk_bytes_per_frame.is_some() {
+                Pacing::Granted
+            } else {
+                Pacing::Free
+            },
+        },
+    );
+    let mut prefetcher = options
+        .prefetch
+        .map(|p| Prefetcher::new(p, options.viewport));
+    let dt = 1.0 / options.frame_rate_hz;
+    let mut set = Wanted::default();
+    let mut drawn_last = vec![false; scene.chunks().len()];
+    let mut drawn_now: Vec<ChunkId> = Vec::new();
+    let mut requests: Vec<Request> = Vec::new();
+    let mut held = Vec::new();
+    let mut frames = Vec::with_capacity(path.len());
+    let mut loaded_before = 0;
+    for (i, frame) in path.iter().enumerate() {
+        let frame_start = Instant::now();
+        let view = View::new(frame, options.viewport)
+            .ok_or_else(|| format!("frame {i} is not a camera: {frame:?}"))?;
+        wanted(tree, scene, &view, options.min_pixels, false, &mut set);
+        requests.clear();
+        requests.extend(set.drawn.iter().map(|&(chunk, area_px)| Request {
+            chunk,
+            class: if drawn_last[chunk.index()] {
+                Class::Visible
+            } else {
+                Class::InFrustum
+            },
+            area_px,
+        }));
+        requests.extend(set.subpixel.iter().map(|&(chunk, area_px)| Request {
+            chunk,
+            class: Class::Subpixel,
+            area_px,
+        }));
+        let rebuilt = match &mut prefetcher {
+            Some(p) => {
+                let rebuilt = p.update(tree, scene, &view, dt);
+                requests.extend_from_slice(p.requests());
+                rebuilt
+            }
+            None => false,
+        };
+        residency.request(&requests);
+
+        // Draw: what is resident is used (pinned) until the frame ends.
+        let mut missing = 0;
+        let mut wanted_bytes = 0;
+        for &(chunk, _) in &set.drawn {
+            wanted_bytes += store.chunk_resident_bytes(chunk);
+            match residency.get(chunk) {
+                Some(g) => held.push(g),
+                None => missing += 1,
+            }
+        }
+        match options.disk_bytes_per_frame {
+            Some(bytes) => residency.load_granted(bytes),
+            None => {
+                let frame_time = Duration::from_secs_f64(dt);
+                std::thread::sleep(frame_time.saturating_sub(frame_start.elapsed()));
+            }
+        }
+        held.clear();
+        for c in drawn_now.drain(..) {
+            drawn_last[c.index()] = false;
+        }
+        for &(c, _) in &set.drawn {
+            drawn_last[c.index()] = true;
+            drawn_now.push(c);
+        }
+        let stats = residency.stats();
+        frames.push(FrameReport {
+            wanted_chunks: set.drawn.len() as u64,
+            wanted_bytes,
+            missing_chunks: missing,
+            loaded_bytes: stats.loaded_file_bytes - loaded_before,
+            resident_bytes: stats.resident_bytes,
+            peak_resident_bytes: stats.peak_bytes,
+            queue_len: stats.queue_len,
+            prefetch_rebuilt: rebuilt,
+        });
+        loaded_before = stats.loaded_file_bytes;
+        debug_assert_eq!(residency.validate(), Ok(()));
+    }
+    residency.validate()?;
+    let stats = residency.stats();
+    let warm = &frames[options.warmup_frames.min(frames.len())..];
+    let warm_with_miss = warm.iter().filter(|f| f.missing_chunks > 0).count() as u64;
+    let total = WalkTotals {
+        frames: frames.len() as u64,
+        warm_frames: warm.len() as u64,
+        frames_with_miss: frames.iter().filter(|f| f.missing_chunks > 0).count() as u64,
+        warm_frames_with_miss: warm_with_miss,
+        warm_miss_fraction: warm_with_miss as f64 / warm.len().max(1) as f64,
+        missing_chunks: frames.iter().map(|f| f.missing_chunks).sum(),
+        wanted_chunks: frames.iter().map(|f| f.wanted_chunks).sum(),
+        max_wanted_bytes: frames.iter().map(|f| f.wanted_bytes).max().unwrap_or(0),
+        loaded_bytes: stats.loaded_file_bytes,
+        loads: stats.loads,
+        evictions: stats.evictions,
+        peak_resident_bytes: stats.peak_bytes,
+        budget_bytes: options.budget_bytes,
+        mean_queue_len: frames.iter().map(|f| f.queue_len as f64).sum::<f64>()
+            / frames.len().max(1) as f64,
+        prefetch_rebuilds: prefetcher.as_ref().map_or(0, Prefetcher::rebuilds),
+        failed_loads: stats.failures,
+        wall_ms: start.elapsed().as_secs_f64() * 1e3,
+    };
+    Ok(WalkReport {
+        options: *options,
+        frames,
+        total,
+        first_error: residency.first_error(),
+    })
+}

@@ -1,0 +1,309 @@
+//! Writing a store: streaming, into a temporary file beside the target that is
+//! synced and only then renamed over it, so a crash at any point leaves the
+//! previous file (if any) whole and readable.
+
+use std::fs::{File, OpenOptions};
+use std::io::{BufWriter, Seek as _, SeekFrom, Write as _};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use dmu_geom::Aabb3f;
+use dmu_scene::{ChunkedMesh, Scene};
+use glam::Vec3;
+use xxhash_rust::xxh3::Xxh3;
+
+use crate::error::StoreError;
+use crate::format::{ALIGN, HEADER_LEN, Header, KIND_CHUNK, KIND_SKELETON, TocEntry};
+use crate::geometry::{self, resident_bytes};
+use crate::skeleton;
+
+/// How geometry is written.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct WriteOptions {
+    /// Positions as 16 bits per axis within each chunk's box, normals as two
+    /// 16-bit octahedral components: geometry segments shrink from 24 to 10 bytes
+    /// a vertex; positions move by at most 1/131070 of the chunk's extent.
+    pub quantize: bool,
+}
+
+/// What a written store holds.
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct StoreSummary {
+    /// The file.
+    pub path: PathBuf,
+    /// Its size.
+    pub file_bytes: u64,
+    /// Chunk geometry segments.
+    pub chunks: u64,
+    /// Bytes of those segments in the file.
+    pub geometry_file_bytes: u64,
+    /// Bytes the geometry takes decoded in memory (what residency budgets count).
+    pub geometry_resident_bytes: u64,
+    /// Bytes of the skeleton segment.
+    pub skeleton_bytes: u64,
+}
+
+/// A temporary file that is removed when dropped, unless renamed into place.
+#[derive(Debug)]
+struct TempFile {
+    path: PathBuf,
+    keep: bool,
+}
+
+impl Drop for TempFile {
+    fn drop(&mut self) {
+        if !self.keep {
+            // Best effort: the file is a leftover either way.
+            let _ = std::fs::remove_file(&self.path);
+        }
+    }
+}
+
+/// Writes a store segment by segment: chunk geometry as it is produced (and can
+/// be dropped), then the skeleton and the table of contents.
+#[derive(Debug)]
+pub struct StoreWriter {
+    target: PathBuf,
+    temp: TempFile,
+    file: BufWriter<File>,
+    offset: u64,
+    toc: Vec<TocEntry>,
+    /// (vertices, triangles) of each chunk written, checked against the skeleton.
+    shapes: Vec<(u32, u32)>,
+    options: WriteOptions,
+    summary: StoreSummary,
+}
+
+/// A store written and synced under a temporary name: [`PendingStore::commit`]
+/// renames it into place; dropping it removes it, leaving the target as it was.
+#[derive(Debug)]
+pub struct PendingStore {
+    target: PathBuf,
+    temp: TempFile,
+    summary: StoreSummary,
+}
+
+impl StoreWriter {
+    /// Starts a store that will replace `path` when committed.
+    pub fn create(path: &Path, options: WriteOptions) -> Result<Self, StoreError> {
+        static COUNTER: AtomicU64 = AtomicU64::new(0);
+        let name = path.file_name().ok_or_else(|| StoreError::Io {
+            path: path.to_owned(),
+            source: std::io::Error::other("the path has no file name"),
+        })?;
+        let mut temp_name = std::ffi::OsString::from(".");
+        temp_name.push(name);
+        temp_name.push(format!(
+            ".tmp{}-{}",
+            std::process::id(),
+            COUNTER.fetch_add(1, Ordering::Relaxed)
+        ));
+        let temp_path = path.with_file_name(temp_name);
+        let io = |source| StoreError::Io {
+            path: temp_path.clone(),
+            source,
+        };
+        let file = OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&temp_path)
+            .map_err(io)?;
+        let temp = TempFile {
+            path: temp_path.clone(),
+            keep: false,
+        };
+        let mut file = BufWriter::with_capacity(1 << 20, file);
+        // The header is written last, when the table's place is known.
+        file.write_all(&[0; HEADER_LEN as usize]).map_err(io)?;
+        Ok(Self {
+            target: path.to_owned(),
+            temp,
+            file,
+            offset: HEADER_LEN,
+            toc: Vec::new(),
+            shapes: Vec::new(),
+            options,
+            summary: StoreSummary::default(),
+        })
+    }
+
+    fn io(&self, source: std::io::Error) -> StoreError {
+        StoreError::Io {
+            path: self.temp.path.clone(),
+            source,
+        }
+    }
+
+    /// Appends one segment, zero padded to the alignment; returns its entry.
+    fn segment(&mut self, id: u32, kind: u32, payload: &[u8]) -> Result<TocEntry, StoreError> {
+        let padding = [0u8; ALIGN as usize];
+        let pad = &padding[..(payload.len().next_multiple_of(ALIGN as usize) - payload.len())];
+        let mut hash = Xxh3::new();
+        hash.update(payload);
+        hash.update(pad);
+        let entry = TocEntry {
+            id,
+            kind,
+            offset: self.offset,
+            length: payload.len() as u64,
+            checksum: hash.digest(),
+        };
+        self.file
+            .write_all(payload)
+            .and_then(|()| self.file.write_all(pad))
+            .map_err(|e| self.io(e))?;
+        self.offset += entry.padded_len();
+        self.toc.push(entry);
+        Ok(entry)
+    }
+
+    /// Appends the geometry of the next chunk (chunk ids follow the write order).
+    fn chunk(
+        &mut self,
+        positions: &[Vec3],
+        normals: &[Vec3],
+        indices: &[u32],
+        bounds: &Aabb3f,
+    ) -> Result<(), StoreError> {
+        let bytes = geometry::encode(positions, normals, indices, bounds, self.options.quantize);
+        self.chunk_segment(&bytes, positions.len() as u32, (indices.len() / 3) as u32)
+    }
+
+    /// Appends an encoded chunk segment of the given shape.
+    pub(crate) fn chunk_segment(
+        &mut self,
+        bytes: &[u8],
+        vertices: u32,
+        triangles: u32,
+    ) -> Result<(), StoreError> {
+        let id = u32::try_from(self.shapes.len()).expect("over 4G chunks");
+        let entry = self.segment(id, KIND_CHUNK, bytes)?;
+        self.shapes.push((vertices, triangles));
+        self.summary.chunks += 1;
+        self.summary.geometry_file_bytes += entry.padded_len();
+        self.summary.geometry_resident_bytes +=
+            resident_bytes(u64::from(vertices), u64::from(triangles));
+        Ok(())
+    }
+
+    /// Appends a mesh's chunks; they get the next chunk ids, which must be the
+    /// ids they have in the skeleton given to [`StoreWriter::finish`].
+    pub fn add_mesh(&mut self, mesh: &ChunkedMesh) -> Result<(), StoreError> {
+        for c in &mesh.chunks {
+            let v = c.vertices.start as usize..c.vertices.end as usize;
+            let t = 3 * c.triangles.start as usize..3 * c.triangles.end as usize;
+            self.chunk(
+                &mesh.positions[v.clone()],
+                &mesh.normals[v],
+                &mesh.indices[t],
+                &c.bounds,
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Chunks written so far.
+    pub fn chunks_written(&self) -> usize {
+        self.shapes.len()
+    }
+
+    /// Writes the skeleton of `scene` (its structure, transforms and chunk
+    /// tables; its geometry, if loaded, is not read) and the table of contents,
+    /// and syncs the file; nothing is in place until [`PendingStore::commit`].
+    ///
+    /// # Panics
+    /// When the chunks written are not those of `scene`'s chunk table.
+    pub fn finish(mut self, scene: &Scene) -> Result<PendingStore, StoreError> {
+        let shapes: Vec<(u32, u32)> = scene
+            .chunks()
+            .iter()
+            .map(|c| (c.vertices.end - c.vertices.start, c.triangle_count()))
+            .collect();
+        assert!(
+            shapes == self.shapes,
+            "the chunks written ({}) are not the scene's ({})",
+            self.shapes.len(),
+            shapes.len()
+        );
+        let skeleton = skeleton::encode(scene);
+        let entry = self.segment(0, KIND_SKELETON, &skeleton)?;
+        self.summary.skeleton_bytes = entry.length;
+        let toc_offset = self.offset;
+        let toc = std::mem::take(&mut self.toc);
+        let header = Header::new(toc_offset, &toc);
+        let result = (|| {
+            self.file.write_all(bytemuck::cast_slice(&toc))?;
+            self.file.flush()?;
+            let file = self.file.get_mut();
+            file.seek(SeekFrom::Start(0))?;
+            file.write_all(bytemuck::bytes_of(&header))?;
+            file.sync_all()
+        })();
+        result.map_err(|e| self.io(e))?;
+        self.summary.path = self.target.clone();
+        self.summary.file_bytes = toc_offset + std::mem::size_of_val(toc.as_slice()) as u64;
+        Ok(PendingStore {
+            target: self.target,
+            temp: self.temp,
+            summary: self.summary,
+        })
+    }
+}
+
+impl PendingStore {
+    /// The temporary file holding the finished store.
+    pub fn temp_path(&self) -> &Path {
+        &self.temp.path
+    }
+
+    /// Renames the store into place (atomic on one file system) and syncs the
+    /// directory so the rename survives a power cut.
+    pub fn commit(mut self) -> Result<StoreSummary, StoreError> {
+        let io = |source| StoreError::Io {
+            path: self.target.clone(),
+            source,
+        };
+        std::fs::rename(&self.temp.path, &self.target).map_err(io)?;
+        self.temp.keep = true;
+        let dir = match self.target.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        // Directories cannot be opened for syncing everywhere; the rename itself
+        // has happened, so a failure here only weakens durability.
+        if let Ok(d) = File::open(dir) {
+            let _ = d.sync_all();
+        }
+        Ok(self.summary)
+    }
+}
+
+/// Writes a whole in-memory scene as a store at `path` (replacing any file).
+///
+/// # Panics
+/// When the scene's geometry is not loaded.
+pub fn write_scene(
+    scene: &Scene,
+    path: &Path,
+    options: WriteOptions,
+) -> Result<StoreSummary, StoreError> {
+    assert!(
+        scene.meshes().iter().all(dmu_scene::Mesh::is_loaded),
+        "write_scene needs the geometry loaded"
+    );
+    let mut writer = StoreWriter::create(path, options)?;
+    for mesh in scene.meshes() {
+        for c in mesh.chunk_ids() {
+            let chunk = scene.chunk(c);
+            let v = chunk.vertices.start as usize..chunk.vertices.end as usize;
+            let t = 3 * chunk.triangles.start as usize..3 * chunk.triangles.end as usize;
+            writer.chunk(
+                &mesh.positions[v.clone()],
+                &mesh.normals[v],
+                &mesh.indices[t],
+                &chunk.bounds,
+            )?;
+        }
+    }
+    writer.finish(scene)?.commit()
+}

@@ -1,0 +1,198 @@
+//! A store holds exactly the scene it was made from: written from memory,
+//! imported streaming from glTF (in one batch or many), quantized within its
+//! stated bound, and with edits saved.
+
+use std::path::Path;
+
+use dmu_scene::{ChunkedMesh, ImportOptions, MeshId, Scene, StreamOptions, export_gltf};
+use dmu_store::{Store, WriteOptions, save_edits};
+use glam::{DAffine3, DVec3};
+
+use crate::support::{assert_same_scene, shared_data, small_plant, stored};
+
+fn import_whole(path: &Path) -> Scene {
+    dmu_scene::import_gltf(path, &ImportOptions::default())
+        .unwrap()
+        .0
+}
+
+fn import_store(glb: &Path, budget: u64) -> (tempfile::TempDir, Scene) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("imported.dmu");
+    let options = dmu_store::ImportOptions {
+        chunk_triangles: dmu_scene::DEFAULT_CHUNK_TRIANGLES,
+        memory_budget_bytes: budget,
+        write: WriteOptions::default(),
+        progress: None,
+    };
+    let summary = dmu_store::import_gltf(glb, &out, &options).unwrap();
+    let store = Store::open(&out).unwrap();
+    assert_eq!(summary.store.file_bytes, store.info().file_bytes);
+    assert_eq!(summary.triangles, store.skeleton().triangle_count());
+    let scene = store.load_scene().unwrap();
+    (dir, scene)
+}
+
+#[test]
+fn written_store_loads_the_same_scene() {
+    let scene = small_plant(60_000);
+    let (_dir, path) = stored(&scene, WriteOptions::default());
+    let store = Store::open(&path).unwrap();
+    // The skeleton has everything but the geometry.
+    assert!(
+        store
+            .skeleton()
+            .meshes()
+            .iter()
+            .all(|m| !m.is_loaded() || m.triangles == 0)
+    );
+    assert_eq!(store.skeleton().triangle_count(), scene.triangle_count());
+    assert_same_scene(&store.load_scene().unwrap(), &scene);
+    // The tree from the skeleton is the tree from the scene.
+    let from_skeleton = dmu_tree::Tree::build(store.skeleton(), Default::default());
+    let from_scene = dmu_tree::Tree::build(&scene, Default::default());
+    assert_eq!(from_skeleton.cell_count(), from_scene.cell_count());
+    assert_eq!(from_skeleton.bounds(), from_scene.bounds());
+}
+
+#[test]
+fn imported_store_equals_the_glb_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let glb = dir.path().join("plant.glb");
+    export_gltf(&small_plant(80_000), &glb).unwrap();
+    let reference = import_whole(&glb);
+    let (_d, scene) = import_store(&glb, 1 << 30);
+    assert_same_scene(&scene, &reference);
+}
+
+#[test]
+fn shared_models_import_into_stores_unchanged() {
+    let Some(data) = shared_data("shared_models_import_into_stores_unchanged") else {
+        return;
+    };
+    for file in [
+        "pcb/stickhub_board.glb",
+        "pcb/video_board.glb",
+        "bim/duplex.glb",
+        "compressed/engine_quant.glb",
+        "compressed/engine_meshopt.glb",
+    ] {
+        let glb = data.join(file);
+        let reference = import_whole(&glb);
+        let (_d, scene) = import_store(&glb, 256 << 20);
+        assert_same_scene(&scene, &reference);
+        eprintln!(
+            "{file}: {} triangles through a store",
+            scene.triangle_count()
+        );
+    }
+}
+
+/// With a batch of one byte every mesh is decoded alone, from a fresh mapping:
+/// the streamed meshes, loaded into the skeleton, are the whole import's.
+#[test]
+fn streaming_in_many_batches_equals_the_whole_import() {
+    let dir = tempfile::tempdir().unwrap();
+    let glb = dir.path().join("plant.glb");
+    export_gltf(&small_plant(40_000), &glb).unwrap();
+    let reference = import_whole(&glb);
+    let mut meshes: Vec<(MeshId, ChunkedMesh)> = Vec::new();
+    let mut calls = 0;
+    let progress = |done: usize, total: usize| assert!(done <= total);
+    let options = StreamOptions {
+        chunk_triangles: dmu_scene::DEFAULT_CHUNK_TRIANGLES,
+        batch_bytes: 1,
+        progress: Some(&progress),
+    };
+    let (skeleton, _) =
+        dmu_scene::import_gltf_streaming::<dmu_scene::ImportError>(&glb, &options, &mut |id, m| {
+            calls += 1;
+            meshes.push((id, m));
+            Ok(())
+        })
+        .unwrap();
+    assert_eq!(calls, reference.meshes().len());
+    assert_eq!(skeleton.triangle_count(), reference.triangle_count());
+    for (id, mesh) in &meshes {
+        let r = reference.mesh(*id);
+        assert_eq!(mesh.positions, r.positions);
+        assert_eq!(mesh.indices, r.indices);
+        assert_eq!(skeleton.mesh(*id).chunks, r.chunks);
+    }
+    assert_eq!(skeleton.chunks(), reference.chunks());
+}
+
+#[test]
+fn quantized_positions_stay_within_the_stated_bound() {
+    let scene = small_plant(30_000);
+    let (_dir, path) = stored(&scene, WriteOptions { quantize: true });
+    let (_dir2, plain) = stored(&scene, WriteOptions::default());
+    let store = Store::open(&path).unwrap();
+    assert!(
+        store.info().geometry_file_bytes < Store::open(&plain).unwrap().info().geometry_file_bytes
+    );
+    let loaded = store.load_scene().unwrap();
+    let mut worst = 0.0f64;
+    for (m, mesh) in scene.meshes().iter().enumerate() {
+        let q = &loaded.meshes()[m];
+        assert_eq!(q.indices, mesh.indices, "indices are exact");
+        for c in mesh.chunk_ids() {
+            let chunk = scene.chunk(c);
+            let extent = f64::from((chunk.bounds.max - chunk.bounds.min).max_element());
+            for v in chunk.vertices.start as usize..chunk.vertices.end as usize {
+                let d = f64::from((q.positions[v] - mesh.positions[v]).abs().max_element());
+                // Half a grid step, plus f32 rounding of the blend of the box's ends.
+                let ends = chunk.bounds.min.abs().max(chunk.bounds.max.abs());
+                let rounding = 4.0 * f64::from(f32::EPSILON) * f64::from(ends.max_element());
+                assert!(
+                    d <= extent / 131_070.0 + rounding,
+                    "vertex {v}: {d} of {extent}"
+                );
+                worst = worst.max(d / extent);
+                let dot = q.normals[v].dot(mesh.normals[v]);
+                assert!(dot > 0.9995, "normal {v} turned by acos({dot})");
+            }
+        }
+    }
+    eprintln!("quantized: worst error {worst:e} of the chunk extent");
+}
+
+#[test]
+fn saved_edits_reopen_with_the_new_transforms() {
+    let mut scene = small_plant(20_000);
+    let (_dir, path) = stored(&scene, WriteOptions::default());
+    let store = Store::open(&path).unwrap();
+    let mut edited = store.skeleton().clone();
+    for p in edited.part_ids().step_by(7).collect::<Vec<_>>() {
+        let moved =
+            DAffine3::from_translation(DVec3::new(100.0, -0.01, 2.5)) * edited.part_world(p);
+        edited.set_part_world(p, moved);
+        scene.set_part_world(p, moved);
+    }
+    let hide = edited.part_ids().nth(3).unwrap();
+    edited.set_part_hidden(hide, true);
+    scene.set_part_hidden(hide, true);
+    save_edits(&store, &edited).unwrap();
+    // The open store still reads the file it opened; a new open sees the save.
+    assert!(!store.load_scene().unwrap().part(hide).hidden);
+    let reopened = Store::open(&path).unwrap();
+    assert_same_scene(&reopened.load_scene().unwrap(), &scene);
+}
+
+#[test]
+fn saving_a_different_model_is_refused() {
+    let (_dir, path) = stored(&small_plant(20_000), WriteOptions::default());
+    let store = Store::open(&path).unwrap();
+    let other = small_plant(30_000);
+    let err = save_edits(&store, &other).unwrap_err().to_string();
+    assert!(
+        err.contains("does not match") && err.contains("model.dmu"),
+        "{err}"
+    );
+    // Nothing was written.
+    let again = Store::open(&path).unwrap();
+    assert_eq!(
+        again.skeleton().parts().len(),
+        store.skeleton().parts().len()
+    );
+}

@@ -1,0 +1,4 @@
+mod files;
+mod residency;
+mod round_trip;
+mod support;
