@@ -6,10 +6,16 @@
 // but CAD windings are unreliable, so nothing is culled and shading is two-sided.
 
 struct ViewUniform {
-    // View space to clip space (reverse-Z, infinite far plane).
+    // View space to clip space (reverse-Z, infinite far plane), shared by the
+    // eyes of a stereo pair (parallel eyes, symmetric frusta).
     proj: mat4x4<f32>,
     // Colour mixed into selected parts.
     highlight: vec4<f32>,
+    // Model-views per eye: eye k's are model_views[k * eye_stride ..].
+    eye_stride: u32,
+    // The eye single-view entry points draw (0 but for a stereo pair drawn a
+    // layer at a time).
+    eye: u32,
 }
 
 // Rows of a part's affine model-view (part-local to view space).
@@ -51,13 +57,10 @@ struct MeshOut {
     @location(2) @interpolate(flat) entry: u32,
 }
 
-@vertex
-fn vs_mesh(
-    @location(0) position: vec3<f32>,
-    @location(1) normal: vec4<f32>,
-    @builtin(instance_index) entry: u32,
-) -> MeshOut {
-    let m = model_views[entries[entry].part];
+// A chunk vertex as eye `eye` sees it. Every mesh entry point goes through
+// here, so a stereo layer computes exactly what a single-eye render does.
+fn mesh_vertex(position: vec3<f32>, normal: vec4<f32>, entry: u32, eye: u32) -> MeshOut {
+    let m = model_views[eye * view.eye_stride + entries[entry].part];
     let p = vec4<f32>(position, 1.0);
     let view_pos = vec3<f32>(dot(m.r0, p), dot(m.r1, p), dot(m.r2, p));
     // Normals go through the cofactor matrix (the inverse transpose up to a
@@ -73,6 +76,15 @@ fn vs_mesh(
     out.normal = view_normal;
     out.entry = entry;
     return out;
+}
+
+@vertex
+fn vs_mesh(
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec4<f32>,
+    @builtin(instance_index) entry: u32,
+) -> MeshOut {
+    return mesh_vertex(position, normal, entry, view.eye);
 }
 
 @fragment

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context as _;
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressBar;
 
 use crate::units::{parse_bytes, peak_rss_bytes};
 
@@ -40,11 +40,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let start = Instant::now();
     // Hidden when stderr is not a terminal, so scripts see clean output.
     let bar = ProgressBar::new(0);
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} importing meshes {pos}/{len} [{bar:30}] {elapsed}")
-            .expect("static template")
-            .progress_chars("=> "),
-    );
+    crate::load::style_mesh_bar(&bar);
     let progress = |done: usize, total: usize| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);

@@ -2,9 +2,16 @@
 
 use std::path::PathBuf;
 
+use std::collections::BTreeSet;
+use std::path::Path;
+
 use anyhow::{Context as _, bail};
-use dmu_render::{Camera, Capture, Culling, FrameStats, Renderer, View, headless_device};
-use dmu_tree::{Tree, TreeOptions};
+use dmu_render::{
+    Camera, Capture, Culling, FrameStats, Renderer, RendererOptions, StereoCamera, StereoMode,
+    StereoView, View, headless_device,
+};
+use dmu_scene::Scene;
+use dmu_tree::{EntryId, Tree, TreeOptions};
 use glam::DVec3;
 use serde_json::json;
 
@@ -41,14 +48,27 @@ pub struct Args {
     /// few); the image and stats are the last frame's.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     frames: u32,
-    /// Output PNG.
+    /// Output PNG (with --stereo, OUTPUT-left.png and OUTPUT-right.png).
     #[arg(short, long)]
     output: PathBuf,
+    /// Render a stereo pair around the eye (parallel axes, --ipd apart along
+    /// screen right), culled once and drawn in one multiview pass; also renders
+    /// the left eye alone and reports the stereo frame time against it.
+    #[arg(long)]
+    stereo: bool,
+    /// Interpupillary distance for --stereo, world units (65: millimetres).
+    #[arg(long, default_value_t = 65.0, requires = "stereo")]
+    ipd: f64,
+    /// How --stereo reaches the two layers: auto (multiview where the driver
+    /// draws it correctly), multiview, or layers (a pass per eye).
+    #[arg(long, default_value = "auto", value_parser = ["auto", "multiview", "layers"], requires = "stereo")]
+    stereo_mode: String,
     /// Print stats as JSON.
     #[arg(long)]
     json: bool,
     /// Also render chunk ids without occlusion culling and report the exactly
-    /// visible chunk instances against the drawn ones.
+    /// visible chunk instances (in either eye, with --stereo) against the
+    /// drawn ones.
     #[arg(long)]
     oracle: bool,
 }
@@ -74,6 +94,64 @@ fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
         bail!("--size {s:?}: each side must be 1 to 16384 pixels");
     }
     Ok((w, h))
+}
+
+/// `OUTPUT-eye.png` next to `OUTPUT`.
+fn eye_path(output: &Path, eye: &str) -> PathBuf {
+    let stem = output.file_stem().unwrap_or_default().to_string_lossy();
+    let ext = output
+        .extension()
+        .map_or("png".into(), |e| e.to_string_lossy());
+    output.with_file_name(format!("{stem}-{eye}.{ext}"))
+}
+
+/// Median CPU and GPU milliseconds of the last half of `frames` (at least one):
+/// occlusion culling converges over the first few.
+fn steady_ms(frames: &[FrameStats]) -> (f64, f64) {
+    let tail = &frames[frames.len() / 2..];
+    let median = |f: fn(&FrameStats) -> f64| {
+        let mut v: Vec<f64> = tail.iter().map(f).collect();
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        }
+    };
+    (median(|s| s.cpu_ms), median(|s| s.gpu_ms))
+}
+
+/// The oracle's report: chunk instances owning a pixel in any of `eyes` (ids
+/// rendered into `capture`) against the ones drawn.
+fn oracle_json(
+    renderer: &mut Renderer,
+    capture: &Capture,
+    scene: &Scene,
+    tree: &Tree,
+    eyes: &[Camera],
+    drawn: &BTreeSet<EntryId>,
+    triangles_drawn: u64,
+) -> anyhow::Result<serde_json::Value> {
+    let mut exact = BTreeSet::new();
+    for &eye in eyes {
+        let mut view = View::new(eye, capture.size(), Culling::None);
+        exact.extend(
+            renderer
+                .render_ids(&mut view, scene, tree, scene, capture)?
+                .visible_entries(),
+        );
+    }
+    let triangles: u64 = exact
+        .iter()
+        .map(|e| u64::from(tree.entries()[e.0 as usize].triangles))
+        .sum();
+    Ok(json!({
+        "exact_visible_chunks": exact.len(),
+        "exact_visible_triangles": triangles,
+        "missing_from_drawn": exact.difference(drawn).count(),
+        "drawn_over_exact_triangles": triangles_drawn as f64 / triangles.max(1) as f64,
+    }))
 }
 
 fn stats_json(s: &FrameStats) -> serde_json::Value {
@@ -120,6 +198,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         "chc" => Culling::Occlusion,
         _ => Culling::Frustum,
     };
+    if args.stereo && !(args.ipd >= 0.0 && args.ipd.is_finite()) {
+        bail!("--ipd {}: must be finite and not negative", args.ipd);
+    }
     let loaded = load(&args.model)?;
     let scene = &loaded.scene;
     let tree = Tree::build(scene, TreeOptions::default());
@@ -140,37 +221,108 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         fov_y_rad: args.fov.to_radians(),
         near,
     };
+    let stereo_mode = match args.stereo_mode.as_str() {
+        "multiview" => StereoMode::Multiview,
+        "layers" => StereoMode::LayerPasses,
+        _ => StereoMode::Auto,
+    };
     let (device, queue, adapter) = headless_device().context("opening a GPU device")?;
-    let mut renderer = Renderer::new(&device, &queue, scene, &tree, Default::default());
+    let options = RendererOptions {
+        stereo: stereo_mode,
+        ..Default::default()
+    };
+    let mut renderer = Renderer::new(&device, &queue, scene, &tree, options);
+    let stereo_camera = StereoCamera {
+        center: camera,
+        ipd: args.ipd,
+    };
+    // With --stereo the single view is the left eye: the one-eye baseline.
+    let single_camera = if args.stereo {
+        stereo_camera.eyes()[0]
+    } else {
+        camera
+    };
     let capture = Capture::new(&device, size);
-    let mut view = View::new(camera, size, culling);
+    let mut view = View::new(single_camera, size, culling);
     view.options.min_pixels = args.min_pixels;
-    let mut frames = Vec::new();
+    let mut single_frames = Vec::new();
     for _ in 0..args.frames {
-        frames.push(renderer.render(&mut view, scene, &tree, scene, capture.frame_target())?);
+        single_frames.push(renderer.render(
+            &mut view,
+            scene,
+            &tree,
+            scene,
+            capture.frame_target(),
+        )?);
     }
-    let image = capture.read_color(&device, &queue)?;
-    dmu_render::save_png(&image, &args.output)?;
+    let stereo = if args.stereo {
+        let capture = Capture::stereo(&device, size);
+        let mut pair = StereoView::new(stereo_camera, size, culling);
+        pair.view.options.min_pixels = args.min_pixels;
+        let mut frames = Vec::new();
+        for _ in 0..args.frames {
+            frames.push(renderer.render_stereo(
+                &mut pair,
+                scene,
+                &tree,
+                scene,
+                capture.stereo_target(),
+            )?);
+        }
+        let outputs = [
+            eye_path(&args.output, "left"),
+            eye_path(&args.output, "right"),
+        ];
+        for (layer, path) in outputs.iter().enumerate() {
+            let image = capture.read_color_layer(&device, &queue, layer as u32)?;
+            dmu_render::save_png(&image, path)?;
+        }
+        Some((pair, frames, outputs))
+    } else {
+        let image = capture.read_color(&device, &queue)?;
+        dmu_render::save_png(&image, &args.output)?;
+        None
+    };
+    // The reported frames: the pair's with --stereo.
+    let (frames, drawn, eyes) = match &stereo {
+        Some((pair, frames, _)) => (
+            frames,
+            pair.view.drawn_entries().collect(),
+            stereo_camera.eyes().to_vec(),
+        ),
+        None => (&single_frames, view.drawn_entries().collect(), vec![camera]),
+    };
     let last = frames.last().expect("at least one frame");
     let oracle = if args.oracle {
-        let drawn: std::collections::BTreeSet<_> = view.drawn_entries().collect();
-        let exact = renderer
-            .render_ids(&mut view, scene, &tree, scene, &capture)?
-            .visible_entries();
-        let triangles = |set: &std::collections::BTreeSet<dmu_tree::EntryId>| -> u64 {
-            set.iter()
-                .map(|e| u64::from(tree.entries()[e.0 as usize].triangles))
-                .sum()
-        };
-        Some(json!({
-            "exact_visible_chunks": exact.len(),
-            "exact_visible_triangles": triangles(&exact),
-            "missing_from_drawn": exact.difference(&drawn).count(),
-            "drawn_over_exact_triangles": last.triangles_drawn as f64 / triangles(&exact).max(1) as f64,
-        }))
+        Some(oracle_json(
+            &mut renderer,
+            &capture,
+            scene,
+            &tree,
+            &eyes,
+            &drawn,
+            last.triangles_drawn,
+        )?)
     } else {
         None
     };
+    let stereo_json = stereo.as_ref().map(|(_, frames, outputs)| {
+        let (stereo_ms, stereo_gpu_ms) = steady_ms(frames);
+        let (one_eye_ms, one_eye_gpu_ms) = steady_ms(&single_frames);
+        json!({
+            "ipd": args.ipd,
+            "mode": format!("{:?}", renderer.stereo_mode()),
+            "outputs": outputs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
+            "frame_ms": stereo_ms,
+            "one_eye_frame_ms": one_eye_ms,
+            "ratio": stereo_ms / one_eye_ms,
+            "gpu_ms": stereo_gpu_ms,
+            "one_eye_gpu_ms": one_eye_gpu_ms,
+            "gpu_ratio": if one_eye_gpu_ms > 0.0 { json!(stereo_gpu_ms / one_eye_gpu_ms) } else { json!(null) },
+            "one_eye_last": stats_json(single_frames.last().expect("at least one frame")),
+            "one_eye_frames": single_frames.iter().map(stats_json).collect::<Vec<_>>(),
+        })
+    });
     if args.json {
         let out = json!({
             "output": args.output.display().to_string(),
@@ -181,13 +333,17 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             "load_ms": loaded.load_ms,
             "last": stats_json(last),
             "oracle": oracle,
+            "stereo": stereo_json,
             "frames": frames.iter().map(stats_json).collect::<Vec<_>>(),
         });
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {
+        let written = match &stereo {
+            Some((_, _, [left, right])) => format!("{} + {}", left.display(), right.display()),
+            None => args.output.display().to_string(),
+        };
         println!(
-            "{}: {}x{} {} on {}: {} of {} triangles drawn, {} queries in {} rounds, {:.1} ms CPU, {:.1} ms GPU",
-            args.output.display(),
+            "{written}: {}x{} {} on {}: {} of {} triangles drawn, {} queries in {} rounds, {:.1} ms CPU, {:.1} ms GPU",
             size.0,
             size.1,
             args.culling,
@@ -199,6 +355,15 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             last.cpu_ms,
             last.gpu_ms
         );
+        if let Some(s) = stereo_json {
+            println!(
+                "stereo ({}): {:.1} ms a frame against {:.1} ms for one eye: {:.2}x",
+                s["mode"].as_str().unwrap_or_default(),
+                s["frame_ms"].as_f64().unwrap_or_default(),
+                s["one_eye_frame_ms"].as_f64().unwrap_or_default(),
+                s["ratio"].as_f64().unwrap_or_default()
+            );
+        }
         if let Some(o) = oracle {
             println!("oracle: {o}");
         }

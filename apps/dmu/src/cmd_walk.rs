@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use anyhow::{Context as _, bail};
-use dmu_render::Culling;
+use dmu_render::{Culling, CullingOptions};
 use dmu_store::{
     CameraFrame, LoadOrder, PrefetchOptions, Store, Viewport, WalkOptions, WalkReport, walk,
 };
@@ -81,6 +81,11 @@ pub struct Args {
     /// triangles against the exactly visible chunks', and print the ratios.
     #[arg(long, requires = "render")]
     compare: bool,
+    /// With --render and chc: a chunk seen visible is assumed visible for this
+    /// many frames before it is queried again (fewer: more queries, less
+    /// over-draw when the view moves fast).
+    #[arg(long, default_value_t = CullingOptions::default().requery_interval, value_parser = clap::value_parser!(u32).range(1..))]
+    requery_interval: u32,
     /// Print one JSON object instead of text.
     #[arg(long)]
     json: bool,
@@ -146,30 +151,6 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     if path.is_empty() {
         bail!("the camera path has no frames");
     }
-    if args.render {
-        let scene = store
-            .load_scene()
-            .with_context(|| format!("loading {}", args.file.display()))?;
-        let modes = if args.compare {
-            vec![Culling::None, Culling::Frustum, Culling::Occlusion]
-        } else {
-            vec![match args.culling.as_str() {
-                "none" => Culling::None,
-                "frustum" => Culling::Frustum,
-                _ => Culling::Occlusion,
-            }]
-        };
-        let report = crate::walk_render::run(
-            &scene,
-            &tree,
-            &path,
-            (args.width, args.height),
-            &modes,
-            args.compare,
-        )?;
-        print_render(args, &report)?;
-        return Ok(());
-    }
     let viewport = Viewport {
         width: args.width,
         height: args.height,
@@ -181,24 +162,61 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         turn_deg: 30.0,
         min_pixels: args.min_pixels,
     });
+    let options = |order: &Order| WalkOptions {
+        order: match order {
+            Order::Visibility => LoadOrder::Visibility,
+            Order::Area => LoadOrder::Area,
+            Order::Fifo => LoadOrder::Fifo,
+        },
+        budget_bytes,
+        loader_threads: args.loader_threads as usize,
+        disk_bytes_per_frame: (!args.real_time).then_some(args.disk_per_frame),
+        frame_rate_hz: args.fps,
+        viewport,
+        min_pixels: args.min_pixels,
+        prefetch,
+        warmup_frames: args.warmup_frames,
+    };
+    if args.render {
+        let culling = match args.culling.as_str() {
+            "none" => Culling::None,
+            "frustum" => Culling::Frustum,
+            _ => Culling::Occlusion,
+        };
+        let culling_options = CullingOptions {
+            requery_interval: args.requery_interval,
+            ..CullingOptions::default()
+        };
+        let report = if args.compare {
+            let scene = store
+                .load_scene()
+                .with_context(|| format!("loading {}", args.file.display()))?;
+            crate::walk_render::run(
+                &scene,
+                &tree,
+                &path,
+                (args.width, args.height),
+                &[Culling::None, Culling::Frustum, Culling::Occlusion],
+                true,
+                culling_options,
+            )?
+        } else {
+            let order = args.order.first().unwrap_or(&Order::Visibility);
+            crate::walk_render::run_resident(
+                &store,
+                &tree,
+                &path,
+                &options(order),
+                culling,
+                culling_options,
+            )?
+        };
+        print_render(args, &report)?;
+        return Ok(());
+    }
     let mut reports = Vec::new();
     for order in &args.order {
-        let options = WalkOptions {
-            order: match order {
-                Order::Visibility => LoadOrder::Visibility,
-                Order::Area => LoadOrder::Area,
-                Order::Fifo => LoadOrder::Fifo,
-            },
-            budget_bytes,
-            loader_threads: args.loader_threads as usize,
-            disk_bytes_per_frame: (!args.real_time).then_some(args.disk_per_frame),
-            frame_rate_hz: args.fps,
-            viewport,
-            min_pixels: args.min_pixels,
-            prefetch,
-            warmup_frames: args.warmup_frames,
-        };
-        let report = walk(&store, &tree, &path, &options).map_err(anyhow::Error::msg)?;
+        let report = walk(&store, &tree, &path, &options(order)).map_err(anyhow::Error::msg)?;
         reports.push(report);
     }
     if args.json {
@@ -222,15 +240,24 @@ fn print_render(args: &Args, report: &serde_json::Value) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(report)?);
         return Ok(());
     }
+    let walk = &report["walk"]["total"];
+    let frames = if walk.is_null() {
+        &report["frames"]
+    } else {
+        &walk["frames"]
+    };
     println!(
-        "{}: {} frames rendered at {}x{} on {}",
+        "{}: {frames} frames rendered at {}x{} on {}",
         args.file.display(),
-        report["frames"],
         args.width,
         args.height,
         report["adapter"].as_str().unwrap_or("?")
     );
-    for t in report["totals"].as_array().into_iter().flatten() {
+    let totals: Vec<&serde_json::Value> = match report["totals"].as_array() {
+        Some(all) => all.iter().collect(),
+        None => vec![&report["render"]["totals"]],
+    };
+    for t in totals {
         let differing = match t["frames_with_differing_pixels"].as_u64() {
             Some(n) => format!(
                 "; {n} frames differ from none (worst {} pixels)",
@@ -246,6 +273,19 @@ fn print_render(args: &Args, report: &serde_json::Value) -> anyhow::Result<()> {
             t["p95_frame_ms"].as_f64().unwrap_or(f64::NAN),
             t["mean_triangles_drawn"].as_f64().unwrap_or(f64::NAN),
             t["mean_queries"].as_f64().unwrap_or(f64::NAN),
+        );
+    }
+    if !walk.is_null() {
+        let mb = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN) / 1e6;
+        println!(
+            "  residency: {} frames with a miss ({} of {} warm), {} chunk instances missing; loaded {:.1} MB; peak resident {:.1} MB of {:.1} MB",
+            walk["frames_with_miss"],
+            walk["warm_frames_with_miss"],
+            walk["warm_frames"],
+            walk["missing_chunks"],
+            mb(&walk["loaded_bytes"]),
+            mb(&walk["peak_resident_bytes"]),
+            mb(&walk["budget_bytes"]),
         );
     }
     for key in [

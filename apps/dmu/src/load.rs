@@ -8,6 +8,7 @@ use dmu_scene::{ImportOptions, ImportReport, Scene};
 use indicatif::{ProgressBar, ProgressStyle};
 
 /// A loaded model and how it was obtained.
+#[derive(Debug)]
 pub struct Loaded {
     pub scene: Scene,
     pub report: ImportReport,
@@ -80,11 +81,7 @@ fn import(path: &Path, chunk_triangles: u32) -> anyhow::Result<(Scene, ImportRep
     } else {
         ProgressBar::hidden()
     };
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} importing meshes {pos}/{len} [{bar:30}] {elapsed}")
-            .expect("static template")
-            .progress_chars("=> "),
-    );
+    style_mesh_bar(&bar);
     let progress = |done: usize, total: usize| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
@@ -97,4 +94,13 @@ fn import(path: &Path, chunk_triangles: u32) -> anyhow::Result<(Scene, ImportRep
         .with_context(|| format!("importing {}", path.display()));
     bar.finish_and_clear();
     result
+}
+
+/// Styles the progress bar of an import's meshes (`pos` meshes of `len`).
+pub fn style_mesh_bar(bar: &ProgressBar) {
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} importing meshes {pos}/{len} [{bar:30}] {elapsed}")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
 }

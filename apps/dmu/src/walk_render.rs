@@ -6,11 +6,15 @@
 //! culling).
 
 use std::collections::BTreeSet;
+use std::sync::{Arc, OnceLock};
 
 use anyhow::Context as _;
-use dmu_render::{Camera, Capture, Culling, FrameStats, Renderer, View, headless_device};
-use dmu_scene::Scene;
-use dmu_store::CameraFrame;
+use dmu_render::{
+    Camera, Capture, ChunkGeometry, Culling, CullingOptions, FrameStats, GeometrySource, Renderer,
+    View, headless_device,
+};
+use dmu_scene::{ChunkId, Scene};
+use dmu_store::{CameraFrame, Drawn, Residency, Store, WalkOptions};
 use dmu_tree::{EntryId, Tree};
 use serde::Serialize;
 
@@ -63,6 +67,51 @@ fn culling_name(c: Culling) -> &'static str {
     }
 }
 
+/// The renderer's camera for a path frame, the near plane at 1/10 000 of the
+/// model's diagonal.
+fn camera(frame: &CameraFrame, tree: &Tree) -> Camera {
+    Camera {
+        eye: frame.eye,
+        target: frame.target,
+        up: frame.up,
+        fov_y_rad: frame.fov_y_deg.to_radians(),
+        near: (tree.bounds().extent().length() * 1e-4).max(1e-6),
+    }
+}
+
+fn mode_frame(stats: &FrameStats, differing_pixels: Option<u64>) -> ModeFrame {
+    ModeFrame {
+        frame_ms: stats.cpu_ms,
+        gpu_ms: stats.gpu_ms,
+        triangles_drawn: stats.triangles_drawn,
+        chunks_drawn: stats.chunks_drawn,
+        queries: stats.queries,
+        rounds: stats.rounds,
+        occlusion_enabled: stats.occlusion.enabled,
+        differing_pixels,
+    }
+}
+
+/// Frame-time and drawing totals of one mode over its frames.
+fn mode_totals<'a>(culling: Culling, frames: impl Iterator<Item = &'a ModeFrame>) -> ModeTotals {
+    let frames: Vec<&ModeFrame> = frames.collect();
+    let mut ms: Vec<f64> = frames.iter().map(|f| f.frame_ms).collect();
+    let n = frames.len().max(1) as f64;
+    let differing: Vec<u64> = frames.iter().filter_map(|f| f.differing_pixels).collect();
+    let compared = !differing.is_empty();
+    ModeTotals {
+        culling: culling_name(culling),
+        mean_frame_ms: ms.iter().sum::<f64>() / n,
+        median_frame_ms: percentile(&mut ms, 0.5),
+        p95_frame_ms: percentile(&mut ms, 0.95),
+        mean_triangles_drawn: frames.iter().map(|f| f.triangles_drawn as f64).sum::<f64>() / n,
+        mean_queries: frames.iter().map(|f| f.queries as f64).sum::<f64>() / n,
+        frames_with_differing_pixels: compared
+            .then(|| differing.iter().filter(|&&d| d > 0).count() as u64),
+        worst_differing_pixels: compared.then(|| differing.iter().copied().max().unwrap_or(0)),
+    }
+}
+
 /// Renders `path` with each of `modes` (the first is the reference when
 /// `compare`) and returns the JSON report.
 pub fn run(
@@ -72,21 +121,19 @@ pub fn run(
     size: (u32, u32),
     modes: &[Culling],
     compare: bool,
+    culling: CullingOptions,
 ) -> anyhow::Result<serde_json::Value> {
     let (device, queue, adapter) = headless_device().context("opening a GPU device")?;
     let mut renderer = Renderer::new(&device, &queue, scene, tree, Default::default());
-    let near = (tree.bounds().extent().length() * 1e-4).max(1e-6);
-    let camera = |f: &CameraFrame| Camera {
-        eye: f.eye,
-        target: f.target,
-        up: f.up,
-        fov_y_rad: f.fov_y_deg.to_radians(),
-        near,
-    };
+    let camera = |f: &CameraFrame| camera(f, tree);
     let captures: Vec<Capture> = modes.iter().map(|_| Capture::new(&device, size)).collect();
     let mut views: Vec<View> = modes
         .iter()
-        .map(|&m| View::new(camera(&path[0]), size, m))
+        .map(|&m| {
+            let mut view = View::new(camera(&path[0]), size, m);
+            view.options = culling;
+            view
+        })
         .collect();
     let mut oracle_view = View::new(camera(&path[0]), size, Culling::Frustum);
     let chc = modes.iter().position(|&m| m == Culling::Occlusion);
@@ -118,16 +165,7 @@ pub fn run(
             } else {
                 None
             };
-            modes_out.push(ModeFrame {
-                frame_ms: stats.cpu_ms,
-                gpu_ms: stats.gpu_ms,
-                triangles_drawn: stats.triangles_drawn,
-                chunks_drawn: stats.chunks_drawn,
-                queries: stats.queries,
-                rounds: stats.rounds,
-                occlusion_enabled: stats.occlusion.enabled,
-                differing_pixels,
-            });
+            modes_out.push(mode_frame(&stats, differing_pixels));
         }
         let (exact_visible_triangles, chc_missing_chunks) = match (compare, chc) {
             (true, Some(c)) => {
@@ -161,34 +199,7 @@ pub fn run(
     let totals: Vec<ModeTotals> = modes
         .iter()
         .enumerate()
-        .map(|(i, &m)| {
-            let mut ms: Vec<f64> = frames.iter().map(|f| f.modes[i].frame_ms).collect();
-            let n = frames.len().max(1) as f64;
-            let differing: Vec<u64> = frames
-                .iter()
-                .filter_map(|f| f.modes[i].differing_pixels)
-                .collect();
-            ModeTotals {
-                culling: culling_name(m),
-                mean_frame_ms: ms.iter().sum::<f64>() / n,
-                median_frame_ms: percentile(&mut ms, 0.5),
-                p95_frame_ms: percentile(&mut ms, 0.95),
-                mean_triangles_drawn: frames
-                    .iter()
-                    .map(|f| f.modes[i].triangles_drawn as f64)
-                    .sum::<f64>()
-                    / n,
-                mean_queries: frames
-                    .iter()
-                    .map(|f| f.modes[i].queries as f64)
-                    .sum::<f64>()
-                    / n,
-                frames_with_differing_pixels: compare
-                    .then(|| differing.iter().filter(|&&d| d > 0).count() as u64),
-                worst_differing_pixels: compare
-                    .then(|| differing.iter().copied().max().unwrap_or(0)),
-            }
-        })
+        .map(|(i, &m)| mode_totals(m, frames.iter().map(|f| &f.modes[i])))
         .collect();
     let mean_of = |name: &str| {
         totals
@@ -212,6 +223,8 @@ pub fn run(
         "size": [size.0, size.1],
         "frames": path.len(),
         "scene_triangles": scene.triangle_count(),
+        "requery_interval": culling.requery_interval,
+        "max_rounds": culling.max_rounds,
         "totals": totals,
         "frustum_over_chc_frame_time": ratio("frustum", "chc"),
         "none_over_chc_frame_time": ratio("none", "chc"),
@@ -220,5 +233,90 @@ pub fn run(
         "chc_over_exact_triangles_worst": over_exact.iter().copied().reduce(f64::max),
         "chc_chunks_more_than_one_frame_late": compare.then_some(late_chunks),
         "per_frame": frames,
+    }))
+}
+
+/// Chunk geometry for one frame from a residency manager: each chunk the
+/// renderer asks for is looked up once and pinned until the frame is drawn.
+struct ResidentSource<'a> {
+    residency: &'a Residency,
+    pins: Vec<OnceLock<Option<Arc<dmu_store::ChunkGeometry>>>>,
+}
+
+impl<'a> ResidentSource<'a> {
+    fn new(residency: &'a Residency, chunks: usize) -> Self {
+        Self {
+            residency,
+            pins: (0..chunks).map(|_| OnceLock::new()).collect(),
+        }
+    }
+}
+
+impl GeometrySource for ResidentSource<'_> {
+    fn chunk_geometry(&self, chunk: ChunkId) -> Option<ChunkGeometry<'_>> {
+        let g = self.pins[chunk.index()]
+            .get_or_init(|| self.residency.get(chunk))
+            .as_ref()?;
+        Some(ChunkGeometry {
+            positions: &g.positions,
+            normals: &g.normals,
+            indices: &g.indices,
+        })
+    }
+}
+
+/// Renders `path` from `store` through a residency manager within
+/// `options.budget_bytes`: the renderer draws what is resident (its GPU copies
+/// of evicted chunks are dropped with them), and what it drew is requested as
+/// visible next frame. A chunk instance the renderer wanted but could not draw
+/// is a miss. Returns the walk's report and the renderer's per-frame stats.
+pub fn run_resident(
+    store: &Arc<Store>,
+    tree: &Tree,
+    path: &[CameraFrame],
+    options: &WalkOptions,
+    culling: Culling,
+    culling_options: CullingOptions,
+) -> anyhow::Result<serde_json::Value> {
+    let scene = store.skeleton();
+    let size = (options.viewport.width, options.viewport.height);
+    let (device, queue, adapter) = headless_device().context("opening a GPU device")?;
+    let mut renderer = Renderer::new(&device, &queue, scene, tree, Default::default());
+    let capture = Capture::new(&device, size);
+    let camera = |f: &CameraFrame| camera(f, tree);
+    let mut view = View::new(camera(&path[0]), size, culling);
+    view.options = culling_options;
+    let mut rendered = Vec::with_capacity(path.len());
+    let progress = indicatif::ProgressBar::new(path.len() as u64);
+    let report = dmu_store::walk_with(store, tree, path, options, &mut |i, _, residency| {
+        for c in residency.take_evicted() {
+            renderer.geometry_pool().evict(c);
+        }
+        view.camera = camera(&path[i]);
+        let source = ResidentSource::new(residency, scene.chunks().len());
+        let stats = renderer
+            .render(&mut view, scene, tree, &source, capture.frame_target())
+            .map_err(|e| format!("frame {i}: {e}"))?;
+        rendered.push(mode_frame(&stats, None));
+        progress.inc(1);
+        Ok(Drawn {
+            missing_chunks: stats.not_resident,
+            visible: view
+                .drawn_entries()
+                .map(|e| tree.entries()[e.0 as usize].chunk)
+                .collect(),
+            pins: Vec::new(),
+        })
+    })
+    .map_err(anyhow::Error::msg)?;
+    progress.finish_and_clear();
+    Ok(serde_json::json!({
+        "adapter": adapter.name,
+        "walk": report,
+        "render": {
+            "totals": mode_totals(culling, rendered.iter()),
+            "gpu_pool_bytes": renderer.geometry_pool().resident_bytes(),
+            "per_frame": rendered,
+        },
     }))
 }

@@ -17,27 +17,40 @@ pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Format of chunk-id targets: entry id + 1, 0 for the background.
 pub const ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
 
-/// Offscreen colour, id and depth textures of one size.
+/// Offscreen colour, id and depth textures of one size: one layer for a view,
+/// two (left eye, right eye) for a stereo pair.
 #[derive(Debug)]
 pub struct Capture {
     size: (u32, u32),
     color: wgpu::Texture,
     ids: wgpu::Texture,
-    color_view: wgpu::TextureView,
+    /// Colour and depth views of each layer alone.
+    layers: Vec<(wgpu::TextureView, wgpu::TextureView)>,
     ids_view: wgpu::TextureView,
-    depth_view: wgpu::TextureView,
+    /// Colour and depth views of both layers, for the multiview pass (stereo only).
+    array: Option<(wgpu::TextureView, wgpu::TextureView)>,
 }
 
 impl Capture {
-    /// Targets of `size` pixels.
+    /// Targets of `size` pixels for one view.
     pub fn new(device: &wgpu::Device, size: (u32, u32)) -> Self {
-        let texture = |label, format| {
+        Self::with_layers(device, size, 1)
+    }
+
+    /// Targets of `size` pixels for a stereo pair: colour and depth of two
+    /// layers, layer 0 the left eye ([`crate::Renderer::render_stereo`]).
+    pub fn stereo(device: &wgpu::Device, size: (u32, u32)) -> Self {
+        Self::with_layers(device, size, 2)
+    }
+
+    fn with_layers(device: &wgpu::Device, size: (u32, u32), layers: u32) -> Self {
+        let texture = |label, format, layers| {
             device.create_texture(&wgpu::TextureDescriptor {
                 label: Some(label),
                 size: wgpu::Extent3d {
                     width: size.0,
                     height: size.1,
-                    depth_or_array_layers: 1,
+                    depth_or_array_layers: layers,
                 },
                 mip_level_count: 1,
                 sample_count: 1,
@@ -47,14 +60,32 @@ impl Capture {
                 view_formats: &[],
             })
         };
-        let color = texture("dmu capture colour", CAPTURE_FORMAT);
-        let ids = texture("dmu capture ids", ID_FORMAT);
-        let depth = texture("dmu capture depth", DEPTH_FORMAT);
+        let color = texture("dmu capture colour", CAPTURE_FORMAT, layers);
+        // The id oracle is a single-view operation.
+        let ids = texture("dmu capture ids", ID_FORMAT, 1);
+        let depth = texture("dmu capture depth", DEPTH_FORMAT, layers);
+        let view = |t: &wgpu::Texture, dimension, base_array_layer, array_layer_count| {
+            t.create_view(&wgpu::TextureViewDescriptor {
+                dimension: Some(dimension),
+                base_array_layer,
+                array_layer_count: Some(array_layer_count),
+                ..Default::default()
+            })
+        };
+        let d2 = wgpu::TextureViewDimension::D2;
+        let array = wgpu::TextureViewDimension::D2Array;
         Self {
             size,
-            color_view: color.create_view(&wgpu::TextureViewDescriptor::default()),
-            ids_view: ids.create_view(&wgpu::TextureViewDescriptor::default()),
-            depth_view: depth.create_view(&wgpu::TextureViewDescriptor::default()),
+            layers: (0..layers)
+                .map(|l| (view(&color, d2, l, 1), view(&depth, d2, l, 1)))
+                .collect(),
+            ids_view: view(&ids, d2, 0, 1),
+            array: (layers > 1).then(|| {
+                (
+                    view(&color, array, 0, layers),
+                    view(&depth, array, 0, layers),
+                )
+            }),
             color,
             ids,
         }
@@ -65,11 +96,30 @@ impl Capture {
         self.size
     }
 
-    /// The colour and depth views to render a frame into.
+    /// The colour and depth views to render a frame into (layer 0 of a stereo
+    /// capture).
     pub fn frame_target(&self) -> crate::FrameTarget<'_> {
-        crate::FrameTarget {
-            color: &self.color_view,
-            depth: &self.depth_view,
+        self.layer_target(0)
+    }
+
+    fn layer_target(&self, layer: usize) -> crate::FrameTarget<'_> {
+        let (color, depth) = &self.layers[layer];
+        crate::FrameTarget { color, depth }
+    }
+
+    /// The views to render a stereo pair into.
+    ///
+    /// # Panics
+    /// When the capture was not made by [`Capture::stereo`].
+    pub fn stereo_target(&self) -> crate::StereoTarget<'_> {
+        let (color, depth) = self
+            .array
+            .as_ref()
+            .expect("stereo_target needs a capture made by Capture::stereo");
+        crate::StereoTarget {
+            color,
+            depth,
+            eyes: [self.layer_target(0), self.layer_target(1)],
         }
     }
 
@@ -77,17 +127,36 @@ impl Capture {
     pub fn id_target(&self) -> crate::FrameTarget<'_> {
         crate::FrameTarget {
             color: &self.ids_view,
-            depth: &self.depth_view,
+            depth: &self.layers[0].1,
         }
     }
 
-    /// The colour image (RGBA8, sRGB).
+    /// The colour image (RGBA8, sRGB); layer 0 of a stereo capture.
     pub fn read_color(
         &self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
     ) -> Result<image::RgbaImage, RenderError> {
-        let bytes = read_texture(device, queue, &self.color, self.size, "colour image")?;
+        self.read_color_layer(device, queue, 0)
+    }
+
+    /// The colour image of one layer (0: left eye, 1: right eye of a stereo
+    /// capture).
+    ///
+    /// # Panics
+    /// When the capture has no such layer.
+    pub fn read_color_layer(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        layer: u32,
+    ) -> Result<image::RgbaImage, RenderError> {
+        assert!(
+            (layer as usize) < self.layers.len(),
+            "layer {layer} of a {}-layer capture",
+            self.layers.len()
+        );
+        let bytes = read_texture(device, queue, &self.color, self.size, layer, "colour image")?;
         Ok(image::RgbaImage::from_raw(self.size.0, self.size.1, bytes)
             .expect("readback has width * height * 4 bytes"))
     }
@@ -98,7 +167,7 @@ impl Capture {
         device: &wgpu::Device,
         queue: &wgpu::Queue,
     ) -> Result<IdImage, RenderError> {
-        let bytes = read_texture(device, queue, &self.ids, self.size, "id image")?;
+        let bytes = read_texture(device, queue, &self.ids, self.size, 0, "id image")?;
         Ok(IdImage {
             size: self.size,
             ids: bytemuck::pod_collect_to_vec(&bytes),
@@ -139,12 +208,13 @@ pub fn save_png(image: &image::RgbaImage, path: &Path) -> Result<(), RenderError
     })
 }
 
-/// Copies a 4-byte-per-texel texture to tightly packed rows.
-fn read_texture(
+/// Copies one layer of a 4-byte-per-texel texture to tightly packed rows.
+pub(crate) fn read_texture(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     texture: &wgpu::Texture,
     size: (u32, u32),
+    layer: u32,
     what: &'static str,
 ) -> Result<Vec<u8>, RenderError> {
     let row = size.0 * 4;
@@ -161,7 +231,11 @@ fn read_texture(
         wgpu::TexelCopyTextureInfo {
             texture,
             mip_level: 0,
-            origin: wgpu::Origin3d::ZERO,
+            origin: wgpu::Origin3d {
+                x: 0,
+                y: 0,
+                z: layer,
+            },
             aspect: wgpu::TextureAspect::All,
         },
         wgpu::TexelCopyBufferInfo {

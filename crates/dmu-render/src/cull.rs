@@ -13,72 +13,110 @@ use crate::capture::{Capture, IdImage};
 use crate::geometry::GeometrySource;
 use crate::gpu::QueryBox;
 use crate::hierarchy::{Hierarchy, NodeKind};
-use crate::renderer::{Draw, FrameTarget, Renderer, RoundResult, Shading};
+use crate::renderer::{Draw, FrameTarget, Renderer, RoundResult, RoundTarget, Shading};
+use crate::stereo::StereoCamera;
 use crate::view::{Culling, EntryState, FrameStats, View};
 
-/// Per-frame culling context of one view.
+/// Per-frame culling context of one view, or of a stereo pair culled once.
 struct Cull {
+    /// The eye, or the midpoint of a stereo pair's eyes.
     eye: DVec3,
+    /// Every eye lies within this distance of `eye` (half the interpupillary
+    /// distance; 0 for a single view).
+    eye_spread: f64,
+    /// The view's frustum, or one enclosing both eyes' frusta.
     frustum: Frustum,
-    view_matrix: DAffine3,
+    /// World to view of each eye; the first `eye_count` are used.
+    eye_views: [DAffine3; 2],
+    eye_count: usize,
     /// Pixels per unit of `radius / distance`.
     pixel_scale: f64,
     min_pixels: f64,
-    /// How far the near plane's corners reach from the eye.
+    /// How far the near plane's corners reach from an eye.
     near_reach: f64,
 }
 
 impl Cull {
-    fn new(view: &View) -> Self {
+    /// The context of `view`'s camera, or with `ipd` of the stereo pair around it.
+    fn new(view: &View, ipd: Option<f64>) -> Self {
         let c = &view.camera;
         let t = (c.fov_y_rad * 0.5).tan();
         let a = view.aspect();
+        let eye_view = |c: &crate::Camera| DAffine3::from_mat4(c.view_matrix());
+        let (frustum, eye_views, eye_count, eye_spread) = match ipd {
+            None => (c.frustum(a), [eye_view(c); 2], 1, 0.0),
+            Some(ipd) => {
+                let stereo = StereoCamera { center: *c, ipd };
+                let eyes = stereo.eyes();
+                (
+                    stereo.enclosing_frustum(a),
+                    [eye_view(&eyes[0]), eye_view(&eyes[1])],
+                    2,
+                    0.5 * ipd,
+                )
+            }
+        };
         Self {
             eye: c.eye,
-            frustum: c.frustum(a),
-            view_matrix: DAffine3::from_mat4(c.view_matrix()),
+            eye_spread,
+            frustum,
+            eye_views,
+            eye_count,
             pixel_scale: f64::from(view.size.1) / t,
             min_pixels: view.options.min_pixels,
             near_reach: c.near * (1.0 + t * t * (1.0 + a * a)).sqrt(),
         }
     }
 
-    /// Bounding-sphere coverage below the knob (never when the eye is inside).
+    /// World to view of each eye.
+    fn eye_views(&self) -> &[DAffine3] {
+        &self.eye_views[..self.eye_count]
+    }
+
+    /// Bounding-sphere coverage below the knob from the nearest eye (never
+    /// when an eye may be inside).
     fn too_small(&self, b: &Aabb3d) -> bool {
         if self.min_pixels <= 0.0 {
             return false;
         }
         let r = b.extent().length() * 0.5;
-        let d = (b.center() - self.eye).length();
+        let d = (b.center() - self.eye).length() - self.eye_spread;
         d > r && r / d * self.pixel_scale < self.min_pixels
     }
 
     /// Rounding between the f64 boxes and the f32 geometry: queried boxes grow
     /// by this so that a box never hides behind the geometry it encloses.
     fn margin(&self, b: &Aabb3d) -> f64 {
-        1e-5 * ((b.center() - self.eye).length() + b.extent().length())
+        1e-5 * ((b.center() - self.eye).length() + self.eye_spread + b.extent().length())
     }
 
-    /// True when the near plane may cut the box: its query would be wrong, so
-    /// the node counts as visible without one.
+    /// True when the near plane of an eye may cut the box: its query would be
+    /// wrong, so the node counts as visible without one.
     fn eye_near(&self, b: &Aabb3d) -> bool {
-        b.inflated(self.near_reach + self.margin(b))
+        b.inflated(self.near_reach + self.eye_spread + self.margin(b))
             .contains_point(self.eye)
     }
 
-    /// The box as the query pipeline draws it, in view space.
-    fn query_box(&self, b: &Aabb3d) -> QueryBox {
-        let b = b.inflated(self.margin(b));
-        let c = self.view_matrix.transform_point3(b.center());
-        let h = b.extent() * 0.5;
-        let m = self.view_matrix.matrix3;
+    /// The boxes as the query pipeline draws them, in each eye's view space:
+    /// all of the first eye's, then all of the second's.
+    fn query_boxes(&self, bounds: &[Aabb3d]) -> Vec<QueryBox> {
         let v = |d: DVec3| [d.x as f32, d.y as f32, d.z as f32, 0.0];
-        QueryBox {
-            center: v(c),
-            axis_x: v(m.x_axis * h.x),
-            axis_y: v(m.y_axis * h.y),
-            axis_z: v(m.z_axis * h.z),
+        let mut boxes = Vec::with_capacity(bounds.len() * self.eye_count);
+        for view_matrix in self.eye_views() {
+            boxes.extend(bounds.iter().map(|b| {
+                let b = b.inflated(self.margin(b));
+                let c = view_matrix.transform_point3(b.center());
+                let h = b.extent() * 0.5;
+                let m = view_matrix.matrix3;
+                QueryBox {
+                    center: v(c),
+                    axis_x: v(m.x_axis * h.x),
+                    axis_y: v(m.y_axis * h.y),
+                    axis_z: v(m.z_axis * h.z),
+                }
+            }));
         }
+        boxes
     }
 }
 
@@ -113,6 +151,27 @@ impl Renderer {
         geometry: &dyn GeometrySource,
         target: FrameTarget<'_>,
     ) -> Result<FrameStats, RenderError> {
+        self.render_frame(
+            view,
+            None,
+            scene,
+            tree,
+            geometry,
+            RoundTarget::single(target),
+        )
+    }
+
+    /// A frame of `view`, or with `ipd` of the stereo pair around its camera
+    /// (culled once, drawn in one multiview pass).
+    pub(crate) fn render_frame(
+        &mut self,
+        view: &mut View,
+        ipd: Option<f64>,
+        scene: &Scene,
+        tree: &Tree,
+        geometry: &dyn GeometrySource,
+        target: RoundTarget<'_>,
+    ) -> Result<FrameStats, RenderError> {
         let start = Instant::now();
         view.frame += 1;
         self.hierarchy.sync(tree);
@@ -123,7 +182,7 @@ impl Renderer {
             frame: view.frame,
             ..FrameStats::default()
         };
-        let cull = Cull::new(view);
+        let cull = Cull::new(view, ipd);
         let cell_distance = self.cell_distances(cull.eye);
         let use_queries = view.culling == Culling::Occlusion && view.decision.enabled;
         let mut gpu = view.gpu.take();
@@ -131,7 +190,7 @@ impl Renderer {
             &mut gpu,
             scene,
             view.camera.projection(view.aspect()),
-            cull.view_matrix,
+            cull.eye_views(),
         );
         let mut gpu_state = gpu.expect("prepared");
         view.drawn.clear();
@@ -196,7 +255,7 @@ impl Renderer {
         self.hierarchy.sync(tree);
         let cull = Cull {
             min_pixels: 0.0,
-            ..Cull::new(view)
+            ..Cull::new(view, None)
         };
         let cell_distance = self.cell_distances(cull.eye);
         let mut gpu = view.gpu.take();
@@ -204,7 +263,7 @@ impl Renderer {
             &mut gpu,
             scene,
             view.camera.projection(view.aspect()),
-            cull.view_matrix,
+            cull.eye_views(),
         );
         let mut gpu_state = gpu.expect("prepared");
         let mut scratch = FrameStats::default();
@@ -212,7 +271,7 @@ impl Renderer {
         sort_draws(&self.hierarchy, &cell_distance, &mut draws);
         let result = self.run_round(
             &mut gpu_state,
-            capture.id_target(),
+            RoundTarget::single(capture.id_target()),
             Shading::Ids,
             true,
             geometry,
@@ -314,7 +373,7 @@ impl Renderer {
         scene: &Scene,
         tree: &Tree,
         geometry: &dyn GeometrySource,
-        target: FrameTarget<'_>,
+        target: RoundTarget<'_>,
         cull: &Cull,
         cell_distance: &[f64],
         stats: &mut FrameStats,
@@ -372,14 +431,29 @@ impl Renderer {
         let expand_levels = view.options.expand_levels.max(1);
         let max_rounds = view.options.max_rounds.max(1);
         let mut result = Ok(());
+        // Chunk instances re-checked while drawn: by their geometry's queries,
+        // or, in a multiview pass, which carries none, by their boxes after it.
+        let mut checked: Vec<u32> = Vec::new();
+        let mut bounds: Vec<Aabb3d> = Vec::new();
         for round in 0..max_rounds {
             let mut draws = std::mem::take(&mut walk.draws);
             let queries = std::mem::take(&mut walk.queries);
             sort_draws(&h, cell_distance, &mut draws);
-            let boxes: Vec<QueryBox> = queries
-                .iter()
-                .map(|&n| cull.query_box(&h.nodes[n as usize].bounds))
-                .collect();
+            checked.clear();
+            checked.extend(draws.iter().filter(|d| d.query).map(|d| d.entry));
+            bounds.clear();
+            bounds.extend(queries.iter().map(|&n| h.nodes[n as usize].bounds));
+            if target.is_multiview() {
+                for d in &mut draws {
+                    d.query = false;
+                }
+                bounds.extend(
+                    checked
+                        .iter()
+                        .map(|&e| h.nodes[h.entry_node[e as usize] as usize].bounds),
+                );
+            }
+            let boxes = cull.query_boxes(&bounds);
             let r = match self.run_round(
                 gpu,
                 target,
@@ -400,17 +474,22 @@ impl Renderer {
             walk.stats.rounds = round + 1;
             walk.stats.queries += (r.draw_samples.len() + r.box_samples.len()) as u64;
             view.drawn.extend(draws.iter().map(|d| d.entry));
-            let mut samples = r.draw_samples.iter();
-            for d in draws.iter().filter(|d| d.query) {
-                let state = &mut view.entries[d.entry as usize];
-                if *samples.next().expect("one result per query") > 0 {
+            let (box_samples, check_samples) = if target.is_multiview() {
+                r.box_samples.split_at(queries.len())
+            } else {
+                (&r.box_samples[..], &r.draw_samples[..])
+            };
+            assert_eq!(check_samples.len(), checked.len(), "one result per query");
+            for (&e, &s) in checked.iter().zip(check_samples) {
+                if s > 0 {
+                    let state = &mut view.entries[e as usize];
                     walk.stats.queries_visible += 1;
                     state.visible_frame = frame;
-                    state.requery_frame = schedule(d.entry);
+                    state.requery_frame = schedule(e);
                 }
             }
             let last = round + 1 == max_rounds;
-            for (&n, &s) in queries.iter().zip(&r.box_samples) {
+            for (&n, &s) in queries.iter().zip(box_samples) {
                 let kind = h.nodes[n as usize].kind;
                 if s == 0 {
                     // Chunk instances were counted when admitted; inner nodes

@@ -3,7 +3,7 @@
 use crate::RenderError;
 
 /// A device and queue with no surface, with the optional features the renderer
-/// uses (timestamp queries) when the adapter has them. Honours `WGPU_BACKEND`
+/// uses (timestamp queries, multiview for stereo) when the adapter has them. Honours `WGPU_BACKEND`
 /// and the other `wgpu` environment variables.
 pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, wgpu::AdapterInfo), RenderError> {
     let instance =
@@ -17,7 +17,8 @@ pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, wgpu::AdapterInfo
         reason: e.to_string(),
     })?;
     let info = adapter.get_info();
-    let required_features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
+    let required_features =
+        adapter.features() & (wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::MULTIVIEW);
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("dmu headless"),
         required_features,

@@ -19,6 +19,12 @@ pub enum RenderError {
         /// The backend's message.
         reason: String,
     },
+    /// The device lacks a feature the call needs (multiview for stereo, say).
+    #[error("the device does not support {feature}")]
+    Unsupported {
+        /// The missing feature.
+        feature: &'static str,
+    },
     /// Reading a buffer back failed (device lost, typically).
     #[error("reading back {what}: {reason}")]
     Readback {

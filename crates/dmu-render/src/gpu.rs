@@ -3,19 +3,33 @@
 
 use bytemuck::{Pod, Zeroable};
 
-/// The WGSL source of every pipeline.
+/// The WGSL source of every single-view pipeline.
 pub(crate) const SHADER: &str = include_str!("../../../shaders/mesh.wgsl");
+/// The WGSL source of the multiview pipeline: `mesh.wgsl` plus the entry point
+/// that reads `view_index`, which only validates on devices with multiview.
+pub(crate) const STEREO_SHADER: &str = concat!(
+    include_str!("../../../shaders/mesh.wgsl"),
+    include_str!("../../../shaders/stereo.wgsl")
+);
 
-/// `ViewUniform`: projection and highlight colour of one view.
+/// `ViewUniform`: projection and highlight colour of one view, and which eye's
+/// model-views the single-view pipelines read (a stereo pair drawn a layer at a
+/// time binds one per eye).
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 #[repr(C)]
 pub(crate) struct ViewUniform {
-    /// View to clip, column-major, reverse-Z.
+    /// View to clip, column-major, reverse-Z (every eye of a view shares it).
     pub proj: [[f32; 4]; 4],
     /// Selection colour (rgb) and how much of it is mixed in (a).
     pub highlight: [f32; 4],
+    /// Model-views per eye: eye `k`'s start at `k * eye_stride` (the part count).
+    pub eye_stride: u32,
+    /// The eye single-view pipelines draw (0 for a view).
+    pub eye: u32,
+    /// WGSL rounds the struct up to 16 bytes.
+    pub _pad: [u32; 2],
 }
-const _: () = assert!(size_of::<ViewUniform>() == 80);
+const _: () = assert!(size_of::<ViewUniform>() == 96);
 
 /// `ModelView`: rows of a part's camera-relative affine model-view, formed in
 /// f64 and narrowed to f32 only once small.
@@ -59,21 +73,46 @@ pub(crate) const PART_SELECTED: u32 = 1;
 
 #[cfg(test)]
 mod tests {
-    /// The shader parses and validates with naga, as every backend will see it.
+    use naga::valid::{Capabilities, ValidationFlags, Validator};
+
+    /// Parses and validates `source` with `capabilities`; its entry point names.
+    fn validate(source: &str, capabilities: Capabilities) -> Vec<String> {
+        let module = naga::front::wgsl::parse_str(source).expect("WGSL parses");
+        Validator::new(ValidationFlags::all(), capabilities)
+            .validate(&module)
+            .expect("WGSL validates");
+        module.entry_points.iter().map(|e| e.name.clone()).collect()
+    }
+
+    /// The single-view shader validates with naga without multiview, as a
+    /// device without it will see it.
     #[test]
     fn shader_validates_with_naga() {
-        let module = naga::front::wgsl::parse_str(super::SHADER).expect("WGSL parses");
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::all(),
-        )
-        .validate(&module)
-        .expect("WGSL validates");
+        let entries = validate(super::SHADER, Capabilities::empty());
         for entry in ["vs_mesh", "fs_shade", "fs_id", "vs_box", "fs_box"] {
             assert!(
-                module.entry_points.iter().any(|e| e.name == entry),
+                entries.iter().any(|e| e == entry),
                 "missing entry point {entry}"
             );
         }
+    }
+
+    /// The stereo shader validates with multiview, and only with it.
+    #[test]
+    fn stereo_shader_validates_with_multiview() {
+        let entries = validate(super::STEREO_SHADER, Capabilities::MULTIVIEW);
+        for entry in ["vs_mesh_stereo", "vs_probe", "fs_probe"] {
+            assert!(
+                entries.iter().any(|e| e == entry),
+                "missing entry point {entry}"
+            );
+        }
+        let module = naga::front::wgsl::parse_str(super::STEREO_SHADER).expect("WGSL parses");
+        assert!(
+            Validator::new(ValidationFlags::all(), Capabilities::empty())
+                .validate(&module)
+                .is_err(),
+            "view_index must need the multiview capability"
+        );
     }
 }

@@ -29,6 +29,16 @@
 //!   queries go in one render pass (a Mesa 22 lavapipe bug past ~536). Each view
 //!   measures what queries cost against what they save and switches them off
 //!   where they do not pay ([`OcclusionDecision`]).
+//! - A stereo pair ([`StereoView`]) is culled once, against a frustum enclosing
+//!   both eyes, with one visibility state, and drawn in one multiview pass into
+//!   a 2-layer target ([`Renderer::render_stereo`]). Each eye's model-views are
+//!   formed in f64 as a single view of that eye forms them, so each layer equals
+//!   that eye's single-view image. Occlusion queries run per eye in
+//!   single-layer passes (a sample in either eye counts): a query in a Vulkan
+//!   multiview pass takes one slot per view, which wgpu does not account for.
+//!   Where multiview is missing or draws wrongly (checked once by a probe; Mesa
+//!   22.3's lavapipe misplaces near-clipped triangles of the second view), each
+//!   layer gets passes of its own from the same culling ([`StereoMode`]).
 //!
 //! Conventions: right-handed world, model units, f64 world and f32 local as in
 //! `dmu-geom`; cameras look down -Z; reverse-Z depth (Depth32Float cleared to 0,
@@ -69,6 +79,7 @@ mod geometry;
 mod gpu;
 mod hierarchy;
 mod renderer;
+mod stereo;
 mod view;
 
 pub use capture::{CAPTURE_FORMAT, Capture, DEPTH_FORMAT, ID_FORMAT, IdImage, save_png};
@@ -76,5 +87,6 @@ pub use device::headless_device;
 pub use error::RenderError;
 pub use geometry::{ChunkGeometry, GeometryPool, GeometrySource};
 pub use renderer::{FrameTarget, Renderer, RendererOptions};
+pub use stereo::{StereoCamera, StereoMode, StereoTarget, StereoView};
 pub use view::{Camera, Culling, CullingOptions, FrameStats, OcclusionDecision, View};
 pub use wgpu;

@@ -1,6 +1,9 @@
 //! The renderer: pipelines, shared buffers, per-view GPU state, and one round
 //! of drawing and querying.
 
+use std::num::NonZeroU32;
+use std::ops::Range;
+
 use dmu_scene::{PartId, Scene};
 use dmu_tree::Tree;
 
@@ -8,7 +11,9 @@ use crate::RenderError;
 use crate::capture::{DEPTH_FORMAT, ID_FORMAT};
 use crate::device::map_read;
 use crate::geometry::{GeometryPool, GeometrySource, PoolVertex};
-use crate::gpu::{EntryGpu, ModelView, PART_SELECTED, QueryBox, SHADER, ViewUniform};
+use crate::gpu::{
+    EntryGpu, ModelView, PART_SELECTED, QueryBox, SHADER, STEREO_SHADER, ViewUniform,
+};
 use crate::hierarchy::Hierarchy;
 
 /// The lavapipe bug in Mesa 22.3 returns wrong counts past about 536 occlusion
@@ -16,6 +21,8 @@ use crate::hierarchy::Hierarchy;
 pub(crate) const QUERIES_PER_PASS: u32 = 512;
 /// Passes per frame whose GPU time is measured.
 const TIMED_PASSES: u32 = 64;
+/// The layers a stereo pair's multiview pass draws: left eye 0, right eye 1.
+const STEREO_VIEWS: NonZeroU32 = NonZeroU32::new(0b11).expect("non-zero");
 
 /// Where a frame goes: a colour view (of the renderer's colour format, or
 /// [`crate::ID_FORMAT`] for the oracle) and a [`crate::DEPTH_FORMAT`] view of
@@ -26,6 +33,112 @@ pub struct FrameTarget<'a> {
     pub color: &'a wgpu::TextureView,
     /// Depth attachment.
     pub depth: &'a wgpu::TextureView,
+}
+
+/// Where a round draws: a view's target, or the layers of a stereo pair.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RoundTarget<'a> {
+    /// Every layer at once: a view's target, or a stereo pair's array views.
+    all: FrameTarget<'a>,
+    /// Each eye's layer alone; empty for a single view.
+    eyes: &'a [FrameTarget<'a>],
+    /// A stereo pair's geometry goes to both layers in one multiview pass
+    /// (else one pass per layer).
+    multiview: bool,
+}
+
+impl<'a> RoundTarget<'a> {
+    /// A single view's target.
+    pub fn single(target: FrameTarget<'a>) -> Self {
+        Self {
+            all: target,
+            eyes: &[],
+            multiview: false,
+        }
+    }
+
+    /// A stereo pair's target, drawn with multiview or a pass per layer.
+    pub fn stereo(target: &'a crate::StereoTarget<'a>, multiview: bool) -> Self {
+        Self {
+            all: FrameTarget {
+                color: target.color,
+                depth: target.depth,
+            },
+            eyes: &target.eyes,
+            multiview,
+        }
+    }
+
+    /// True when geometry is drawn into every layer by one multiview pass,
+    /// which carries no occlusion queries.
+    pub fn is_multiview(&self) -> bool {
+        self.multiview
+    }
+
+    /// Eyes: 1 for a single view, 2 for a stereo pair.
+    pub fn eye_count(&self) -> usize {
+        self.eyes.len().max(1)
+    }
+
+    /// The round's passes ([`plan_passes`]).
+    fn plan(&self, queried: &[bool], per_eye: usize, clear: bool) -> Vec<Pass> {
+        plan_passes(self.eyes.len(), self.multiview, queried, per_eye, clear)
+    }
+}
+
+/// A round's passes: what each draws and queries, into which layer, for a
+/// single view (`eyes` 0) or a stereo pair drawn with `multiview` or a layer
+/// at a time. `queried` flags the draws wrapped in queries; boxes are
+/// eye-major, `per_eye` per eye. Draws and boxes are split into runs of at
+/// most [`QUERIES_PER_PASS`] queries; with `clear`, the first pass into each
+/// layer clears it.
+fn plan_passes(
+    eyes: usize,
+    multiview: bool,
+    queried: &[bool],
+    per_eye: usize,
+    clear: bool,
+) -> Vec<Pass> {
+    let draws = 0..queried.len();
+    let eye_boxes = |k: usize| k * per_eye..(k + 1) * per_eye;
+    // Segments: (layer, eye of the uniform, draws, boxes, clears).
+    type Segment = (Option<usize>, usize, Range<usize>, Range<usize>, bool);
+    let segments: Vec<Segment> = if eyes == 0 {
+        vec![(None, 0, draws, eye_boxes(0), clear)]
+    } else if multiview {
+        let mut s = vec![(None, 0, draws, 0..0, clear)];
+        s.extend((0..eyes).map(|k| (Some(k), k, 0..0, eye_boxes(k), false)));
+        s
+    } else {
+        (0..eyes)
+            .map(|k| (Some(k), k, draws.clone(), eye_boxes(k), clear))
+            .collect()
+    };
+    let mut passes = Vec::new();
+    for (layer, eye, draws, boxes, clear) in segments {
+        // A segment's items: its draws, then its boxes (one query each).
+        let n = draws.len();
+        let items = n + boxes.len();
+        let needs_query = |i: usize| i >= n || queried[draws.start + i];
+        let (mut start, mut first) = (0, true);
+        while start < items || (first && clear) {
+            let (mut end, mut queries) = (start, 0);
+            while end < items && (queries < QUERIES_PER_PASS || !needs_query(end)) {
+                queries += u32::from(needs_query(end));
+                end += 1;
+            }
+            passes.push(Pass {
+                layer,
+                eye,
+                draws: draws.start + start.min(n)..draws.start + end.min(n),
+                boxes: boxes.start + start.max(n) - n..boxes.start + end.max(n) - n,
+                queries,
+                clear: first && clear,
+            });
+            (start, first) = (end, false);
+        }
+    }
+    passes
 }
 
 /// Settings fixed when the renderer is made.
@@ -39,6 +152,8 @@ pub struct RendererOptions {
     pub highlight: [f32; 4],
     /// Background colour (linear).
     pub clear_color: wgpu::Color,
+    /// How stereo pairs reach their two layers.
+    pub stereo: crate::StereoMode,
 }
 
 impl Default for RendererOptions {
@@ -53,6 +168,7 @@ impl Default for RendererOptions {
                 b: 0.035,
                 a: 1.0,
             },
+            stereo: crate::StereoMode::Auto,
         }
     }
 }
@@ -89,10 +205,12 @@ pub(crate) struct RoundResult {
 /// A view's GPU resources, made on its first frame.
 #[derive(Debug)]
 pub(crate) struct ViewGpu {
+    /// One [`ViewUniform`] per eye, each at a multiple of `uniform_stride`.
     uniform: wgpu::Buffer,
     model_views: wgpu::Buffer,
     boxes: wgpu::Buffer,
-    bind_group: wgpu::BindGroup,
+    /// One per eye: eye `k`'s binds its own uniform.
+    bind_groups: [wgpu::BindGroup; 2],
     query_sets: Vec<wgpu::QuerySet>,
     resolve: wgpu::Buffer,
     readback: wgpu::Buffer,
@@ -113,6 +231,13 @@ pub struct Renderer {
     pub(crate) options: RendererOptions,
     layout: wgpu::BindGroupLayout,
     shade: wgpu::RenderPipeline,
+    /// The multiview shading pipeline; `None` without [`wgpu::Features::MULTIVIEW`]
+    /// or when stereo pairs are drawn a layer at a time.
+    shade_stereo: Option<wgpu::RenderPipeline>,
+    /// How stereo pairs are drawn, resolved from the options.
+    stereo_mode: crate::StereoMode,
+    /// Bytes between the eyes' uniforms (the device's uniform offset alignment).
+    uniform_stride: u64,
     ids: wgpu::RenderPipeline,
     boxes_color: wgpu::RenderPipeline,
     entries: wgpu::Buffer,
@@ -136,10 +261,15 @@ impl Renderer {
         tree: &Tree,
         options: RendererOptions,
     ) -> Self {
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("dmu mesh.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
-        });
+        let shader = |label, source: &str| {
+            device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            })
+        };
+        let module = shader("dmu mesh.wgsl", SHADER);
+        let multiview = device.features().contains(wgpu::Features::MULTIVIEW)
+            && device.limits().max_multiview_view_count >= STEREO_VIEWS.get().count_ones();
         let storage = |binding| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
@@ -180,78 +310,116 @@ impl Renderer {
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Snorm8x4],
         })];
-        let pipeline =
-            |label, vs, buffers: &[Option<wgpu::VertexBufferLayout>], fs, format, write: bool| {
-                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                    label: Some(label),
-                    layout: Some(&pipeline_layout),
-                    vertex: wgpu::VertexState {
-                        module: &module,
-                        entry_point: Some(vs),
-                        compilation_options: Default::default(),
-                        buffers,
-                    },
-                    // CAD windings are unreliable: nothing is culled.
-                    primitive: wgpu::PrimitiveState {
-                        topology: wgpu::PrimitiveTopology::TriangleList,
-                        cull_mode: None,
-                        ..Default::default()
-                    },
-                    depth_stencil: Some(wgpu::DepthStencilState {
-                        format: DEPTH_FORMAT,
-                        depth_write_enabled: Some(write),
-                        // Reverse-Z: nearer is greater. Boxes pass on equality too,
-                        // so a box touching visible geometry counts as visible.
-                        depth_compare: Some(if write {
-                            wgpu::CompareFunction::Greater
+        let pipeline = |label,
+                        module: &wgpu::ShaderModule,
+                        vs,
+                        buffers: &[Option<wgpu::VertexBufferLayout>],
+                        fs,
+                        format,
+                        write: bool,
+                        multiview_mask| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(&pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module,
+                    entry_point: Some(vs),
+                    compilation_options: Default::default(),
+                    buffers,
+                },
+                // CAD windings are unreliable: nothing is culled.
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleList,
+                    cull_mode: None,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(write),
+                    // Reverse-Z: nearer is greater. Boxes pass on equality too,
+                    // so a box touching visible geometry counts as visible.
+                    depth_compare: Some(if write {
+                        wgpu::CompareFunction::Greater
+                    } else {
+                        wgpu::CompareFunction::GreaterEqual
+                    }),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module,
+                    entry_point: Some(fs),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format,
+                        blend: None,
+                        write_mask: if write {
+                            wgpu::ColorWrites::ALL
                         } else {
-                            wgpu::CompareFunction::GreaterEqual
-                        }),
-                        stencil: Default::default(),
-                        bias: Default::default(),
-                    }),
-                    multisample: Default::default(),
-                    fragment: Some(wgpu::FragmentState {
-                        module: &module,
-                        entry_point: Some(fs),
-                        compilation_options: Default::default(),
-                        targets: &[Some(wgpu::ColorTargetState {
-                            format,
-                            blend: None,
-                            write_mask: if write {
-                                wgpu::ColorWrites::ALL
-                            } else {
-                                wgpu::ColorWrites::empty()
-                            },
-                        })],
-                    }),
-                    multiview_mask: None,
-                    cache: None,
-                })
-            };
+                            wgpu::ColorWrites::empty()
+                        },
+                    })],
+                }),
+                multiview_mask,
+                cache: None,
+            })
+        };
         let shade = pipeline(
             "dmu shade",
+            &module,
             "vs_mesh",
             &mesh_buffers,
             "fs_shade",
             options.color_format,
             true,
+            None,
         );
+        // Its own module: one naming `view_index` fails validation without multiview.
+        let stereo_module = (multiview && options.stereo != crate::StereoMode::LayerPasses)
+            .then(|| shader("dmu mesh.wgsl + stereo.wgsl", STEREO_SHADER));
+        let shade_stereo = stereo_module.as_ref().map(|module| {
+            pipeline(
+                "dmu shade stereo",
+                module,
+                "vs_mesh_stereo",
+                &mesh_buffers,
+                "fs_shade",
+                options.color_format,
+                true,
+                Some(STEREO_VIEWS),
+            )
+        });
+        let stereo_mode = match (options.stereo, &stereo_module) {
+            (crate::StereoMode::Auto, Some(module))
+                if crate::stereo::multiview_clips_correctly(device, queue, module) =>
+            {
+                crate::StereoMode::Multiview
+            }
+            (crate::StereoMode::Auto, _) => crate::StereoMode::LayerPasses,
+            (mode, _) => mode,
+        };
         let ids = pipeline(
             "dmu ids",
+            &module,
             "vs_mesh",
             &mesh_buffers,
             "fs_id",
             ID_FORMAT,
             true,
+            None,
         );
+        // Stereo pairs query each eye's layer in a pass of its own (see
+        // `run_round`), so the box pipeline is single-view only.
         let boxes_color = pipeline(
             "dmu query boxes",
+            &module,
             "vs_box",
             &[],
             "fs_box",
             options.color_format,
             false,
+            None,
         );
 
         let storage_buffer = |label, contents: &[u8]| {
@@ -284,6 +452,11 @@ impl Renderer {
             options,
             layout,
             shade,
+            shade_stereo: shade_stereo.filter(|_| stereo_mode == crate::StereoMode::Multiview),
+            stereo_mode,
+            uniform_stride: size_of::<ViewUniform>()
+                .next_multiple_of(device.limits().min_uniform_buffer_offset_alignment as usize)
+                as u64,
             ids,
             boxes_color,
             pool: GeometryPool::new(scene.chunks().len(), options.page_bytes),
@@ -316,52 +489,85 @@ impl Renderer {
         &mut self.pool
     }
 
+    /// How stereo pairs are drawn: [`crate::StereoMode::Multiview`] or
+    /// [`crate::StereoMode::LayerPasses`] (`Auto` resolved when the renderer
+    /// was made).
+    pub fn stereo_mode(&self) -> crate::StereoMode {
+        self.stereo_mode
+    }
+
+    /// Whether [`Renderer::render_stereo`] can draw: multiview was asked for
+    /// on a device without it.
+    pub(crate) fn stereo_unsupported(&self) -> bool {
+        self.stereo_mode == crate::StereoMode::Multiview && self.shade_stereo.is_none()
+    }
+
     /// Whether GPU times in the stats come from timestamp queries.
     pub fn has_timestamps(&self) -> bool {
         self.timestamp_period_ns.is_some()
     }
 
     /// Makes or grows a view's GPU resources and uploads its per-frame data:
-    /// the projection and every part's camera-relative model-view.
+    /// the projection and every part's camera-relative model-view for each eye
+    /// (one view matrix per eye: one for a view, two for a stereo pair).
     pub(crate) fn prepare_view(
         &self,
         gpu: &mut Option<ViewGpu>,
         scene: &Scene,
         proj: glam::DMat4,
-        view_matrix: glam::DAffine3,
+        eye_views: &[glam::DAffine3],
     ) {
-        let g = gpu.get_or_insert_with(|| self.make_view_gpu(scene.parts().len().max(1)));
-        let uniform = ViewUniform {
-            proj: proj.as_mat4().to_cols_array_2d(),
-            highlight: self.options.highlight,
-        };
-        self.queue
-            .write_buffer(&g.uniform, 0, bytemuck::bytes_of(&uniform));
-        // Formed in f64: the view's large translation cancels the part's before
-        // anything is rounded to f32, so far-from-origin models stay exact.
-        g.staging.clear();
-        g.staging.extend(scene.part_ids().map(|p| {
-            let m = view_matrix * scene.part_world(p);
-            let (a, t) = (m.matrix3, m.translation);
-            let row = |i: usize| {
-                [
-                    a.x_axis[i] as f32,
-                    a.y_axis[i] as f32,
-                    a.z_axis[i] as f32,
-                    t[i] as f32,
-                ]
+        let parts = scene.parts().len();
+        let g = gpu.get_or_insert_with(|| self.make_view_gpu(parts.max(1) * eye_views.len()));
+        self.ensure_capacity(g, parts * eye_views.len(), 0);
+        for eye in 0..eye_views.len() {
+            let uniform = ViewUniform {
+                proj: proj.as_mat4().to_cols_array_2d(),
+                highlight: self.options.highlight,
+                eye_stride: parts as u32,
+                eye: eye as u32,
+                _pad: [0; 2],
             };
-            ModelView {
-                rows: [row(0), row(1), row(2)],
-            }
-        }));
+            self.queue.write_buffer(
+                &g.uniform,
+                eye as u64 * self.uniform_stride,
+                bytemuck::bytes_of(&uniform),
+            );
+        }
+        // Formed in f64 for each eye: the eye's large translation cancels the
+        // part's before anything is rounded to f32, so far-from-origin models
+        // stay exact, and a stereo eye gets what a single view from there gets.
+        g.staging.clear();
+        g.staging.extend(
+            eye_views
+                .iter()
+                .flat_map(|&view_matrix| {
+                    scene
+                        .part_ids()
+                        .map(move |p| view_matrix * scene.part_world(p))
+                })
+                .map(|m| {
+                    let (a, t) = (m.matrix3, m.translation);
+                    let row = |i: usize| {
+                        [
+                            a.x_axis[i] as f32,
+                            a.y_axis[i] as f32,
+                            a.z_axis[i] as f32,
+                            t[i] as f32,
+                        ]
+                    };
+                    ModelView {
+                        rows: [row(0), row(1), row(2)],
+                    }
+                }),
+        );
         if !g.staging.is_empty() {
             self.queue
                 .write_buffer(&g.model_views, 0, bytemuck::cast_slice(&g.staging));
         }
     }
 
-    fn make_view_gpu(&self, parts: usize) -> ViewGpu {
+    fn make_view_gpu(&self, model_views: usize) -> ViewGpu {
         let buffer = |label, size: u64, usage| {
             self.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -386,13 +592,13 @@ impl Renderer {
             )
         });
         let uniform = buffer(
-            "dmu view uniform",
-            size_of::<ViewUniform>() as u64,
+            "dmu view uniforms",
+            self.uniform_stride + size_of::<ViewUniform>() as u64,
             wgpu::BufferUsages::UNIFORM | copy_dst,
         );
         let model_views = buffer(
             "dmu model-views",
-            (parts * size_of::<ModelView>()) as u64,
+            (model_views * size_of::<ModelView>()) as u64,
             wgpu::BufferUsages::STORAGE | copy_dst,
         );
         let boxes = buffer(
@@ -400,12 +606,12 @@ impl Renderer {
             64 * size_of::<QueryBox>() as u64,
             wgpu::BufferUsages::STORAGE | copy_dst,
         );
-        let bind_group = self.bind_group(&uniform, &model_views, &boxes);
+        let bind_groups = self.bind_groups(&uniform, &model_views, &boxes);
         ViewGpu {
             uniform,
             model_views,
             boxes,
-            bind_group,
+            bind_groups,
             query_sets: Vec::new(),
             resolve: buffer("dmu query resolve", 8, resolve_usage),
             readback: buffer("dmu query readback", 8, read_usage),
@@ -414,50 +620,83 @@ impl Renderer {
         }
     }
 
-    fn bind_group(
+    /// A view's bind group for each eye, which differ in the uniform.
+    fn bind_groups(
         &self,
         uniform: &wgpu::Buffer,
         model_views: &wgpu::Buffer,
         boxes: &wgpu::Buffer,
-    ) -> wgpu::BindGroup {
+    ) -> [wgpu::BindGroup; 2] {
         fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
             wgpu::BindGroupEntry {
                 binding,
                 resource: buffer.as_entire_binding(),
             }
         }
-        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("dmu view"),
-            layout: &self.layout,
-            entries: &[
-                entry(0, uniform),
-                entry(1, model_views),
-                entry(2, &self.entries),
-                entry(3, &self.part_flags_buffer),
-                entry(4, &self.materials),
-                entry(5, boxes),
-            ],
+        [0, 1].map(|eye| {
+            self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("dmu view"),
+                layout: &self.layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: uniform,
+                            offset: eye * self.uniform_stride,
+                            size: wgpu::BufferSize::new(size_of::<ViewUniform>() as u64),
+                        }),
+                    },
+                    entry(1, model_views),
+                    entry(2, &self.entries),
+                    entry(3, &self.part_flags_buffer),
+                    entry(4, &self.materials),
+                    entry(5, boxes),
+                ],
+            })
         })
     }
 
-    /// Grows a view's box buffer (and so its bind group) to hold `count` boxes.
-    fn ensure_box_capacity(&self, gpu: &mut ViewGpu, count: usize) {
-        let need = (count * size_of::<QueryBox>()) as u64;
-        if gpu.boxes.size() >= need {
-            return;
+    /// Grows a view's model-view and box buffers (and so its bind group) to
+    /// hold `model_views` model-views and `boxes` boxes.
+    fn ensure_capacity(&self, gpu: &mut ViewGpu, model_views: usize, boxes: usize) {
+        let grow = |buffer: &mut wgpu::Buffer, label, need: usize| {
+            let need = need as u64;
+            if buffer.size() >= need {
+                return false;
+            }
+            *buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: need.max(2 * buffer.size()),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            true
+        };
+        let grown = grow(
+            &mut gpu.model_views,
+            "dmu model-views",
+            model_views * size_of::<ModelView>(),
+        ) | grow(
+            &mut gpu.boxes,
+            "dmu query boxes",
+            boxes * size_of::<QueryBox>(),
+        );
+        if grown {
+            gpu.bind_groups = self.bind_groups(&gpu.uniform, &gpu.model_views, &gpu.boxes);
         }
-        gpu.boxes = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("dmu query boxes"),
-            size: need.max(2 * gpu.boxes.size()),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        gpu.bind_group = self.bind_group(&gpu.uniform, &gpu.model_views, &gpu.boxes);
     }
 
     /// One submission: draws (in the given order, some wrapped in queries), then
     /// box queries against the depth they leave, split into passes of at most
     /// [`QUERIES_PER_PASS`] queries; then waits for the query results.
+    ///
+    /// A stereo pair's `boxes` hold one run per eye (eye-major), and a draw's
+    /// or a box's samples are summed over the eyes. With multiview, geometry
+    /// goes to both layers in one pass and each eye's boxes are queried in a
+    /// pass of that layer alone: Vulkan gives a query in a multiview pass one
+    /// slot per view, which wgpu neither resets nor resolves, so the multiview
+    /// pass carries no queries. Without, each eye's draws and boxes go to its
+    /// layer in passes of their own.
     #[expect(
         clippy::too_many_arguments,
         reason = "one call site per mode; a struct would only rename them"
@@ -465,7 +704,7 @@ impl Renderer {
     pub(crate) fn run_round(
         &mut self,
         gpu: &mut ViewGpu,
-        target: FrameTarget<'_>,
+        target: RoundTarget<'_>,
         shading: Shading,
         clear: bool,
         geometry: &dyn GeometrySource,
@@ -473,13 +712,23 @@ impl Renderer {
         draws: &[Draw],
         boxes: &[QueryBox],
     ) -> Result<RoundResult, RenderError> {
+        assert!(
+            !target.is_multiview() || (shading == Shading::Color && draws.iter().all(|d| !d.query)),
+            "a multiview pass shades and carries no queries"
+        );
+        let eyes = target.eye_count();
+        assert_eq!(boxes.len() % eyes, 0, "one run of boxes per eye");
+        let per_eye = boxes.len() / eyes;
         let mut result = RoundResult::default();
         // Upload what is missing first: recording borrows the pool's buffers.
         self.slots.clear();
         let mut queried = Vec::with_capacity(draws.len());
+        let mut resident = Vec::with_capacity(draws.len());
         for d in draws {
             let chunk = tree.entries()[d.entry as usize].chunk;
-            match self.pool.ensure(&self.device, &self.queue, geometry, chunk) {
+            let slot = self.pool.ensure(&self.device, &self.queue, geometry, chunk);
+            resident.push(slot.is_some());
+            match slot {
                 Some(slot) => {
                     self.slots.push((d.entry, slot));
                     queried.push(d.query);
@@ -490,27 +739,13 @@ impl Renderer {
             }
         }
         if !boxes.is_empty() {
-            self.ensure_box_capacity(gpu, boxes.len());
+            self.ensure_capacity(gpu, 0, boxes.len());
             self.queue
                 .write_buffer(&gpu.boxes, 0, bytemuck::cast_slice(boxes));
         }
-        let query_count = queried.iter().filter(|&&q| q).count() + boxes.len();
-        let total = self.slots.len() + boxes.len();
-        // Passes: each item is a draw or a box; a pass ends at the query limit.
-        let mut pass_ranges: Vec<(usize, usize, u32)> = Vec::new();
-        let (mut start, mut queries) = (0, 0u32);
-        let item_queries = queried.iter().copied().chain(boxes.iter().map(|_| true));
-        for (i, needs_query) in item_queries.enumerate() {
-            if needs_query && queries == QUERIES_PER_PASS {
-                pass_ranges.push((start, i, queries));
-                (start, queries) = (i, 0);
-            }
-            queries += u32::from(needs_query);
-        }
-        if total > start || (clear && pass_ranges.is_empty()) {
-            pass_ranges.push((start, total, queries));
-        }
-        while gpu.query_sets.len() < pass_ranges.len() {
+        let passes = target.plan(&queried, per_eye, clear);
+        let query_count: u32 = passes.iter().map(|p| p.queries).sum();
+        while gpu.query_sets.len() < passes.len() {
             gpu.query_sets
                 .push(self.device.create_query_set(&wgpu::QuerySetDescriptor {
                     label: Some("dmu occlusion"),
@@ -519,7 +754,7 @@ impl Renderer {
                 }));
         }
         let set_bytes = u64::from(QUERIES_PER_PASS) * 8;
-        let need = pass_ranges.len() as u64 * set_bytes;
+        let need = passes.len() as u64 * set_bytes;
         if query_count > 0 && gpu.resolve.size() < need {
             let usage_resolve = wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC;
             let usage_read = wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ;
@@ -543,9 +778,12 @@ impl Renderer {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("dmu round"),
             });
-        let timed = pass_ranges.len().min(TIMED_PASSES as usize);
-        for (p, &(from, to, pass_queries)) in pass_ranges.iter().enumerate() {
-            let first = p == 0 && clear;
+        let timed = passes.len().min(TIMED_PASSES as usize);
+        for (p, pass_plan) in passes.iter().enumerate() {
+            let (pass_target, multiview_mask) = match pass_plan.layer {
+                Some(eye) => (target.eyes[eye], None),
+                None => (target.all, target.is_multiview().then_some(STEREO_VIEWS)),
+            };
             let timestamp_writes =
                 gpu.timestamps
                     .as_ref()
@@ -558,11 +796,11 @@ impl Renderer {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("dmu pass"),
                 color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: target.color,
+                    view: pass_target.color,
                     depth_slice: None,
                     resolve_target: None,
                     ops: wgpu::Operations {
-                        load: if first {
+                        load: if pass_plan.clear {
                             wgpu::LoadOp::Clear(match shading {
                                 Shading::Color => self.options.clear_color,
                                 Shading::Ids => wgpu::Color::TRANSPARENT,
@@ -574,9 +812,9 @@ impl Renderer {
                     },
                 })],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: target.depth,
+                    view: pass_target.depth,
                     depth_ops: Some(wgpu::Operations {
-                        load: if first {
+                        load: if pass_plan.clear {
                             wgpu::LoadOp::Clear(0.0)
                         } else {
                             wgpu::LoadOp::Load
@@ -586,22 +824,25 @@ impl Renderer {
                     stencil_ops: None,
                 }),
                 timestamp_writes,
-                occlusion_query_set: (pass_queries > 0).then(|| &gpu.query_sets[p]),
-                multiview_mask: None,
+                occlusion_query_set: (pass_plan.queries > 0).then(|| &gpu.query_sets[p]),
+                multiview_mask,
             });
-            pass.set_bind_group(0, &gpu.bind_group, &[]);
+            pass.set_bind_group(0, &gpu.bind_groups[pass_plan.eye], &[]);
             let mut q = 0;
             let mut bound: Option<(u32, u32, bool)> = None;
-            let draws_end = to.min(self.slots.len());
-            if from < draws_end {
+            if !pass_plan.draws.is_empty() {
                 pass.set_pipeline(match shading {
+                    _ if multiview_mask.is_some() => self
+                        .shade_stereo
+                        .as_ref()
+                        .expect("multiview rounds only where the pipeline exists"),
                     Shading::Color => &self.shade,
                     Shading::Ids => &self.ids,
                 });
             }
-            for (&(entry, slot), &wrapped) in self.slots[from.min(draws_end)..draws_end]
+            for (&(entry, slot), &wrapped) in self.slots[pass_plan.draws.clone()]
                 .iter()
-                .zip(&queried[from.min(draws_end)..draws_end])
+                .zip(&queried[pass_plan.draws.clone()])
             {
                 let key = (slot.vertex_page, slot.index_page, slot.short_indices);
                 if bound != Some(key) {
@@ -630,24 +871,24 @@ impl Renderer {
                     pass.end_occlusion_query();
                 }
             }
-            let boxes_from = from.max(self.slots.len());
-            if boxes_from < to {
+            if !pass_plan.boxes.is_empty() {
                 pass.set_pipeline(&self.boxes_color);
-                for i in boxes_from..to {
-                    let b = (i - self.slots.len()) as u32;
+                // Eye-major: a box's instance is its index in the buffer.
+                for b in pass_plan.boxes.clone() {
+                    let b = b as u32;
                     pass.begin_occlusion_query(q);
                     pass.draw(0..36, b..b + 1);
                     pass.end_occlusion_query();
                     q += 1;
                 }
             }
-            debug_assert_eq!(q, pass_queries);
+            debug_assert_eq!(q, pass_plan.queries);
         }
-        for (p, &(_, _, n)) in pass_ranges.iter().enumerate() {
-            if n > 0 {
+        for (p, pass_plan) in passes.iter().enumerate() {
+            if pass_plan.queries > 0 {
                 encoder.resolve_query_set(
                     &gpu.query_sets[p],
-                    0..n,
+                    0..pass_plan.queries,
                     &gpu.resolve,
                     p as u64 * set_bytes,
                 );
@@ -664,7 +905,7 @@ impl Renderer {
         }
         self.queue.submit([encoder.finish()]);
 
-        result.passes = pass_ranges.len() as u32;
+        result.passes = passes.len() as u32;
         if query_count > 0 {
             let samples: Vec<u64> = map_read(
                 &self.device,
@@ -673,23 +914,26 @@ impl Renderer {
                 "occlusion queries",
                 bytemuck::pod_collect_to_vec,
             )?;
-            // Query q of pass p sits at p * QUERIES_PER_PASS + q; walk in item order.
-            let mut at = pass_ranges.iter().enumerate().flat_map(|(p, &(_, _, n))| {
-                (0..n as usize).map(move |q| p * QUERIES_PER_PASS as usize + q)
-            });
+            // Queried draw j's result slot; every eye's passes add to it.
+            let mut rank = Vec::with_capacity(queried.len());
+            let mut queried_draws = 0;
             for &wrapped in &queried {
-                if wrapped {
-                    result
-                        .draw_samples
-                        .push(samples[at.next().expect("one slot per query")]);
+                rank.push(queried_draws);
+                queried_draws += usize::from(wrapped);
+            }
+            result.draw_samples = vec![0; queried_draws];
+            result.box_samples = vec![0; per_eye];
+            // Query q of pass p sits at p * QUERIES_PER_PASS + q, in item order.
+            for (p, pass_plan) in passes.iter().enumerate() {
+                let mut at = (p * QUERIES_PER_PASS as usize..).map(|i| samples[i]);
+                for j in pass_plan.draws.clone().filter(|&j| queried[j]) {
+                    result.draw_samples[rank[j]] += at.next().expect("one slot per query");
+                }
+                for b in pass_plan.boxes.clone() {
+                    result.box_samples[b % per_eye] += at.next().expect("one slot per query");
                 }
             }
-            for _ in boxes {
-                result
-                    .box_samples
-                    .push(samples[at.next().expect("one slot per query")]);
-            }
-        } else if total > 0 || clear {
+        } else if !passes.is_empty() {
             // Nothing to read, but the caller's timing must include the work.
             self.device
                 .poll(wgpu::PollType::wait_indefinitely())
@@ -697,6 +941,23 @@ impl Renderer {
                     what: "frame completion",
                     reason: e.to_string(),
                 })?;
+        }
+        if result.not_resident > 0 {
+            // A queried draw whose geometry is not resident was not drawn: it
+            // counts as visible, so it stays wanted and is drawn once it arrives.
+            let mut drawn = std::mem::take(&mut result.draw_samples).into_iter();
+            result.draw_samples = draws
+                .iter()
+                .zip(&resident)
+                .filter(|(d, _)| d.query)
+                .map(|(_, &r)| {
+                    if r {
+                        drawn.next().expect("one result per drawn query")
+                    } else {
+                        1
+                    }
+                })
+                .collect();
         }
         if let (Some((_, _, readback)), Some(period)) = (&gpu.timestamps, self.timestamp_period_ns)
             && timed > 0
@@ -708,14 +969,117 @@ impl Renderer {
                 "timestamps",
                 bytemuck::pod_collect_to_vec,
             )?;
-            for (p, &(from, _, _)) in pass_ranges.iter().take(timed).enumerate() {
+            for (p, pass_plan) in passes.iter().take(timed).enumerate() {
                 let ms = ticks[2 * p + 1].saturating_sub(ticks[2 * p]) as f64 * period * 1e-6;
                 result.gpu_ms += ms;
-                if from < self.slots.len() {
+                if !pass_plan.draws.is_empty() {
                     result.gpu_draw_ms += ms;
                 }
             }
         }
         Ok(result)
+    }
+}
+
+/// A render pass of a round.
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct Pass {
+    /// The eye whose layer alone it draws into; `None`: every layer.
+    layer: Option<usize>,
+    /// The eye whose uniform (model-views) it binds.
+    eye: usize,
+    /// The round's draws it issues (indices into the resolved slots).
+    draws: Range<usize>,
+    /// The boxes it queries (indices into the round's eye-major box buffer).
+    boxes: Range<usize>,
+    /// Occlusion queries it issues.
+    queries: u32,
+    /// It clears its layers first.
+    clear: bool,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Pass, QUERIES_PER_PASS, plan_passes};
+
+    /// Every draw is issued once per layer it must reach and every box once,
+    /// in order; no pass holds more than [`QUERIES_PER_PASS`] queries; each
+    /// layer is cleared exactly once, before anything is drawn into it.
+    fn check(
+        eyes: usize,
+        multiview: bool,
+        queried: &[bool],
+        per_eye: usize,
+        clear: bool,
+    ) -> Vec<Pass> {
+        let passes = plan_passes(eyes, multiview, queried, per_eye, clear);
+        let layers = eyes.max(1);
+        let mut draws_into = vec![0usize; layers];
+        let mut boxes = 0;
+        let mut cleared = vec![0; layers];
+        for p in &passes {
+            let reached: Vec<usize> = match p.layer {
+                Some(k) => vec![k],
+                None => (0..layers).collect(),
+            };
+            assert!(p.queries <= QUERIES_PER_PASS, "{p:?}");
+            let queries = queried[p.draws.clone()].iter().filter(|&&q| q).count() + p.boxes.len();
+            assert_eq!(p.queries as usize, queries, "{p:?}");
+            for &k in &reached {
+                if p.clear {
+                    assert_eq!(draws_into[k], 0, "layer {k} cleared after drawing");
+                    cleared[k] += 1;
+                }
+                assert!(
+                    p.draws.is_empty() || p.draws.start == draws_into[k],
+                    "{p:?}"
+                );
+                draws_into[k] += p.draws.len();
+            }
+            assert_eq!(p.eye, p.layer.unwrap_or(0), "{p:?}");
+            assert!(!multiview || p.layer.is_some() || p.queries == 0, "{p:?}");
+            assert_eq!(p.boxes.start, boxes, "{p:?}");
+            if !p.boxes.is_empty() {
+                // A layer's boxes go after all its draws, and into that layer.
+                assert!(
+                    reached.iter().all(|&k| draws_into[k] == queried.len()),
+                    "{p:?}"
+                );
+                let eye_of = |b: usize| if eyes == 0 { None } else { Some(b / per_eye) };
+                assert_eq!(eye_of(p.boxes.start), p.layer, "{p:?}");
+                assert_eq!(eye_of(p.boxes.end - 1), p.layer, "{p:?}");
+            }
+            boxes = p.boxes.end;
+        }
+        assert!(
+            draws_into.iter().all(|&d| d == queried.len()),
+            "{draws_into:?}"
+        );
+        assert_eq!(boxes, layers * per_eye);
+        assert!(
+            cleared.iter().all(|&c| c == usize::from(clear)),
+            "{cleared:?}"
+        );
+        passes
+    }
+
+    #[test]
+    fn passes_cover_every_draw_and_box_once_per_layer() {
+        let queried: Vec<bool> = (0..1500).map(|i| i % 3 == 0).collect();
+        let unqueried = vec![false; 1500];
+        for clear in [false, true] {
+            for per_eye in [0, 1, 700] {
+                check(0, false, &queried, per_eye, clear);
+                check(0, false, &[], per_eye, clear);
+                check(2, false, &queried, per_eye, clear);
+                check(2, false, &[], per_eye, clear);
+                let passes = check(2, true, &unqueried, per_eye, clear);
+                // Multiview: all draws in one pass, boxes a layer at a time.
+                assert_eq!(passes[0].draws, 0..1500);
+                check(2, true, &[], per_eye, clear);
+            }
+        }
+        // Nothing to do and nothing to clear: no pass.
+        assert!(plan_passes(2, true, &[], 0, false).is_empty());
     }
 }

@@ -108,7 +108,8 @@ pub struct FrameStats {
     pub hidden: u64,
     /// Chunk instances skipped because their geometry is not resident.
     pub not_resident: u64,
-    /// Occlusion queries issued.
+    /// Occlusion queries issued (a stereo pair queries each node in both
+    /// eyes; counted once).
     pub queries: u64,
     /// Queries that found something visible.
     pub queries_visible: u64,

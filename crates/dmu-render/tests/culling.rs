@@ -10,7 +10,7 @@ use dmu_tree::{EntryId, Tree, TreeOptions};
 
 use crate::support::{Rig, camera, differing, image_path};
 
-fn small_plant() -> (Scene, Tree) {
+pub fn small_plant() -> (Scene, Tree) {
     let scene = plant(&PlantOptions {
         triangles: 400_000,
         ..Default::default()
@@ -21,7 +21,7 @@ fn small_plant() -> (Scene, Tree) {
 
 /// Viewpoints inside the plant: at eye level along the rack, across the
 /// buildings, inside a building, and from above.
-fn viewpoints() -> Vec<Camera> {
+pub fn viewpoints() -> Vec<Camera> {
     let o = DVec3::new(4_512_000.0, 5_342_750.0, 12_000.0);
     let at = |x: f64, y: f64, z: f64| o + DVec3::new(x, y, z);
     vec![
@@ -160,4 +160,77 @@ fn views_are_independent() {
             "view {k} differs when interleaved"
         );
     }
+}
+
+/// Geometry that arrives late: a source holding only every other chunk, then
+/// all of them. Chunks re-checked by queries while missing stay wanted (a
+/// regression: their missing query results used to trip an assertion), and
+/// once everything is resident the image converges to the unculled one.
+#[test]
+fn occlusion_culling_survives_geometry_that_is_not_resident() {
+    use dmu_render::{ChunkGeometry, GeometrySource};
+    use dmu_scene::ChunkId;
+
+    struct EveryOther<'a>(&'a Scene);
+    impl GeometrySource for EveryOther<'_> {
+        fn chunk_geometry(&self, chunk: ChunkId) -> Option<ChunkGeometry<'_>> {
+            chunk
+                .index()
+                .is_multiple_of(2)
+                .then(|| self.0.chunk_geometry(chunk))?
+        }
+    }
+
+    let (scene, tree) = small_plant();
+    let size = (480, 270);
+    let Some(mut rig) = Rig::new(&scene, &tree, size) else {
+        return;
+    };
+    let cam = viewpoints()[0];
+    let none = rig.shot(cam, Culling::None, &scene, &tree);
+    let mut view = View::new(cam, size, Culling::Occlusion);
+    view.options.adaptive = false;
+    view.options.requery_interval = 1;
+    // The reference frame uploaded everything: drop the withheld chunks.
+    for c in (1..scene.chunks().len()).step_by(2) {
+        rig.renderer.geometry_pool().evict(ChunkId::from_index(c));
+    }
+    let partial = EveryOther(&scene);
+    let mut missing = 0;
+    for _ in 0..6 {
+        let stats = rig
+            .renderer
+            .render(
+                &mut view,
+                &scene,
+                &tree,
+                &partial,
+                rig.capture.frame_target(),
+            )
+            .expect("render with half the geometry");
+        missing += stats.not_resident;
+    }
+    assert!(missing > 0, "the test must withhold drawn chunks");
+    // Every withheld chunk the view wanted is still in its drawn set.
+    let wanted: BTreeSet<EntryId> = view.drawn_entries().collect();
+    let mut settled = false;
+    for _ in 0..12 {
+        let stats = rig.frame(&mut view, &scene, &tree);
+        if stats.newly_visible == 0 && stats.not_resident == 0 && stats.frame > 8 {
+            settled = true;
+            break;
+        }
+    }
+    assert!(settled, "no convergence once resident");
+    assert!(
+        wanted
+            .iter()
+            .any(|e| tree.entries()[e.0 as usize].chunk.index() % 2 == 1)
+    );
+    let diff = differing(&none, &rig.image());
+    assert!(
+        diff.is_empty(),
+        "{} pixels differ once resident",
+        diff.len()
+    );
 }

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use dmu_geom::glam::DVec3;
-use dmu_render::{Camera, Capture, Culling, FrameStats, Renderer, View};
+use dmu_render::{Camera, Capture, Culling, FrameStats, Renderer, RendererOptions, View};
 use dmu_scene::Scene;
 use dmu_tree::Tree;
 
@@ -45,8 +45,17 @@ pub struct Rig {
 
 impl Rig {
     pub fn new(scene: &Scene, tree: &Tree, size: (u32, u32)) -> Option<Rig> {
+        Self::with_options(scene, tree, size, Default::default())
+    }
+
+    pub fn with_options(
+        scene: &Scene,
+        tree: &Tree,
+        size: (u32, u32),
+        options: RendererOptions,
+    ) -> Option<Rig> {
         let (device, queue) = gpu()?;
-        let renderer = Renderer::new(&device, &queue, scene, tree, Default::default());
+        let renderer = Renderer::new(&device, &queue, scene, tree, options);
         let capture = Capture::new(&device, size);
         Some(Rig {
             device,

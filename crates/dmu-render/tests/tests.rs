@@ -1,3 +1,4 @@
 mod culling;
 mod images;
+mod stereo;
 mod support;

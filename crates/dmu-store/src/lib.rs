@@ -77,5 +77,5 @@ pub use read::{Store, StoreInfo};
 pub use residency::{Pacing, Residency, ResidencyOptions, ResidencyStats};
 pub use save::{prepare_save, save_edits};
 pub use view::{CameraFrame, View, Viewport, Wanted, wanted};
-pub use walk::{FrameReport, WalkOptions, WalkReport, WalkTotals, walk};
+pub use walk::{Drawn, FrameReport, WalkOptions, WalkReport, WalkTotals, walk, walk_with};
 pub use write::{PendingStore, StoreSummary, StoreWriter, WriteOptions, write_scene};

@@ -121,6 +121,8 @@ struct State {
     shutdown: bool,
     stats: ResidencyStats,
     first_error: Option<String>,
+    /// Chunks evicted since [`Residency::take_evicted`] last ran.
+    evicted: Vec<ChunkId>,
 }
 
 #[derive(Debug)]
@@ -192,6 +194,7 @@ impl Residency {
                 shutdown: false,
                 stats: ResidencyStats::default(),
                 first_error: None,
+                evicted: Vec::new(),
             }),
             work: Condvar::new(),
             idle: Condvar::new(),
@@ -313,6 +316,12 @@ impl Residency {
         let mut stats = st.stats.clone();
         stats.queue_len = st.pending() as u64;
         stats
+    }
+
+    /// The chunks evicted since the last call, so that copies made of their
+    /// geometry (e.g. on the GPU) can be dropped with them.
+    pub fn take_evicted(&self) -> Vec<ChunkId> {
+        std::mem::take(&mut lock(&self.shared.state).evicted)
     }
 
     /// The first load error (a corrupt chunk segment), if any.
@@ -515,6 +524,7 @@ impl State {
             self.stats.resident_bytes -= store.chunk_resident_bytes(ChunkId(c));
             self.stats.resident_chunks -= 1;
             self.stats.evictions += 1;
+            self.evicted.push(ChunkId(c));
         }
         true
     }

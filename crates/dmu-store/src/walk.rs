@@ -16,6 +16,7 @@ use std::time::{Duration, Instant};
 use dmu_scene::ChunkId;
 use dmu_tree::Tree;
 
+use crate::geometry::ChunkGeometry;
 use crate::prefetch::{PrefetchOptions, Prefetcher};
 use crate::priority::{Class, LoadOrder, Request};
 use crate::read::Store;
@@ -120,13 +121,53 @@ pub struct WalkReport {
     pub first_error: Option<String>,
 }
 
+/// What drawing one frame found.
+#[derive(Debug, Default)]
+pub struct Drawn {
+    /// Chunks the frame wanted to draw that were not resident.
+    pub missing_chunks: u64,
+    /// Chunks drawn: requested as [`Class::Visible`] next frame.
+    pub visible: Vec<ChunkId>,
+    /// Geometry in use until the frame ends (the loaders run meanwhile).
+    pub pins: Vec<Arc<ChunkGeometry>>,
+}
+
 /// Walks `path` through `store` (whose skeleton `tree` was built from) with a
-/// new residency manager. Fails on a frame that is not a camera, naming it.
+/// new residency manager, drawing each frame with what is resident: a chunk the
+/// frustum and coverage culling want that is not resident is a miss. Fails on
+/// a frame that is not a camera, naming it.
 pub fn walk(
     store: &Arc<Store>,
     tree: &Tree,
     path: &[CameraFrame],
     options: &WalkOptions,
+) -> Result<WalkReport, String> {
+    walk_with(store, tree, path, options, &mut |_, set, residency| {
+        // Nothing else holds copies of evicted geometry.
+        residency.take_evicted();
+        let mut drawn = Drawn::default();
+        for &(chunk, _) in &set.drawn {
+            match residency.get(chunk) {
+                Some(g) => drawn.pins.push(g),
+                None => drawn.missing_chunks += 1,
+            }
+            drawn.visible.push(chunk);
+        }
+        Ok(drawn)
+    })
+}
+
+/// [`walk`] with another way of drawing a frame, e.g. a renderer whose
+/// occlusion culling decides what is drawn: `draw` gets the frame's index, the
+/// chunks frustum and coverage culling want, and the manager (whose
+/// [`Residency::get`] gives the resident geometry); the chunks it reports
+/// visible are requested first on the next frame.
+pub fn walk_with(
+    store: &Arc<Store>,
+    tree: &Tree,
+    path: &[CameraFrame],
+    options: &WalkOptions,
+    draw: &mut dyn FnMut(usize, &Wanted, &Residency) -> Result<Drawn, String>,
 ) -> Result<WalkReport, String> {
     let start = Instant::now();
     let scene = store.skeleton();
@@ -148,10 +189,9 @@ pub fn walk(
         .map(|p| Prefetcher::new(p, options.viewport));
     let dt = 1.0 / options.frame_rate_hz;
     let mut set = Wanted::default();
-    let mut drawn_last = vec![false; scene.chunks().len()];
-    let mut drawn_now: Vec<ChunkId> = Vec::new();
+    let mut visible_last = vec![false; scene.chunks().len()];
+    let mut visible_now: Vec<ChunkId> = Vec::new();
     let mut requests: Vec<Request> = Vec::new();
-    let mut held = Vec::new();
     let mut frames = Vec::with_capacity(path.len());
     let mut loaded_before = 0;
     for (i, frame) in path.iter().enumerate() {
@@ -162,7 +202,7 @@ pub fn walk(
         requests.clear();
         requests.extend(set.drawn.iter().map(|&(chunk, area_px)| Request {
             chunk,
-            class: if drawn_last[chunk.index()] {
+            class: if visible_last[chunk.index()] {
                 Class::Visible
             } else {
                 Class::InFrustum
@@ -173,6 +213,13 @@ pub fn walk(
             chunk,
             class: Class::Subpixel,
             area_px,
+        }));
+        // Drawn last frame although culling no longer wants it (e.g. under the
+        // coverage threshold now): still the most likely to be seen again.
+        requests.extend(visible_now.iter().map(|&chunk| Request {
+            chunk,
+            class: Class::Visible,
+            area_px: 0.0,
         }));
         let rebuilt = match &mut prefetcher {
             Some(p) => {
@@ -185,15 +232,12 @@ pub fn walk(
         residency.request(&requests);
 
         // Draw: what is resident is used (pinned) until the frame ends.
-        let mut missing = 0;
-        let mut wanted_bytes = 0;
-        for &(chunk, _) in &set.drawn {
-            wanted_bytes += store.chunk_resident_bytes(chunk);
-            match residency.get(chunk) {
-                Some(g) => held.push(g),
-                None => missing += 1,
-            }
-        }
+        let drawn = draw(i, &set, &residency)?;
+        let wanted_bytes = set
+            .drawn
+            .iter()
+            .map(|&(chunk, _)| store.chunk_resident_bytes(chunk))
+            .sum();
         match options.disk_bytes_per_frame {
             Some(bytes) => residency.load_granted(bytes),
             None => {
@@ -201,14 +245,17 @@ pub fn walk(
                 std::thread::sleep(frame_time.saturating_sub(frame_start.elapsed()));
             }
         }
-        held.clear();
-        for c in drawn_now.drain(..) {
-            drawn_last[c.index()] = false;
+        for c in visible_now.drain(..) {
+            visible_last[c.index()] = false;
         }
-        for &(c, _) in &set.drawn {
-            drawn_last[c.index()] = true;
-            drawn_now.push(c);
+        for &c in &drawn.visible {
+            if !visible_last[c.index()] {
+                visible_last[c.index()] = true;
+                visible_now.push(c);
+            }
         }
+        let missing = drawn.missing_chunks;
+        drop(drawn);
         let stats = residency.stats();
         frames.push(FrameReport {
             wanted_chunks: set.drawn.len() as u64,

@@ -4,6 +4,7 @@
 
 use std::fs::{File, OpenOptions};
 use std::io::{BufWriter, Seek as _, SeekFrom, Write as _};
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -41,6 +42,14 @@ pub struct StoreSummary {
     pub geometry_resident_bytes: u64,
     /// Bytes of the skeleton segment.
     pub skeleton_bytes: u64,
+}
+
+/// A mesh's vertex and index arrays, whose chunks are ranges of them.
+#[derive(Clone, Copy)]
+struct MeshArrays<'a> {
+    positions: &'a [Vec3],
+    normals: &'a [Vec3],
+    indices: &'a [u32],
 }
 
 /// A temporary file that is removed when dropped, unless renamed into place.
@@ -157,15 +166,25 @@ impl StoreWriter {
         Ok(entry)
     }
 
-    /// Appends the geometry of the next chunk (chunk ids follow the write order).
+    /// Appends the geometry of the next chunk (chunk ids follow the write order):
+    /// its vertex and triangle ranges of its mesh's arrays.
     fn chunk(
         &mut self,
-        positions: &[Vec3],
-        normals: &[Vec3],
-        indices: &[u32],
+        mesh: MeshArrays<'_>,
+        vertices: &Range<u32>,
+        triangles: &Range<u32>,
         bounds: &Aabb3f,
     ) -> Result<(), StoreError> {
-        let bytes = geometry::encode(positions, normals, indices, bounds, self.options.quantize);
+        let v = vertices.start as usize..vertices.end as usize;
+        let t = 3 * triangles.start as usize..3 * triangles.end as usize;
+        let (positions, indices) = (&mesh.positions[v.clone()], &mesh.indices[t]);
+        let bytes = geometry::encode(
+            positions,
+            &mesh.normals[v],
+            indices,
+            bounds,
+            self.options.quantize,
+        );
         self.chunk_segment(&bytes, positions.len() as u32, (indices.len() / 3) as u32)
     }
 
@@ -190,12 +209,14 @@ impl StoreWriter {
     /// ids they have in the skeleton given to [`StoreWriter::finish`].
     pub fn add_mesh(&mut self, mesh: &ChunkedMesh) -> Result<(), StoreError> {
         for c in &mesh.chunks {
-            let v = c.vertices.start as usize..c.vertices.end as usize;
-            let t = 3 * c.triangles.start as usize..3 * c.triangles.end as usize;
             self.chunk(
-                &mesh.positions[v.clone()],
-                &mesh.normals[v],
-                &mesh.indices[t],
+                MeshArrays {
+                    positions: &mesh.positions,
+                    normals: &mesh.normals,
+                    indices: &mesh.indices,
+                },
+                &c.vertices,
+                &c.triangles,
                 &c.bounds,
             )?;
         }
@@ -295,12 +316,14 @@ pub fn write_scene(
     for mesh in scene.meshes() {
         for c in mesh.chunk_ids() {
             let chunk = scene.chunk(c);
-            let v = chunk.vertices.start as usize..chunk.vertices.end as usize;
-            let t = 3 * chunk.triangles.start as usize..3 * chunk.triangles.end as usize;
             writer.chunk(
-                &mesh.positions[v.clone()],
-                &mesh.normals[v],
-                &mesh.indices[t],
+                MeshArrays {
+                    positions: &mesh.positions,
+                    normals: &mesh.normals,
+                    indices: &mesh.indices,
+                },
+                &chunk.vertices,
+                &chunk.triangles,
                 &chunk.bounds,
             )?;
         }

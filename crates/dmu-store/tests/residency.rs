@@ -167,9 +167,12 @@ fn eviction_is_least_recently_used_and_spares_held_chunks() {
     r.load_granted(u64::MAX / 4);
     assert!(r.is_resident(a) && r.is_resident(b));
     // a is older; c evicts it.
+    assert_eq!(r.take_evicted(), []);
     r.request(&[want(c)]);
     r.load_granted(u64::MAX / 4);
     assert!(!r.is_resident(a) && r.is_resident(b) && r.is_resident(c));
+    assert_eq!(r.take_evicted(), [a], "evictions are reported once");
+    assert_eq!(r.take_evicted(), []);
     // Hold b (older than c): d must evict c instead.
     let pin = r.get(b).unwrap();
     r.request(&[want(d)]);

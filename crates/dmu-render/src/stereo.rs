@@ -1,0 +1,253 @@
+//! Stereo pairs: two parallel eyes culled once, against a frustum enclosing
+//! both, and drawn in one multiview pass into a 2-layer target (or a pass per
+//! layer where multiview is missing or broken).
+
+use dmu_geom::Frustum;
+use dmu_scene::Scene;
+use dmu_tree::Tree;
+
+use crate::renderer::{FrameTarget, Renderer, RoundTarget};
+use crate::view::{Camera, Culling, FrameStats, View};
+use crate::{GeometrySource, RenderError};
+
+/// Two eyes either side of a centre camera, `ipd` apart along its screen right,
+/// looking along parallel axes with the centre camera's symmetric projection
+/// (a parallel rig: no toe-in, so no vertical parallax).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StereoCamera {
+    /// The centre ("cyclopean") eye; the eyes share its field of view, near
+    /// plane and up.
+    pub center: Camera,
+    /// Interpupillary distance, world units (65 for a model in millimetres);
+    /// finite and not negative.
+    pub ipd: f64,
+}
+
+impl StereoCamera {
+    /// The left and right eyes: the centre camera moved by `∓ipd / 2` along its
+    /// screen right, eye and target alike, so each is an ordinary [`Camera`]
+    /// that a single-view render of that eye uses as it is.
+    ///
+    /// # Panics
+    /// When `ipd` is negative or not finite.
+    pub fn eyes(&self) -> [Camera; 2] {
+        assert!(
+            self.ipd >= 0.0 && self.ipd.is_finite(),
+            "interpupillary distance must be finite and not negative, got {}",
+            self.ipd
+        );
+        let c = &self.center;
+        // The view matrix's x axis: screen right in world space.
+        let right = (c.target - c.eye).cross(c.up).normalize();
+        let eye = |side: f64| {
+            let offset = right * (side * 0.5 * self.ipd);
+            Camera {
+                eye: c.eye + offset,
+                target: c.target + offset,
+                ..*c
+            }
+        };
+        [eye(-1.0), eye(1.0)]
+    }
+
+    /// A frustum containing both eyes' frusta: the left eye's left plane, the
+    /// right eye's right plane, and the bottom, top, near and (infinite) far
+    /// planes the eyes share with the centre camera (the eyes sit on a line
+    /// in all of those planes). It adds to the union of the two frusta only the
+    /// wedge in front of the eyes that neither sees, which closes within
+    /// `ipd / (2 tan(horizontal fov / 2))` of them; anything it culls is
+    /// outside both eyes' frusta.
+    pub fn enclosing_frustum(&self, aspect: f64) -> Frustum {
+        let [left, right] = self.eyes();
+        let mut frustum = self.center.frustum(aspect);
+        frustum.planes[0] = left.frustum(aspect).planes[0];
+        frustum.planes[1] = right.frustum(aspect).planes[1];
+        frustum
+    }
+}
+
+/// How a stereo pair's drawn set reaches its two layers. Culling is the same
+/// either way: once, for both eyes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum StereoMode {
+    /// [`StereoMode::Multiview`] where the device has multiview and draws it
+    /// correctly (checked once, when the renderer is made, by drawing a
+    /// near-clipped triangle into the second view), else
+    /// [`StereoMode::LayerPasses`].
+    #[default]
+    Auto,
+    /// One multiview pass draws both layers ([`wgpu::Features::MULTIVIEW`]);
+    /// occlusion queries run per layer after it.
+    Multiview,
+    /// Each eye's layer in passes of its own, draws and queries alike, for
+    /// devices without (correct) multiview. Mesa 22.3's lavapipe draws the
+    /// near-clipped triangles of the second view into the first layer.
+    LayerPasses,
+}
+
+/// Whether the device draws a near-clipped triangle of each view of a
+/// multiview pass into that view's layer, and only there. `module` holds
+/// `stereo.wgsl`.
+pub(crate) fn multiview_clips_correctly(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    module: &wgpu::ShaderModule,
+) -> bool {
+    const SIZE: u32 = 8;
+    let format = wgpu::TextureFormat::Rgba8Unorm;
+    let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("dmu multiview probe"),
+        layout: None,
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_probe"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: Default::default(),
+        depth_stencil: None,
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some("fs_probe"),
+            compilation_options: Default::default(),
+            targets: &[Some(format.into())],
+        }),
+        multiview_mask: std::num::NonZeroU32::new(0b11),
+        cache: None,
+    });
+    let texture = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("dmu multiview probe"),
+        size: wgpu::Extent3d {
+            width: SIZE,
+            height: SIZE,
+            depth_or_array_layers: 2,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    });
+    let view = texture.create_view(&wgpu::TextureViewDescriptor {
+        dimension: Some(wgpu::TextureViewDimension::D2Array),
+        ..Default::default()
+    });
+    let mut encoder = device.create_command_encoder(&Default::default());
+    {
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("dmu multiview probe"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: std::num::NonZeroU32::new(0b11),
+        });
+        pass.set_pipeline(&pipeline);
+        pass.draw(0..3, 0..1);
+    }
+    queue.submit([encoder.finish()]);
+    // Covered texels of a layer, and whether all are in the colour of its view.
+    let coverage = |layer: u32| {
+        let texels = crate::capture::read_texture(
+            device,
+            queue,
+            &texture,
+            (SIZE, SIZE),
+            layer,
+            "multiview probe",
+        )
+        .ok()?;
+        let own = if layer == 0 { 0 } else { 255 };
+        let covered: Vec<&[u8]> = texels.chunks_exact(4).filter(|t| t[0] != 0).collect();
+        Some((covered.len(), covered.iter().all(|t| t[1] == own)))
+    };
+    matches!(
+        (coverage(0), coverage(1)),
+        (Some((a, true)), Some((b, true))) if a > 0 && a == b
+    )
+}
+
+/// A stereo pair's view: the eyes, and the size, culling and visibility
+/// state that the pair shares (culled once for both eyes).
+#[derive(Debug)]
+pub struct StereoView {
+    /// The eyes.
+    pub camera: StereoCamera,
+    /// Size (of each eye's layer), culling, options, stats and visibility of
+    /// the pair. Its camera is the centre eye, set from `camera` every frame.
+    pub view: View,
+}
+
+impl StereoView {
+    /// A stereo view with fresh visibility state.
+    pub fn new(camera: StereoCamera, size: (u32, u32), culling: Culling) -> Self {
+        Self {
+            camera,
+            view: View::new(camera.center, size, culling),
+        }
+    }
+}
+
+/// Where a stereo frame goes: colour and depth array views of two layers
+/// (layer 0 the left eye) for the multiview pass, and each layer alone for
+/// the per-eye passes (occlusion queries; everything without multiview), all
+/// of the view's size.
+#[derive(Clone, Copy, Debug)]
+pub struct StereoTarget<'a> {
+    /// Colour: a `D2Array` view of both layers, of the renderer's colour format.
+    pub color: &'a wgpu::TextureView,
+    /// Depth: a `D2Array` view of both layers, [`crate::DEPTH_FORMAT`].
+    pub depth: &'a wgpu::TextureView,
+    /// Layer 0 (left eye) and layer 1 (right eye) alone, as `D2` views.
+    pub eyes: [FrameTarget<'a>; 2],
+}
+
+impl Renderer {
+    /// Renders one frame of a stereo pair into `target`'s two layers: culls
+    /// once, against [`StereoCamera::enclosing_frustum`] (coverage and
+    /// occlusion alike, a sample in either eye counting as visible), and
+    /// draws what survives in one multiview pass (or a pass per layer, per
+    /// [`Renderer::stereo_mode`]). Each layer is the image a single-view
+    /// [`Renderer::render`] of that eye ([`StereoCamera::eyes`]) draws, given
+    /// the same drawn set; draws are ordered from the eyes' midpoint, so only
+    /// coplanar overlapping faces in different cells could resolve otherwise.
+    ///
+    /// # Errors
+    /// [`RenderError::Unsupported`] when [`StereoMode::Multiview`] was asked
+    /// for on a device without multiview; readback errors as
+    /// [`Renderer::render`].
+    pub fn render_stereo(
+        &mut self,
+        view: &mut StereoView,
+        scene: &Scene,
+        tree: &Tree,
+        geometry: &dyn GeometrySource,
+        target: StereoTarget<'_>,
+    ) -> Result<FrameStats, RenderError> {
+        if self.stereo_unsupported() {
+            return Err(RenderError::Unsupported {
+                feature: "multiview (asked for stereo pairs)",
+            });
+        }
+        let multiview = self.stereo_mode() == StereoMode::Multiview;
+        view.view.camera = view.camera.center;
+        self.render_frame(
+            &mut view.view,
+            Some(view.camera.ipd),
+            scene,
+            tree,
+            geometry,
+            RoundTarget::stereo(&target, multiview),
+        )
+    }
+}
