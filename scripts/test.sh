@@ -24,6 +24,9 @@ if [ ! -f "$LVP_ICD" ] && command -v apt-get >/dev/null 2>&1; then
         echo "warning: could not install mesa-vulkan-drivers; GPU tests will print SKIPPED" >&2
 fi
 export WGPU_BACKEND=vulkan VK_ICD_FILENAMES="$LVP_ICD"
+# The viewer's tests drive the real window under a virtual X server.
+command -v xvfb-run >/dev/null 2>&1 || (apt-get update -qq && apt-get install -y -qq xvfb xauth) >/dev/null ||
+    echo "warning: could not install xvfb; dmu-viewer's tests will print SKIPPED" >&2
 
 set -x
 cargo fmt --all --check

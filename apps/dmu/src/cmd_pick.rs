@@ -52,18 +52,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let scene = &loaded.scene;
     let tree = Tree::build(scene, TreeOptions::default());
     let length = ray.dir.length();
-    let describe = |h: &dmu_tree::Hit| {
-        json!({
-            "hit": true,
-            "part": scene.part_name(h.part),
-            "part_id": h.part.0,
-            "path": scene.part_path(h.part),
-            "triangle": h.triangle,
-            "distance": h.t * length,
-            "point": h.point.to_array(),
-            "normal": h.normal.to_array(),
-        })
-    };
+    let describe = |h: &dmu_tree::Hit| dmu::hits::hit_json(scene, h, length);
     let out = if args.all {
         json!({ "hits": tree.pick_all(scene, &ray).iter().map(describe).collect::<Vec<_>>() })
     } else {

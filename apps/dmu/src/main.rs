@@ -10,13 +10,13 @@ mod cmd_move;
 mod cmd_pick;
 mod cmd_render;
 mod cmd_walk;
-mod load;
-mod units;
 mod walk_render;
 
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+// Opening models and parsing units live in the library, shared with dmu-viewer.
+use dmu::{load, units};
 
 /// dmu: walk, pick, move and clash-check massive CAD assemblies.
 ///

@@ -437,7 +437,19 @@ impl Renderer {
         let mut bounds: Vec<Aabb3d> = Vec::new();
         for round in 0..max_rounds {
             let mut draws = std::mem::take(&mut walk.draws);
-            let queries = std::mem::take(&mut walk.queries);
+            let mut queries = std::mem::take(&mut walk.queries);
+            // A chunk instance due for a re-check whose geometry is not resident
+            // cannot be checked by drawing it: its box is queried instead, so
+            // one hidden by what is resident drops out of the visible set (and
+            // out of what the loader is asked for first).
+            draws.retain(|d| {
+                let chunk = tree.entries()[d.entry as usize].chunk;
+                let drawable = !d.query || self.pool.is_resident(chunk) || geometry.has(chunk);
+                if !drawable {
+                    queries.push(h.entry_node[d.entry as usize]);
+                }
+                drawable
+            });
             sort_draws(&h, cell_distance, &mut draws);
             checked.clear();
             checked.extend(draws.iter().filter(|d| d.query).map(|d| d.entry));

@@ -24,6 +24,11 @@ pub struct ChunkGeometry<'a> {
 pub trait GeometrySource {
     /// The chunk's geometry, or `None` when it is not resident.
     fn chunk_geometry(&self, chunk: ChunkId) -> Option<ChunkGeometry<'_>>;
+
+    /// Whether [`GeometrySource::chunk_geometry`] would give the chunk.
+    fn has(&self, chunk: ChunkId) -> bool {
+        self.chunk_geometry(chunk).is_some()
+    }
 }
 
 impl GeometrySource for Scene {
@@ -140,6 +145,11 @@ impl GeometryPool {
             resident_bytes: 0,
             scratch: Vec::new(),
         }
+    }
+
+    /// Whether the chunk is on the GPU.
+    pub fn is_resident(&self, chunk: ChunkId) -> bool {
+        self.slots[chunk.index()].is_some()
     }
 
     /// Bytes of geometry resident on the GPU.

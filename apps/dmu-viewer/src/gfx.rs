@@ -1,0 +1,370 @@
+//! The window's GPU side: device, surface, the offscreen 3D view egui shows as
+//! an image, the egui painter, and reading a frame back for screenshots.
+
+use std::sync::Arc;
+
+use anyhow::Context as _;
+use dmu_render::{CAPTURE_FORMAT, DEPTH_FORMAT, FrameTarget};
+use winit::window::Window;
+
+/// The 3D view's offscreen colour and depth, shown by egui as a texture.
+#[derive(Debug)]
+pub struct ViewTarget {
+    /// Size in physical pixels.
+    pub size: (u32, u32),
+    color_view: wgpu::TextureView,
+    /// The same texels read without sRGB decoding: egui expects gamma-space
+    /// textures and writes them out unchanged.
+    egui_view: wgpu::TextureView,
+    depth_view: wgpu::TextureView,
+}
+
+impl ViewTarget {
+    fn new(device: &wgpu::Device, size: (u32, u32)) -> Self {
+        let texture = |label, format, usage, view_formats: &[wgpu::TextureFormat]| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width: size.0,
+                    height: size.1,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats,
+            })
+        };
+        let gamma = CAPTURE_FORMAT.remove_srgb_suffix();
+        let color = texture(
+            "dmu-viewer 3d colour",
+            CAPTURE_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            &[gamma],
+        );
+        let depth = texture(
+            "dmu-viewer 3d depth",
+            DEPTH_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+            &[],
+        );
+        Self {
+            size,
+            color_view: color.create_view(&Default::default()),
+            egui_view: color.create_view(&wgpu::TextureViewDescriptor {
+                format: Some(gamma),
+                ..Default::default()
+            }),
+            depth_view: depth.create_view(&Default::default()),
+        }
+    }
+
+    /// Where the renderer draws.
+    pub fn frame_target(&self) -> FrameTarget<'_> {
+        FrameTarget {
+            color: &self.color_view,
+            depth: &self.depth_view,
+        }
+    }
+}
+
+/// Device, surface and painters of the window.
+pub struct Gfx {
+    /// The window.
+    pub window: Arc<Window>,
+    /// The device everything shares.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
+    /// The adapter's name, for reports.
+    pub adapter: String,
+    surface: wgpu::Surface<'static>,
+    config: wgpu::SurfaceConfiguration,
+    /// Whether frames can be copied out of the swapchain (screenshots).
+    can_read_back: bool,
+    /// egui's painter.
+    pub egui: egui_wgpu::Renderer,
+    /// The 3D view's target and its egui texture.
+    pub view: ViewTarget,
+    /// The egui texture showing [`Gfx::view`].
+    pub view_texture: egui::TextureId,
+}
+
+impl std::fmt::Debug for Gfx {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Gfx")
+            .field("adapter", &self.adapter)
+            .field("surface", &self.config)
+            .field("view", &self.view.size)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Gfx {
+    /// Opens the device for `window` with the optional features the renderer
+    /// uses, and configures the surface (`vsync` or as fast as possible).
+    pub fn new(
+        instance: &wgpu::Instance,
+        window: Arc<Window>,
+        vsync: bool,
+    ) -> anyhow::Result<Self> {
+        let surface = instance
+            .create_surface(window.clone())
+            .context("creating the window surface")?;
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            compatible_surface: Some(&surface),
+            ..Default::default()
+        }))
+        .context("no GPU adapter can draw into the window")?;
+        let info = adapter.get_info();
+        let required_features =
+            adapter.features() & (wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::MULTIVIEW);
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("dmu-viewer"),
+            required_features,
+            required_limits: adapter.limits(),
+            ..Default::default()
+        }))
+        .with_context(|| format!("opening {}", info.name))?;
+        let caps = surface.get_capabilities(&adapter);
+        // egui wants a gamma-space target (it writes gamma values as they are).
+        let format = caps
+            .formats
+            .iter()
+            .copied()
+            .find(|f| !f.is_srgb())
+            .or_else(|| caps.formats.first().copied())
+            .context("the surface offers no format")?;
+        let can_read_back = caps.usages.contains(wgpu::TextureUsages::COPY_SRC);
+        let size = window.inner_size();
+        let config = wgpu::SurfaceConfiguration {
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                | if can_read_back {
+                    wgpu::TextureUsages::COPY_SRC
+                } else {
+                    wgpu::TextureUsages::empty()
+                },
+            format,
+            color_space: wgpu::SurfaceColorSpace::Auto,
+            width: size.width.max(1),
+            height: size.height.max(1),
+            present_mode: if vsync {
+                wgpu::PresentMode::AutoVsync
+            } else {
+                wgpu::PresentMode::AutoNoVsync
+            },
+            desired_maximum_frame_latency: 2,
+            alpha_mode: caps.alpha_modes[0],
+            view_formats: vec![],
+        };
+        surface.configure(&device, &config);
+        let mut egui = egui_wgpu::Renderer::new(
+            &device,
+            format,
+            egui_wgpu::RendererOptions {
+                // The 3D view goes through egui's shader: no noise on it.
+                dithering: false,
+                ..Default::default()
+            },
+        );
+        let view = ViewTarget::new(&device, (1, 1));
+        let view_texture =
+            egui.register_native_texture(&device, &view.egui_view, wgpu::FilterMode::Nearest);
+        Ok(Self {
+            window,
+            device,
+            queue,
+            adapter: info.name,
+            surface,
+            config,
+            can_read_back,
+            egui,
+            view,
+            view_texture,
+        })
+    }
+
+    /// Follows a window resize.
+    pub fn resize(&mut self, width: u32, height: u32) {
+        if width > 0 && height > 0 {
+            self.config.width = width;
+            self.config.height = height;
+            self.surface.configure(&self.device, &self.config);
+        }
+    }
+
+    /// Window size in physical pixels.
+    pub fn size(&self) -> (u32, u32) {
+        (self.config.width, self.config.height)
+    }
+
+    /// Makes the 3D view `size` pixels (re-pointing its egui texture).
+    pub fn ensure_view_size(&mut self, size: (u32, u32)) {
+        let size = (size.0.max(1), size.1.max(1));
+        if self.view.size != size {
+            self.view = ViewTarget::new(&self.device, size);
+            self.egui.update_egui_texture_from_wgpu_texture(
+                &self.device,
+                &self.view.egui_view,
+                wgpu::FilterMode::Nearest,
+                self.view_texture,
+            );
+        }
+    }
+
+    /// Paints egui's output over a cleared frame and presents it; with
+    /// `read_back`, returns the frame as RGBA (sRGB-encoded, as shown).
+    pub fn present(
+        &mut self,
+        ctx: &egui::Context,
+        output: egui::FullOutput,
+        read_back: bool,
+    ) -> anyhow::Result<Option<image::RgbaImage>> {
+        // Texture updates go first: egui counts them applied whatever happens next.
+        for (id, deltas) in &output.textures_delta.set {
+            for delta in deltas {
+                self.egui
+                    .update_texture(&self.device, &self.queue, *id, delta);
+            }
+        }
+        let mut output = output;
+        output.textures_delta.set.clear();
+        let frame = match self.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(t)
+            | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+            other => {
+                for id in &output.textures_delta.free {
+                    self.egui.free_texture(id);
+                }
+                output.textures_delta.clear();
+                if matches!(
+                    other,
+                    wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost
+                ) {
+                    self.surface.configure(&self.device, &self.config);
+                }
+                if read_back {
+                    anyhow::bail!("no frame to read back: the surface said {other:?}");
+                }
+                return Ok(None);
+            }
+        };
+        let pixels_per_point = output.pixels_per_point;
+        let jobs = ctx.tessellate(std::mem::take(&mut output.shapes), pixels_per_point);
+        let screen = egui_wgpu::ScreenDescriptor {
+            size_in_pixels: [self.config.width, self.config.height],
+            pixels_per_point,
+        };
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("dmu-viewer egui"),
+            });
+        let mut commands =
+            self.egui
+                .update_buffers(&self.device, &self.queue, &mut encoder, &jobs, &screen);
+        let target = frame.texture.create_view(&Default::default());
+        {
+            let pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("dmu-viewer egui"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &target,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                ..Default::default()
+            });
+            self.egui
+                .render(&mut pass.forget_lifetime(), &jobs, &screen);
+        }
+        let readback = (read_back && self.can_read_back).then(|| {
+            let (w, h) = (frame.texture.width(), frame.texture.height());
+            let row = (4 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+            let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("dmu-viewer screenshot"),
+                size: u64::from(row) * u64::from(h),
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                mapped_at_creation: false,
+            });
+            encoder.copy_texture_to_buffer(
+                frame.texture.as_image_copy(),
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &buffer,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(row),
+                        rows_per_image: Some(h),
+                    },
+                },
+                frame.texture.size(),
+            );
+            (buffer, row, w, h)
+        });
+        commands.push(encoder.finish());
+        self.queue.submit(commands);
+        self.window.pre_present_notify();
+        self.queue.present(frame);
+        for id in &output.textures_delta.free {
+            self.egui.free_texture(id);
+        }
+        output.textures_delta.clear();
+        match readback {
+            Some((buffer, row, w, h)) => Ok(Some(self.read_frame(&buffer, row, w, h)?)),
+            None if read_back => anyhow::bail!(
+                "this surface cannot be copied from (no COPY_SRC usage): no screenshot"
+            ),
+            None => Ok(None),
+        }
+    }
+
+    fn read_frame(
+        &self,
+        buffer: &wgpu::Buffer,
+        row: u32,
+        w: u32,
+        h: u32,
+    ) -> anyhow::Result<image::RgbaImage> {
+        let (tx, rx) = std::sync::mpsc::channel();
+        buffer.map_async(wgpu::MapMode::Read, .., move |r| {
+            let _ = tx.send(r);
+        });
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .context("waiting for the screenshot")?;
+        rx.recv()?.context("mapping the screenshot")?;
+        let bgra = matches!(
+            self.config.format,
+            wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb
+        );
+        anyhow::ensure!(
+            bgra || matches!(
+                self.config.format,
+                wgpu::TextureFormat::Rgba8Unorm | wgpu::TextureFormat::Rgba8UnormSrgb
+            ),
+            "screenshots of a {:?} surface are not supported",
+            self.config.format
+        );
+        let mapped = buffer
+            .get_mapped_range(..)
+            .map_err(|e| anyhow::anyhow!("reading the screenshot: {e}"))?;
+        let mut pixels = Vec::with_capacity((4 * w * h) as usize);
+        for y in 0..h as usize {
+            let line = &mapped[y * row as usize..][..4 * w as usize];
+            for p in line.chunks_exact(4) {
+                let (r, b) = if bgra { (p[2], p[0]) } else { (p[0], p[2]) };
+                // The window is opaque whatever the swapchain's alpha holds.
+                pixels.extend_from_slice(&[r, p[1], b, 255]);
+            }
+        }
+        drop(mapped);
+        buffer.unmap();
+        image::RgbaImage::from_raw(w, h, pixels).context("screenshot size")
+    }
+}

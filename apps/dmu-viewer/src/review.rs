@@ -1,0 +1,358 @@
+//! The review: the model, its cell tree, the selection, moves with undo and
+//! redo, the live collision report, and saving. No window and no GPU here, so
+//! every edit is testable headless.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context as _;
+use dmu_collide::{Checker, Report, Settings};
+use dmu_geom::Ray3d;
+use dmu_scene::{PartId, Scene};
+use dmu_tree::{Hit, Tree, TreeOptions};
+use glam::{DAffine3, DVec3};
+
+/// One undoable move: a part's absolute transform before and after.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Edit {
+    part: PartId,
+    before: DAffine3,
+    after: DAffine3,
+}
+
+/// A drag in progress: every step places the part relative to where the drag
+/// started, so steps never accumulate rounding.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Drag {
+    part: PartId,
+    start: DAffine3,
+}
+
+/// Timings of the last edit, for the stats overlay.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct EditTimings {
+    /// Tree update of the last move step, µs.
+    pub move_us: f64,
+    /// Collision check of the last step, ms.
+    pub check_ms: f64,
+}
+
+/// What a save wrote.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Saved {
+    /// The file written.
+    pub path: PathBuf,
+    /// `gltf` or `dmu`.
+    pub format: &'static str,
+}
+
+/// The model under review and everything done to it.
+#[derive(Debug)]
+pub struct Review {
+    /// The model; part transforms change as parts move.
+    pub scene: Scene,
+    /// Its cell tree, updated on every move step.
+    pub tree: Tree,
+    /// The file it came from (`None`: the built-in plant).
+    pub source: Option<PathBuf>,
+    /// The selected part.
+    pub selected: Option<PartId>,
+    /// What the selection clashes with, as of the last check.
+    pub report: Report,
+    /// Collision settings (clearance).
+    pub settings: Settings,
+    /// Whether moves check collisions.
+    pub live_collision: bool,
+    /// Timings of the last step.
+    pub timings: EditTimings,
+    checker: Checker,
+    undo: Vec<Edit>,
+    redo: Vec<Edit>,
+    drag: Option<Drag>,
+}
+
+impl Review {
+    /// A review of `scene` (its tree is built here).
+    pub fn new(scene: Scene, source: Option<PathBuf>) -> Self {
+        let tree = Tree::build(&scene, TreeOptions::default());
+        let checker = Checker::new(&scene);
+        Self {
+            scene,
+            tree,
+            source,
+            selected: None,
+            report: Report::default(),
+            settings: Settings::default(),
+            live_collision: true,
+            timings: EditTimings::default(),
+            checker,
+            undo: Vec::new(),
+            redo: Vec::new(),
+            drag: None,
+        }
+    }
+
+    /// The nearest visible part along `ray` (exact, f64), as `dmu pick` finds it.
+    pub fn pick(&self, ray: &Ray3d) -> Option<Hit> {
+        self.tree.pick(&self.scene, ray)
+    }
+
+    /// Selects a part (or nothing) and checks what it clashes with.
+    pub fn select(&mut self, part: Option<PartId>) {
+        if self.selected != part {
+            self.end_drag();
+        }
+        self.selected = part;
+        self.check();
+    }
+
+    /// Checks the selection against everything else (clears the report when
+    /// nothing is selected or live collision is off).
+    pub fn check(&mut self) {
+        match self.selected {
+            Some(part) if self.live_collision => {
+                let start = Instant::now();
+                self.checker.check(
+                    &self.scene,
+                    &self.tree,
+                    &[part],
+                    &self.settings,
+                    &mut self.report,
+                );
+                self.timings.check_ms = start.elapsed().as_secs_f64() * 1e3;
+            }
+            _ => self.report.clear(),
+        }
+    }
+
+    /// Places `part` at `world` (absolute), updating the tree, then checks.
+    fn place(&mut self, part: PartId, world: DAffine3) {
+        let start = Instant::now();
+        self.tree.move_part(&mut self.scene, part, world);
+        self.timings.move_us = start.elapsed().as_secs_f64() * 1e6;
+        if self.selected == Some(part) {
+            self.check();
+        }
+    }
+
+    /// Moves the selection by a world translation, as one undoable edit.
+    /// Returns false when nothing is selected.
+    pub fn translate_selection(&mut self, delta: DVec3) -> bool {
+        let Some(part) = self.selected else {
+            return false;
+        };
+        self.end_drag();
+        let before = self.scene.part_world(part);
+        let mut after = before;
+        after.translation += delta;
+        self.apply(Edit {
+            part,
+            before,
+            after,
+        });
+        true
+    }
+
+    fn apply(&mut self, edit: Edit) {
+        self.place(edit.part, edit.after);
+        if edit.before != edit.after {
+            self.undo.push(edit);
+            self.redo.clear();
+        }
+    }
+
+    /// Starts dragging the selection (ends any drag in progress).
+    pub fn begin_drag(&mut self) -> bool {
+        self.end_drag();
+        let Some(part) = self.selected else {
+            return false;
+        };
+        self.drag = Some(Drag {
+            part,
+            start: self.scene.part_world(part),
+        });
+        true
+    }
+
+    /// One drag step: the dragged part at its start translated by `offset`
+    /// (world units); the tree is updated and collisions checked.
+    pub fn drag_to(&mut self, offset: DVec3) {
+        let Some(drag) = self.drag else {
+            return;
+        };
+        let mut world = drag.start;
+        world.translation += offset;
+        self.place(drag.part, world);
+    }
+
+    /// Ends the drag: what it did becomes one undoable edit.
+    pub fn end_drag(&mut self) {
+        if let Some(drag) = self.drag.take() {
+            let after = self.scene.part_world(drag.part);
+            if after != drag.start {
+                self.undo.push(Edit {
+                    part: drag.part,
+                    before: drag.start,
+                    after,
+                });
+                self.redo.clear();
+            }
+        }
+    }
+
+    /// Undoes the last edit; the part it moved, if any.
+    pub fn undo(&mut self) -> Option<PartId> {
+        self.end_drag();
+        let edit = self.undo.pop()?;
+        self.place(edit.part, edit.before);
+        self.redo.push(edit);
+        Some(edit.part)
+    }
+
+    /// Redoes the last undone edit; the part it moved, if any.
+    pub fn redo(&mut self) -> Option<PartId> {
+        self.end_drag();
+        let edit = self.redo.pop()?;
+        self.place(edit.part, edit.after);
+        self.undo.push(edit);
+        Some(edit.part)
+    }
+
+    /// Edits that can be undone and redone.
+    pub fn history(&self) -> (usize, usize) {
+        (self.undo.len(), self.redo.len())
+    }
+
+    /// Parts moved since loading (each once, in order of first move).
+    pub fn moved_parts(&self) -> Vec<PartId> {
+        let mut parts: Vec<PartId> = Vec::new();
+        for e in &self.undo {
+            if !parts.contains(&e.part) {
+                parts.push(e.part);
+            }
+        }
+        parts
+    }
+
+    /// Writes the model with its current transforms to `path`: back into the
+    /// store it was opened from (`.dmu`, [`dmu_store::save_edits`]), a new
+    /// store (`.dmu`), or glTF (`.glb`, `.gltf`). Every format is written to a
+    /// temporary file and renamed over `path`.
+    pub fn save(&mut self, path: &Path) -> anyhow::Result<Saved> {
+        self.end_drag();
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase());
+        let format = match ext.as_deref() {
+            Some("dmu") => {
+                let same = self.source.as_deref().is_some_and(|s| same_file(s, path));
+                if same {
+                    let store = dmu_store::Store::open(path)?;
+                    dmu_store::save_edits(&store, &self.scene)
+                        .with_context(|| format!("saving edits into {}", path.display()))?;
+                } else {
+                    dmu_store::write_scene(&self.scene, path, Default::default())
+                        .with_context(|| format!("writing {}", path.display()))?;
+                }
+                "dmu"
+            }
+            Some("glb" | "gltf") => {
+                dmu_scene::export_gltf(&self.scene, path)
+                    .with_context(|| format!("writing {}", path.display()))?;
+                "gltf"
+            }
+            _ => anyhow::bail!(
+                "{}: save as .glb, .gltf or .dmu (the extension picks the format)",
+                path.display()
+            ),
+        };
+        Ok(Saved {
+            path: path.to_owned(),
+            format,
+        })
+    }
+}
+
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => a == b,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn review() -> Review {
+        Review::new(dmu_scene::samples::grid(2, 10.0, 4.0, 2048), None)
+    }
+
+    /// A drag and typed moves undo and redo exactly, and the tree follows.
+    #[test]
+    fn moves_undo_and_redo_exactly() {
+        let mut r = review();
+        let part = r.scene.find_part("box_0_0_0").unwrap();
+        let start = r.scene.part_world(part);
+        r.select(Some(part));
+        assert!(r.begin_drag());
+        for i in 1..=10 {
+            r.drag_to(DVec3::new(0.37 * f64::from(i), 0.0, 0.0));
+        }
+        r.end_drag();
+        assert!(r.translate_selection(DVec3::new(0.0, 0.0, 100.0)));
+        assert_eq!(r.history(), (2, 0));
+        let end = r.scene.part_world(part);
+        assert_eq!(
+            end.translation,
+            start.translation + DVec3::new(3.7, 0.0, 100.0)
+        );
+        assert_eq!(r.undo(), Some(part));
+        assert_eq!(r.undo(), Some(part));
+        assert_eq!(r.undo(), None);
+        assert_eq!(r.scene.part_world(part), start);
+        r.tree.validate_against(&r.scene).unwrap();
+        assert_eq!(r.redo(), Some(part));
+        assert_eq!(r.redo(), Some(part));
+        assert_eq!(r.scene.part_world(part), end);
+        r.tree.validate_against(&r.scene).unwrap();
+        assert_eq!(r.moved_parts(), vec![part]);
+    }
+
+    /// The live check sees the neighbour when the selection is pushed into it.
+    #[test]
+    fn moving_into_a_neighbour_clashes() {
+        let mut r = review();
+        let part = r.scene.find_part("box_0_0_0").unwrap();
+        r.select(Some(part));
+        assert!(r.report.clashes.is_empty());
+        r.translate_selection(DVec3::new(7.0, 0.0, 0.0));
+        let clash = r.report.clashes.first().expect("a clash");
+        assert_eq!(r.scene.part_name(clash.b), "box_1_0_0");
+        r.undo();
+        assert!(r.report.clashes.is_empty());
+    }
+
+    /// Saving to glTF writes the moved transform, which reads back exactly.
+    #[test]
+    fn saves_gltf_and_dmu() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut r = review();
+        let part = r.scene.find_part("box_1_1_1").unwrap();
+        r.select(Some(part));
+        r.translate_selection(DVec3::new(100.0, 0.0, 0.0));
+        let glb = dir.path().join("out.glb");
+        assert_eq!(r.save(&glb).unwrap().format, "gltf");
+        let (back, _) = dmu_scene::import_gltf(&glb, &Default::default()).unwrap();
+        let id = back.find_part(&r.scene.part_path(part)).unwrap();
+        assert_eq!(back.part_world(id), r.scene.part_world(part));
+        let store = dir.path().join("out.dmu");
+        assert_eq!(r.save(&store).unwrap().format, "dmu");
+        let back = dmu_store::Store::open(&store)
+            .unwrap()
+            .load_scene()
+            .unwrap();
+        assert_eq!(back.part_world(part), r.scene.part_world(part));
+        assert!(r.save(&dir.path().join("out.obj")).is_err());
+    }
+}

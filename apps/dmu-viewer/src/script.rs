@@ -1,0 +1,236 @@
+//! Automation scripts: a JSON list of actions run one per frame (a drag one
+//! step per frame), so a script exercises the same code as the mouse and the
+//! panels do, and its frames are real frames.
+//!
+//! ```json
+//! [
+//!   {"pick": [640, 360]},
+//!   {"move": [100, 0, 0]},
+//!   {"drag": {"by": [0, 0, 500], "steps": 20}},
+//!   {"mouse_drag": {"axis": "x", "from": [640, 360], "to": [700, 360], "steps": 10}},
+//!   "undo", "redo", "focus", "frame_all",
+//!   {"select": "U00-L1-PIPE-0003"},
+//!   {"culling": "chc"},
+//!   {"overlays": {"stats": false, "clashes": true}},
+//!   {"frames": 5},
+//!   {"screenshot": "docs/viewer.png"},
+//!   {"save": "/tmp/edited.glb"}
+//! ]
+//! ```
+//!
+//! Pixels are physical pixels of the 3D view (origin at its top-left corner,
+//! y down); a pick aims at the pixel's centre. Distances are model units
+//! (millimetres for the plant).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context as _;
+use dmu_render::Culling;
+use serde::Deserialize;
+
+/// A world axis for constrained drags.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Axis {
+    /// World X.
+    X,
+    /// World Y.
+    Y,
+    /// World Z.
+    Z,
+}
+
+impl Axis {
+    /// The unit vector.
+    pub fn unit(self) -> glam::DVec3 {
+        match self {
+            Self::X => glam::DVec3::X,
+            Self::Y => glam::DVec3::Y,
+            Self::Z => glam::DVec3::Z,
+        }
+    }
+
+    /// `x`, `y` or `z`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::X => "x",
+            Self::Y => "y",
+            Self::Z => "z",
+        }
+    }
+}
+
+/// A drag of the selection by a world offset, in equal steps, one per frame.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DragBy {
+    /// Total offset `[dx, dy, dz]`, model units.
+    pub by: [f64; 3],
+    /// Steps (frames); at least 1.
+    #[serde(default = "default_steps")]
+    pub steps: u32,
+}
+
+/// A mouse drag of the selection along an axis from one pixel to another,
+/// through the same code as an interactive drag.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MouseDrag {
+    /// The axis the part slides along.
+    pub axis: Axis,
+    /// Where the button goes down (view pixels).
+    pub from: [f64; 2],
+    /// Where it comes up.
+    pub to: [f64; 2],
+    /// Pointer positions in between (frames); at least 1.
+    #[serde(default = "default_steps")]
+    pub steps: u32,
+}
+
+/// Which overlays the view shows (absent fields stay as they are).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Overlays {
+    /// The stats box.
+    pub stats: Option<bool>,
+    /// The clash markers.
+    pub clashes: Option<bool>,
+}
+
+fn default_steps() -> u32 {
+    1
+}
+
+/// One scripted action.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum Action {
+    /// Click at a view pixel `[x, y]`: select what is there (or nothing).
+    Pick([f64; 2]),
+    /// Select a part by name, path or `#id`.
+    Select(String),
+    /// Move the selection by `[dx, dy, dz]` as one typed edit.
+    Move([f64; 3]),
+    /// Drag the selection by an offset in steps.
+    Drag(DragBy),
+    /// Drag the selection along an axis with the (simulated) mouse.
+    MouseDrag(MouseDrag),
+    /// Undo the last edit.
+    Undo,
+    /// Redo the last undone edit.
+    Redo,
+    /// Frame the selection (as a double-click does).
+    Focus,
+    /// Frame the whole model.
+    FrameAll,
+    /// Culling mode: `none`, `frustum` or `chc`.
+    Culling(String),
+    /// Show or hide the view's overlays.
+    Overlays(Overlays),
+    /// Render this many frames without doing anything.
+    Frames(u32),
+    /// Save the window as PNG after this frame.
+    Screenshot(PathBuf),
+    /// Save the model (`.glb`, `.gltf`, `.dmu`).
+    Save(PathBuf),
+}
+
+impl Action {
+    /// Frames the action takes.
+    pub fn frames(&self) -> u32 {
+        match self {
+            Self::Drag(d) => d.steps.max(1),
+            Self::MouseDrag(d) => d.steps.max(1) + 1,
+            Self::Frames(n) => (*n).max(1),
+            _ => 1,
+        }
+    }
+
+    /// Its name in reports.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Pick(_) => "pick",
+            Self::Select(_) => "select",
+            Self::Move(_) => "move",
+            Self::Drag(_) => "drag",
+            Self::MouseDrag(_) => "mouse_drag",
+            Self::Undo => "undo",
+            Self::Redo => "redo",
+            Self::Focus => "focus",
+            Self::FrameAll => "frame_all",
+            Self::Culling(_) => "culling",
+            Self::Overlays(_) => "overlays",
+            Self::Frames(_) => "frames",
+            Self::Screenshot(_) => "screenshot",
+            Self::Save(_) => "save",
+        }
+    }
+}
+
+/// Parses a script: a JSON list of actions.
+pub fn parse(text: &str) -> anyhow::Result<Vec<Action>> {
+    let actions: Vec<Action> = serde_json::from_str(text)?;
+    for (i, a) in actions.iter().enumerate() {
+        let finite = match a {
+            Action::Pick(p) => p.iter().all(|v| v.is_finite()),
+            Action::Move(d) => d.iter().all(|v| v.is_finite()),
+            Action::Drag(d) => d.by.iter().all(|v| v.is_finite()),
+            Action::MouseDrag(d) => d.from.iter().chain(&d.to).all(|v| v.is_finite()),
+            Action::Culling(c) => {
+                culling_from_name(c).with_context(|| format!("action {i}"))?;
+                true
+            }
+            _ => true,
+        };
+        anyhow::ensure!(finite, "action {i} ({}): numbers must be finite", a.name());
+    }
+    Ok(actions)
+}
+
+/// The culling mode called `none`, `frustum` or `chc`.
+pub fn culling_from_name(name: &str) -> anyhow::Result<Culling> {
+    match name {
+        "none" => Ok(Culling::None),
+        "frustum" => Ok(Culling::Frustum),
+        "chc" => Ok(Culling::Occlusion),
+        _ => anyhow::bail!("culling {name:?} is not none, frustum or chc"),
+    }
+}
+
+/// Reads and parses a script file.
+pub fn read(path: &Path) -> anyhow::Result<Vec<Action>> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    parse(&text).with_context(|| format!("parsing script {}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_every_action() {
+        let script = parse(
+            r##"[{"pick": [640, 360.5]}, {"move": [100, 0, 0]},
+                {"drag": {"by": [0, 0, 500], "steps": 20}},
+                {"mouse_drag": {"axis": "x", "from": [1, 2], "to": [3, 4]}},
+                "undo", "redo", "focus", "frame_all", {"select": "#3"},
+                {"culling": "chc"}, {"frames": 5}, {"overlays": {"stats": false}},
+                {"screenshot": "a.png"}, {"save": "b.glb"}]"##,
+        )
+        .unwrap();
+        assert_eq!(script.len(), 14);
+        assert_eq!(script[0], Action::Pick([640.0, 360.5]));
+        assert_eq!(script[2].frames(), 20);
+        assert_eq!(script[3].frames(), 2);
+        assert_eq!(script[4], Action::Undo);
+    }
+
+    #[test]
+    fn rejects_bad_scripts() {
+        assert!(parse(r#"[{"pick": [1]}]"#).is_err());
+        assert!(parse(r#"[{"teleport": [1, 2, 3]}]"#).is_err());
+        assert!(parse(r#"[{"culling": "fast"}]"#).is_err());
+        assert!(parse(r#"{"pick": [1, 2]}"#).is_err());
+    }
+}

@@ -1,0 +1,664 @@
+//! The panels: product structure with search, properties and moves of the
+//! selection, clashes, settings, the stats overlay, and the 3D view's area,
+//! whose pointer and key input is handed back to the app as [`ViewInput`].
+
+use std::path::PathBuf;
+
+use dmu_collide::ClashKind;
+use dmu_render::{Culling, FrameStats, View};
+use dmu_scene::{NodeId, PartId, Scene};
+use egui::{Color32, Pos2, Rect, RichText, Sense, Vec2};
+use glam::DVec3;
+
+use crate::nav::{Keys, Motion, Navigator};
+use crate::review::Review;
+use crate::script::Axis;
+
+/// Children listed under one node of the structure tree before "… more".
+const CHILDREN_SHOWN: usize = 500;
+
+/// A point of the 3D view in physical pixels (origin top-left, y down).
+pub type ViewPoint = (f64, f64);
+
+/// What the pointer and keys did to the 3D view this frame.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ViewInput {
+    /// The view's rectangle in window pixels: x, y, width, height.
+    pub rect_px: (u32, u32, u32, u32),
+    /// A primary click (not a drag).
+    pub clicked: Option<ViewPoint>,
+    /// A primary double-click.
+    pub double_clicked: Option<ViewPoint>,
+    /// A primary drag started here.
+    pub drag_started: Option<ViewPoint>,
+    /// The pointer while a primary drag goes on, and its motion this frame.
+    pub dragging: Option<(ViewPoint, ViewPoint)>,
+    /// The primary drag ended.
+    pub drag_stopped: bool,
+    /// Secondary-button drag motion (mouse look), pixels.
+    pub look: ViewPoint,
+    /// Middle-button drag motion (pan), pixels.
+    pub pan: ViewPoint,
+    /// Wheel over the view (positive: toward the scene) and where the pointer is.
+    pub wheel: Option<(f64, ViewPoint)>,
+    /// Walking keys.
+    pub keys: Keys,
+    /// Frame the selection (F), or everything (Home).
+    pub focus: bool,
+    /// Frame everything.
+    pub frame_all: bool,
+}
+
+impl ViewInput {
+    /// Whether anything is moving the camera or a part (keep drawing).
+    pub fn active(&self) -> bool {
+        self.dragging.is_some()
+            || self.look != (0.0, 0.0)
+            || self.pan != (0.0, 0.0)
+            || self.keys != Keys::default()
+    }
+}
+
+/// Counters of the last frame for the overlay.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Overlay {
+    /// The renderer's stats of the last frame.
+    pub frame: FrameStats,
+    /// Wall time of the last whole frame (UI, 3D, present), ms.
+    pub frame_ms: f64,
+    /// Average wall time over recent frames, ms.
+    pub frame_ms_avg: f64,
+    /// Triangles in the model (instances counted).
+    pub model_triangles: u64,
+    /// Chunk geometry on the GPU, bytes.
+    pub resident_bytes: u64,
+}
+
+/// State of the panels between frames.
+#[derive(Debug)]
+pub struct UiState {
+    search: String,
+    /// Parts matching `search` (computed when it changes).
+    matches: Vec<PartId>,
+    matches_for: String,
+    /// The typed translation.
+    pub move_by: [f64; 3],
+    /// The axis a primary drag on the selection slides it along (`None`: drags orbit).
+    pub drag_axis: Option<Axis>,
+    /// Drag offsets snap to multiples of this (0: no snapping), model units.
+    pub snap: f64,
+    save_path: String,
+    /// A message for the status line.
+    pub status: String,
+    /// Open the structure tree down to this part next frame.
+    pub reveal: Option<PartId>,
+    /// Show the stats overlay.
+    pub show_stats: bool,
+    /// Mark clash points on the view.
+    pub show_clashes: bool,
+}
+
+impl UiState {
+    /// Panels for a model loaded from `source` (the default save path derives from it).
+    pub fn new(source: Option<&std::path::Path>) -> Self {
+        let save_path = match source {
+            Some(p) => p.display().to_string(),
+            None => "dmu-review.glb".to_owned(),
+        };
+        Self {
+            search: String::new(),
+            matches: Vec::new(),
+            matches_for: String::new(),
+            move_by: [0.0; 3],
+            drag_axis: None,
+            snap: 0.0,
+            save_path,
+            status: String::new(),
+            reveal: None,
+            show_stats: true,
+            show_clashes: true,
+        }
+    }
+}
+
+/// Lays out one frame of the panels and the 3D view showing `view_texture`.
+pub fn show(
+    ui: &mut egui::Ui,
+    state: &mut UiState,
+    review: &mut Review,
+    nav: &mut Navigator,
+    view: &mut View,
+    overlay: &Overlay,
+    view_texture: egui::TextureId,
+) -> ViewInput {
+    top_bar(ui, state, review, nav, view);
+    egui::Panel::left("structure")
+        .default_size(280.0)
+        .show(ui, |ui| structure_panel(ui, state, review));
+    egui::Panel::right("properties")
+        .default_size(320.0)
+        .show(ui, |ui| properties_panel(ui, state, review));
+    egui::Panel::bottom("status").show(ui, |ui| {
+        ui.horizontal(|ui| {
+            ui.label(&state.status);
+            ui.separator();
+            ui.add(
+                egui::Label::new(
+                    RichText::new(
+                        "click: pick · drag: orbit · right-drag: look · middle-drag: pan · \
+                         wheel: zoom · WASD/QE: walk · double-click: focus · F: frame · \
+                         Ctrl+Z/Y: undo/redo",
+                    )
+                    .weak(),
+                )
+                .truncate(),
+            );
+        });
+    });
+    egui::CentralPanel::no_frame()
+        .show(ui, |ui| {
+            view_area(ui, state, review, nav, overlay, view_texture)
+        })
+        .inner
+}
+
+fn top_bar(
+    ui: &mut egui::Ui,
+    state: &mut UiState,
+    review: &mut Review,
+    nav: &mut Navigator,
+    view: &mut View,
+) {
+    egui::Panel::top("top").show(ui, |ui| {
+        ui.horizontal(|ui| {
+            ui.strong("dmu");
+            ui.label(match &review.source {
+                Some(p) => p.display().to_string(),
+                None => "built-in plant".to_owned(),
+            });
+            ui.separator();
+            ui.label("Save to");
+            ui.add(egui::TextEdit::singleline(&mut state.save_path).desired_width(220.0));
+            if ui
+                .button("Save")
+                .on_hover_text(".glb/.gltf: export glTF; .dmu: save the edits into the store")
+                .clicked()
+            {
+                let path = PathBuf::from(state.save_path.trim());
+                state.status = match review.save(&path) {
+                    Ok(saved) => format!("saved {} ({})", saved.path.display(), saved.format),
+                    Err(e) => format!("save failed: {e:#}"),
+                };
+            }
+            ui.separator();
+            egui::ComboBox::from_label("culling")
+                .selected_text(culling_name(view.culling))
+                .show_ui(ui, |ui| {
+                    for c in [Culling::None, Culling::Frustum, Culling::Occlusion] {
+                        ui.selectable_value(&mut view.culling, c, culling_name(c));
+                    }
+                });
+            ui.add(
+                egui::DragValue::new(&mut view.options.min_pixels)
+                    .range(0.0..=64.0)
+                    .speed(0.1)
+                    .prefix("min px "),
+            )
+            .on_hover_text("cells covering fewer pixels across are not drawn");
+            ui.separator();
+            ui.selectable_value(&mut nav.motion, Motion::Walk, "walk");
+            ui.selectable_value(&mut nav.motion, Motion::Fly, "fly");
+            ui.add(
+                egui::Slider::new(&mut nav.speed_factor, 0.01..=100.0)
+                    .logarithmic(true)
+                    .text("speed"),
+            );
+            ui.checkbox(&mut state.show_stats, "stats");
+        });
+    });
+}
+
+fn culling_name(c: Culling) -> &'static str {
+    match c {
+        Culling::None => "none",
+        Culling::Frustum => "frustum",
+        Culling::Occlusion => "chc",
+    }
+}
+
+fn structure_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) {
+    ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Truncate);
+    ui.heading("Product structure");
+    ui.horizontal(|ui| {
+        ui.label("search");
+        ui.text_edit_singleline(&mut state.search);
+    });
+    let query = state.search.trim().to_lowercase();
+    if query.is_empty() {
+        egui::ScrollArea::vertical()
+            .auto_shrink([false, false])
+            .show(ui, |ui| {
+                let reveal = state.reveal.take().map(|p| ancestors(&review.scene, p));
+                let top = review.scene.node(NodeId(0)).children.clone();
+                for child in top {
+                    node_ui(ui, review, child, reveal.as_deref());
+                }
+            });
+        return;
+    }
+    if state.matches_for != query {
+        state.matches = review
+            .scene
+            .part_ids()
+            .filter(|&p| review.scene.part_name(p).to_lowercase().contains(&query))
+            .collect();
+        state.matches_for = query;
+    }
+    ui.weak(format!("{} parts", state.matches.len()));
+    let row = ui.text_style_height(&egui::TextStyle::Body);
+    egui::ScrollArea::vertical()
+        .auto_shrink([false, false])
+        .show_rows(ui, row, state.matches.len(), |ui, rows| {
+            for &part in &state.matches[rows] {
+                part_label(ui, review, part);
+            }
+        });
+}
+
+/// The nodes from the root's child down to `part`'s node.
+fn ancestors(scene: &Scene, part: PartId) -> Vec<NodeId> {
+    let mut at = Some(scene.part(part).node);
+    let mut path = Vec::new();
+    while let Some(n) = at {
+        path.push(n);
+        at = scene.node(n).parent;
+    }
+    path
+}
+
+fn part_label(ui: &mut egui::Ui, review: &mut Review, part: PartId) -> egui::Response {
+    let scene = &review.scene;
+    let mut text = RichText::new(scene.part_name(part));
+    if scene.part(part).hidden {
+        text = text.weak().italics();
+    }
+    let response = ui.selectable_label(review.selected == Some(part), text);
+    if response.clicked() {
+        review.select(Some(part));
+    }
+    response.on_hover_text(review.scene.part_path(part))
+}
+
+fn node_ui(ui: &mut egui::Ui, review: &mut Review, node: NodeId, reveal: Option<&[NodeId]>) {
+    let (children, part) = {
+        let n = review.scene.node(node);
+        (n.children.clone(), n.part)
+    };
+    let on_path = reveal.is_some_and(|r| r.contains(&node));
+    if children.is_empty() {
+        let response = match part {
+            Some(p) => part_label(ui, review, p),
+            None => ui.label(&review.scene.node(node).name),
+        };
+        if on_path {
+            response.scroll_to_me(Some(egui::Align::Center));
+        }
+        return;
+    }
+    let id = ui.make_persistent_id(("structure node", node.0));
+    let mut collapsing =
+        egui::collapsing_header::CollapsingState::load_with_default_open(ui.ctx(), id, false);
+    if on_path {
+        collapsing.set_open(true);
+    }
+    collapsing
+        .show_header(ui, |ui| match part {
+            Some(p) => {
+                part_label(ui, review, p);
+            }
+            None => {
+                ui.label(format!(
+                    "{} ({})",
+                    review.scene.node(node).name,
+                    children.len()
+                ));
+            }
+        })
+        .body(|ui| {
+            for &child in children.iter().take(CHILDREN_SHOWN) {
+                node_ui(ui, review, child, reveal);
+            }
+            if children.len() > CHILDREN_SHOWN {
+                ui.weak(format!(
+                    "… {} more (search by name)",
+                    children.len() - CHILDREN_SHOWN
+                ));
+                // The part being revealed is shown even past the limit.
+                if let Some(&c) = children[CHILDREN_SHOWN..]
+                    .iter()
+                    .find(|c| reveal.is_some_and(|r| r.contains(c)))
+                {
+                    node_ui(ui, review, c, reveal);
+                }
+            }
+        });
+}
+
+fn vec_text(v: DVec3) -> String {
+    format!("{:.3}, {:.3}, {:.3}", v.x, v.y, v.z)
+}
+
+fn properties_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) {
+    // Long paths wrap instead of widening the panel (and shrinking the view).
+    ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Wrap);
+    egui::ScrollArea::vertical().show(ui, |ui| {
+        ui.heading("Selection");
+        let Some(part) = review.selected else {
+            ui.weak("nothing selected: click a part, or pick one in the structure");
+            history_row(ui, review);
+            return;
+        };
+        let scene = &review.scene;
+        let mesh = scene.part_mesh(part);
+        let world = scene.part_world(part);
+        let bounds = scene.part_world_bounds(part);
+        let (scale, rotation, translation) = world.to_scale_rotation_translation();
+        let (axis, angle) = rotation.to_axis_angle();
+        egui::Grid::new("properties")
+            .num_columns(2)
+            .striped(true)
+            .show(ui, |ui| {
+                let mut row = |k: &str, v: String| {
+                    ui.add(egui::Label::new(k).wrap_mode(egui::TextWrapMode::Extend));
+                    ui.label(v);
+                    ui.end_row();
+                };
+                row("name", scene.part_name(part).to_owned());
+                row("id", format!("#{}", part.0));
+                row("path", scene.part_path(part));
+                row("triangles", mesh.triangle_count().to_string());
+                row("chunks", mesh.chunks.len().to_string());
+                row("bounds min", vec_text(bounds.min));
+                row("bounds max", vec_text(bounds.max));
+                row("size", vec_text(bounds.extent()));
+                row("translation", vec_text(translation));
+                row(
+                    "rotation",
+                    format!("{:.3}° about {}", angle.to_degrees(), vec_text(axis)),
+                );
+                row("scale", vec_text(scale));
+            });
+        ui.horizontal(|ui| {
+            if ui.button("hide").clicked() {
+                review.scene.set_part_hidden(part, true);
+            }
+            if ui.button("isolate").clicked() {
+                for p in review.scene.part_ids() {
+                    review.scene.set_part_hidden(p, p != part);
+                }
+            }
+            if ui.button("show all").clicked() {
+                for p in review.scene.part_ids() {
+                    review.scene.set_part_hidden(p, false);
+                }
+            }
+        });
+        ui.separator();
+        ui.heading("Move");
+        ui.horizontal(|ui| {
+            for (v, name) in state.move_by.iter_mut().zip(["dx ", "dy ", "dz "]) {
+                ui.add(egui::DragValue::new(v).speed(1.0).prefix(name));
+            }
+            if ui.button("move").clicked() {
+                review.translate_selection(DVec3::from_array(state.move_by));
+            }
+        });
+        ui.horizontal(|ui| {
+            ui.label("drag along");
+            ui.radio_value(&mut state.drag_axis, None, "off");
+            for a in [Axis::X, Axis::Y, Axis::Z] {
+                ui.radio_value(&mut state.drag_axis, Some(a), a.name());
+            }
+        });
+        ui.add(
+            egui::DragValue::new(&mut state.snap)
+                .range(0.0..=f64::MAX)
+                .prefix("snap "),
+        );
+        history_row(ui, review);
+        ui.separator();
+        ui.heading("Collision");
+        ui.horizontal(|ui| {
+            if ui.checkbox(&mut review.live_collision, "live").changed() {
+                review.check();
+            }
+            let clearance = ui.add(
+                egui::DragValue::new(&mut review.settings.clearance)
+                    .range(0.0..=f64::MAX)
+                    .prefix("clearance "),
+            );
+            if clearance.changed() {
+                review.check();
+            }
+            ui.checkbox(&mut state.show_clashes, "markers");
+        });
+        ui.weak(format!(
+            "{} clashes · {} part pairs tested · {:.2} ms",
+            review.report.clashes.len(),
+            review.report.part_pairs_tested,
+            review.timings.check_ms
+        ));
+        let clashes = review.report.clashes.clone();
+        for clash in clashes {
+            let other = if clash.a == part { clash.b } else { clash.a };
+            ui.horizontal(|ui| {
+                ui.colored_label(clash_colour(clash.kind), clash.kind.as_str());
+                if ui
+                    .link(review.scene.part_name(other))
+                    .on_hover_text(review.scene.part_path(other))
+                    .clicked()
+                {
+                    review.select(Some(other));
+                    state.reveal = Some(other);
+                }
+                ui.weak(format!("{:.3}", clash.distance));
+            });
+        }
+    });
+}
+
+fn history_row(ui: &mut egui::Ui, review: &mut Review) {
+    let (undo, redo) = review.history();
+    ui.horizontal(|ui| {
+        if ui
+            .add_enabled(undo > 0, egui::Button::new(format!("undo ({undo})")))
+            .clicked()
+        {
+            review.undo();
+        }
+        if ui
+            .add_enabled(redo > 0, egui::Button::new(format!("redo ({redo})")))
+            .clicked()
+        {
+            review.redo();
+        }
+    });
+}
+
+/// Marker colour of a clash kind.
+pub fn clash_colour(kind: ClashKind) -> Color32 {
+    match kind {
+        ClashKind::Hard => Color32::from_rgb(255, 40, 40),
+        ClashKind::Contact => Color32::from_rgb(255, 200, 0),
+        ClashKind::Soft => Color32::from_rgb(80, 180, 255),
+    }
+}
+
+fn view_area(
+    ui: &mut egui::Ui,
+    state: &UiState,
+    review: &Review,
+    nav: &Navigator,
+    overlay: &Overlay,
+    view_texture: egui::TextureId,
+) -> ViewInput {
+    let (rect, response) = ui.allocate_exact_size(ui.available_size(), Sense::click_and_drag());
+    let painter = ui.painter_at(rect);
+    painter.image(
+        view_texture,
+        rect,
+        Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
+        Color32::WHITE,
+    );
+    let ppp = f64::from(ui.ctx().pixels_per_point());
+    let to_view = |p: Pos2| {
+        (
+            f64::from(p.x - rect.min.x) * ppp,
+            f64::from(p.y - rect.min.y) * ppp,
+        )
+    };
+    let px = |v: f32| (f64::from(v) * ppp).round().max(0.0) as u32;
+    let mut input = ViewInput {
+        rect_px: (
+            px(rect.min.x),
+            px(rect.min.y),
+            px(rect.width()),
+            px(rect.height()),
+        ),
+        ..ViewInput::default()
+    };
+    let pointer = response.interact_pointer_pos().or(response.hover_pos());
+    let primary = egui::PointerButton::Primary;
+    if response.double_clicked() {
+        input.double_clicked = pointer.map(to_view);
+    } else if response.clicked() {
+        input.clicked = pointer.map(to_view);
+    }
+    if response.drag_started_by(primary) {
+        let origin = ui.input(|i| i.pointer.press_origin()).or(pointer);
+        input.drag_started = origin.map(to_view);
+    }
+    let delta = response.drag_delta();
+    let delta = (f64::from(delta.x) * ppp, f64::from(delta.y) * ppp);
+    if response.dragged_by(primary)
+        && let Some(p) = pointer
+    {
+        input.dragging = Some((to_view(p), delta));
+    }
+    if response.drag_stopped_by(primary) {
+        input.drag_stopped = true;
+    }
+    if response.dragged_by(egui::PointerButton::Secondary) {
+        input.look = delta;
+    }
+    if response.dragged_by(egui::PointerButton::Middle) {
+        input.pan = delta;
+    }
+    if response.hovered() {
+        let wheel = ui.input(|i| i.smooth_scroll_delta.y);
+        if wheel != 0.0
+            && let Some(p) = response.hover_pos()
+        {
+            input.wheel = Some((f64::from(wheel), to_view(p)));
+        }
+    }
+    if !ui.ctx().egui_wants_keyboard_input() {
+        ui.input(|i| {
+            let axis = |plus: egui::Key, minus: egui::Key| {
+                f64::from(u8::from(i.key_down(plus))) - f64::from(u8::from(i.key_down(minus)))
+            };
+            input.keys = Keys {
+                forward: axis(egui::Key::W, egui::Key::S),
+                right: axis(egui::Key::D, egui::Key::A),
+                up: axis(egui::Key::E, egui::Key::Q),
+                boost: if i.modifiers.shift { 4.0 } else { 1.0 },
+            };
+            input.focus = i.key_pressed(egui::Key::F);
+            input.frame_all = i.key_pressed(egui::Key::Home);
+        });
+        if input.keys.forward == 0.0 && input.keys.right == 0.0 && input.keys.up == 0.0 {
+            input.keys = Keys::default();
+        }
+    }
+    if state.show_clashes {
+        clash_markers(&painter, rect, review, nav, input.rect_px);
+    }
+    if state.show_stats {
+        stats_overlay(&painter, rect, overlay, review);
+    }
+    input
+}
+
+/// Marks each clash point of the selection on the view.
+fn clash_markers(
+    painter: &egui::Painter,
+    rect: Rect,
+    review: &Review,
+    nav: &Navigator,
+    rect_px: (u32, u32, u32, u32),
+) {
+    if review.report.clashes.is_empty() || rect_px.2 == 0 || rect_px.3 == 0 {
+        return;
+    }
+    let camera = nav.camera();
+    let aspect = f64::from(rect_px.2) / f64::from(rect_px.3);
+    let clip_from_world = camera.projection(aspect) * camera.view_matrix();
+    for clash in &review.report.clashes {
+        let clip = clip_from_world * clash.point.extend(1.0);
+        if clip.w <= 0.0 {
+            continue;
+        }
+        let ndc = clip.truncate() / clip.w;
+        let at = Pos2::new(
+            rect.min.x + ((ndc.x + 1.0) * 0.5) as f32 * rect.width(),
+            rect.min.y + ((1.0 - ndc.y) * 0.5) as f32 * rect.height(),
+        );
+        let colour = clash_colour(clash.kind);
+        painter.circle_stroke(at, 7.0, egui::Stroke::new(2.0, colour));
+        painter.circle_filled(at, 2.0, colour);
+    }
+}
+
+fn stats_overlay(painter: &egui::Painter, rect: Rect, o: &Overlay, review: &Review) {
+    let s = &o.frame;
+    let text = format!(
+        "frame {:.1} ms (avg {:.1}, {:.0} fps)\n\
+         3D: cpu {:.1} ms · gpu {:.1} ms\n\
+         triangles {} drawn / {} in frustum / {} model\n\
+         chunks {} drawn · {} queries in {} rounds\n\
+         culled: frustum {} · coverage {} · occlusion {} · hidden {}\n\
+         occlusion {} (cost {:.2} ms, saves {:.2} ms)\n\
+         GPU geometry {:.1} MiB\n\
+         move {:.0} µs · collision {:.2} ms",
+        o.frame_ms,
+        o.frame_ms_avg,
+        1000.0 / o.frame_ms_avg.max(1e-3),
+        s.cpu_ms,
+        s.gpu_ms,
+        s.triangles_drawn,
+        s.triangles_in_frustum,
+        o.model_triangles,
+        s.chunks_drawn,
+        s.queries,
+        s.rounds,
+        s.culled_frustum,
+        s.culled_coverage,
+        s.culled_occlusion,
+        s.hidden,
+        if s.occlusion.enabled { "on" } else { "off" },
+        s.occlusion.cost_ms,
+        s.occlusion.saved_ms,
+        o.resident_bytes as f64 / (1u64 << 20) as f64,
+        review.timings.move_us,
+        review.timings.check_ms,
+    );
+    let font = egui::FontId::monospace(12.0);
+    let galley = painter.layout_no_wrap(text, font, Color32::from_gray(230));
+    let at = Pos2::new(rect.max.x - galley.size().x - 12.0, rect.min.y + 8.0);
+    painter.rect_filled(
+        Rect::from_min_size(at - Vec2::splat(6.0), galley.size() + Vec2::splat(12.0)),
+        4.0,
+        Color32::from_black_alpha(170),
+    );
+    painter.galley(at, galley, Color32::WHITE);
+}
