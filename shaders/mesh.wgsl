@@ -9,8 +9,12 @@ struct ViewUniform {
     // View space to clip space (reverse-Z, infinite far plane), shared by the
     // eyes of a stereo pair (parallel eyes, symmetric frusta).
     proj: mat4x4<f32>,
-    // Colour mixed into selected parts.
+    // Colour mixed into selected parts (rgb) and its weight (a).
     highlight: vec4<f32>,
+    // Colour mixed into parts clashing with a moved part, as highlight.
+    clash: vec4<f32>,
+    // Colour mixed into the part under the pointer, as highlight.
+    hover: vec4<f32>,
     // Model-views per eye: eye k's are model_views[k * eye_stride ..].
     eye_stride: u32,
     // The eye single-view entry points draw (0 but for a stereo pair drawn a
@@ -47,7 +51,10 @@ struct QueryBox {
 @group(0) @binding(4) var<storage, read> materials: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read> boxes: array<QueryBox>;
 
+// Part flag bits; the tint goes by priority: selected, clashing, hovered.
 const PART_SELECTED: u32 = 1u;
+const PART_CLASHING: u32 = 2u;
+const PART_HOVERED: u32 = 4u;
 
 struct MeshOut {
     // Invariant: the colour, id and query pipelines must cover identical pixels.
@@ -91,8 +98,15 @@ fn vs_mesh(
 fn fs_shade(in: MeshOut) -> @location(0) vec4<f32> {
     let e = entries[in.entry];
     var base = materials[e.material];
-    if (part_flags[e.part] & PART_SELECTED) != 0u {
-        base = vec4<f32>(mix(base.rgb, view.highlight.rgb, view.highlight.a), base.a);
+    let flags = part_flags[e.part];
+    if flags != 0u {
+        var tint = view.hover;
+        if (flags & PART_SELECTED) != 0u {
+            tint = view.highlight;
+        } else if (flags & PART_CLASHING) != 0u {
+            tint = view.clash;
+        }
+        base = vec4<f32>(mix(base.rgb, tint.rgb, tint.a), base.a);
     }
     // Headlight: the light sits at the eye, so every visible face is lit and
     // two-sided lighting hides inconsistent CAD windings.

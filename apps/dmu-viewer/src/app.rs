@@ -8,8 +8,9 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
+use dmu_collide::Report;
 use dmu_geom::Ray3d;
-use dmu_render::{Culling, FrameStats, Renderer, View};
+use dmu_render::{Culling, FrameStats, Renderer};
 use dmu_scene::PartId;
 use glam::DVec3;
 use serde_json::{Value, json};
@@ -20,9 +21,11 @@ use winit::window::{Window, WindowId};
 
 use crate::gfx::Gfx;
 use crate::nav::{Navigator, axis_offset};
+use crate::panes::{Pane, PaneKind};
+use crate::record::Recorder;
 use crate::review::Review;
 use crate::script::{Action, Axis};
-use crate::ui::{Overlay, UiState, ViewInput, ViewPoint};
+use crate::ui::{Overlay, PaneShow, RectPx, UiState, ViewInput, ViewPoint};
 
 /// Frames drawn before a script starts, so the layout (and the 3D view's size)
 /// has settled.
@@ -68,6 +71,26 @@ enum PointerDrag {
     },
 }
 
+/// Parts the renderer has been told to tint, per tint.
+#[derive(Debug, Default)]
+struct Tints {
+    selected: Vec<PartId>,
+    clashing: Vec<PartId>,
+    hovered: Vec<PartId>,
+}
+
+/// Tells the renderer (through `set`) which parts gain or lose a tint to go
+/// from `now` to `want`; `now` becomes `want`.
+fn retint(now: &mut Vec<PartId>, want: Vec<PartId>, mut set: impl FnMut(PartId, bool)) {
+    for &p in now.iter().filter(|p| !want.contains(p)) {
+        set(p, false);
+    }
+    for &p in want.iter().filter(|p| !now.contains(p)) {
+        set(p, true);
+    }
+    *now = want;
+}
+
 /// The script's progress.
 #[derive(Debug, Default)]
 struct Runner {
@@ -94,21 +117,30 @@ pub struct App {
     options: Options,
     instance: wgpu::Instance,
     review: Review,
-    nav: Navigator,
-    view: View,
+    /// The 3D panes; pane 0 is the main view.
+    panes: Vec<Pane>,
+    /// The pane keys, scripts and settings act on (the last one clicked).
+    active: usize,
+    /// Cells the main pane drew last frame, by cell id (for cells panes).
+    drawn_cells: Vec<bool>,
     ui: UiState,
     egui_ctx: egui::Context,
     egui_state: Option<egui_winit::State>,
     gfx: Option<Gfx>,
     renderer: Option<Renderer>,
-    highlighted: Option<PartId>,
+    /// The part under the pointer (or a scripted hover).
+    hovered: Option<PartId>,
+    /// The pointer's last pane and position, to pick the hovered part only
+    /// when it moves.
+    pointer_at: Option<(usize, ViewPoint)>,
+    tints: Tints,
     overlay: Overlay,
     frame_ms: VecDeque<f64>,
     frames_drawn: u64,
     last_frame: Option<Instant>,
     pointer_drag: Option<PointerDrag>,
-    /// The 3D view's rectangle in the window (x, y, width, height), last frame.
-    view_rect: (u32, u32, u32, u32),
+    /// Each pane's rectangle in the window (x, y, width, height), last frame.
+    pane_rects: Vec<RectPx>,
     runner: Runner,
     /// The run's report (model and load facts), completed at exit.
     facts: Value,
@@ -128,8 +160,12 @@ impl std::fmt::Debug for App {
 impl App {
     /// A viewer of `review`; `facts` start the run's report.
     pub fn new(instance: wgpu::Instance, review: Review, options: Options, facts: Value) -> Self {
-        let nav = Navigator::overview(&review.tree.bounds());
-        let view = View::new(nav.camera(), (1, 1), options.culling);
+        let main = Pane::new(
+            &review.tree.bounds(),
+            None,
+            PaneKind::Model,
+            options.culling,
+        );
         let ui = UiState::new(review.source.as_deref());
         let runner = Runner {
             actions: options.script.clone(),
@@ -139,20 +175,23 @@ impl App {
             options,
             instance,
             review,
-            nav,
-            view,
+            panes: vec![main],
+            active: 0,
+            drawn_cells: Vec::new(),
             ui,
             egui_ctx: egui::Context::default(),
             egui_state: None,
             gfx: None,
             renderer: None,
-            highlighted: None,
+            hovered: None,
+            pointer_at: None,
+            tints: Tints::default(),
             overlay: Overlay::default(),
             frame_ms: VecDeque::new(),
             frames_drawn: 0,
             last_frame: None,
             pointer_drag: None,
-            view_rect: (0, 0, 1, 1),
+            pane_rects: vec![(0, 0, 1, 1)],
             runner,
             facts,
             keep_drawing: true,
@@ -193,13 +232,36 @@ impl App {
         Ok(Some(report))
     }
 
-    fn view_size(&self) -> (u32, u32) {
-        self.view.size
+    /// The active pane's camera.
+    fn nav(&mut self) -> &mut Navigator {
+        &mut self.panes[self.active].nav
     }
 
-    /// The f64 ray through the view point `(x, y)` (physical pixels).
-    fn ray_at(&self, (x, y): ViewPoint) -> Ray3d {
-        self.nav.ray(self.view_size(), x, y)
+    /// The f64 ray through the point `(x, y)` (physical pixels) of the
+    /// active pane.
+    fn ray_at(&self, at: ViewPoint) -> Ray3d {
+        self.ray_in(self.active, at)
+    }
+
+    /// The f64 ray through the point `(x, y)` of pane `pane`.
+    fn ray_in(&self, pane: usize, (x, y): ViewPoint) -> Ray3d {
+        let p = &self.panes[pane];
+        p.nav.ray(p.view.size, x, y)
+    }
+
+    /// The active pane's rectangle in the window.
+    fn active_rect(&self) -> RectPx {
+        self.pane_rects
+            .get(self.active)
+            .copied()
+            .unwrap_or((0, 0, 1, 1))
+    }
+
+    /// Frames `bounds` in the active pane, whose visibility starts afresh.
+    fn frame_in_active(&mut self, bounds: &dmu_geom::Aabb3d) {
+        let pane = &mut self.panes[self.active];
+        pane.nav.frame(bounds);
+        pane.view.reset_visibility();
     }
 
     /// Picks at a view point: selects what is hit (or nothing), orbits about
@@ -209,14 +271,15 @@ impl App {
         let hit = self.review.pick(&ray);
         self.review.select(hit.map(|h| h.part));
         if let Some(h) = hit {
-            self.nav.pivot = h.point;
+            self.nav().pivot = h.point;
             self.ui.reveal = Some(h.part);
         }
         let scene = &self.review.scene;
         let length = ray.dir.length();
         json!({
             "pixel": [at.0, at.1],
-            "viewport": rect_json(self.view_rect),
+            "viewport": rect_json(self.active_rect()),
+            "pane": self.active,
             "ray": { "origin": ray.origin.to_array(), "dir": ray.dir.to_array() },
             "hit": hit.map_or_else(
                 || json!({ "hit": false }),
@@ -231,8 +294,8 @@ impl App {
             self.pick(at);
         }
         if let Some(part) = self.review.selected {
-            self.nav.frame(&self.review.scene.part_world_bounds(part));
-            self.view.reset_visibility();
+            let bounds = self.review.scene.part_world_bounds(part);
+            self.frame_in_active(&bounds);
         }
     }
 
@@ -255,7 +318,7 @@ impl App {
             }
             _ => {
                 if let Some(h) = hit {
-                    self.nav.pivot = h.point;
+                    self.nav().pivot = h.point;
                 }
                 Some(PointerDrag::Orbit)
             }
@@ -265,7 +328,7 @@ impl App {
     fn pointer_drag_to(&mut self, at: ViewPoint, delta: ViewPoint) {
         match self.pointer_drag {
             Some(PointerDrag::Orbit) => self
-                .nav
+                .nav()
                 .orbit(-delta.0 * TURN_PER_PIXEL, -delta.1 * TURN_PER_PIXEL),
             Some(PointerDrag::Part {
                 axis,
@@ -291,8 +354,30 @@ impl App {
         }
     }
 
+    /// The part under a view point, for the hover tint (nothing while a
+    /// primary drag goes on).
+    fn hover(&mut self, at: Option<(usize, ViewPoint)>) {
+        self.hovered = match at {
+            Some((pane, at)) if self.pointer_drag.is_none() && pane < self.panes.len() => {
+                self.review.pick(&self.ray_in(pane, at)).map(|h| h.part)
+            }
+            _ => None,
+        };
+    }
+
     /// Applies the pointer and keys of this frame.
     fn apply_view_input(&mut self, input: &ViewInput, dt: f64) {
+        // A press, drag or wheel makes its pane the active one (not while a
+        // drag that began elsewhere goes on).
+        if let Some(pane) = input.pane.filter(|&p| p < self.panes.len())
+            && (self.pointer_drag.is_none() || input.drag_started.is_some())
+        {
+            self.active = pane;
+        }
+        if input.hover != self.pointer_at {
+            self.pointer_at = input.hover;
+            self.hover(input.hover);
+        }
         if let Some(at) = input.double_clicked {
             self.focus(Some(at));
         } else if let Some(at) = input.clicked {
@@ -308,31 +393,31 @@ impl App {
             self.end_pointer_drag();
         }
         if input.look != (0.0, 0.0) {
-            self.nav.look(
+            self.nav().look(
                 -input.look.0 * TURN_PER_PIXEL,
                 -input.look.1 * TURN_PER_PIXEL,
             );
         }
         if input.pan != (0.0, 0.0) {
-            self.nav
-                .pan(input.pan.0, input.pan.1, f64::from(self.view.size.1));
+            let height = f64::from(self.panes[self.active].view.size.1);
+            self.nav().pan(input.pan.0, input.pan.1, height);
         }
         if let Some((wheel, at)) = input.wheel {
             let toward = self
                 .review
                 .pick(&self.ray_at(at))
-                .map_or(self.nav.pivot, |h| h.point);
-            self.nav
+                .map_or(self.panes[self.active].nav.pivot, |h| h.point);
+            self.nav()
                 .dolly_toward(toward, (wheel / 400.0).clamp(-0.5, 0.5));
         }
         if input.keys != Default::default() {
-            self.nav.walk(input.keys, dt);
+            self.nav().walk(input.keys, dt);
         }
         if input.focus {
             self.focus(None);
         }
         if input.frame_all {
-            self.nav.frame(&self.review.tree.bounds());
+            self.frame_in_active(&self.review.tree.bounds());
         }
     }
 
@@ -402,12 +487,53 @@ impl App {
                     result = Some(self.selection_facts());
                 }
             }
+            Action::Rotate(r) => {
+                anyhow::ensure!(
+                    self.review.rotate_selection(r.axis.unit(), r.degrees),
+                    "rotate: nothing is selected"
+                );
+                result = Some(self.selection_facts());
+            }
+            Action::Hover([x, y]) => {
+                self.hover(Some((self.active, (x + 0.5, y + 0.5))));
+                result = Some(json!({ "part_id": self.hovered.map(|p| p.0) }));
+            }
+            Action::View(preset) => {
+                let pane = &mut self.panes[self.active];
+                pane.nav.preset(*preset, &self.review.tree.bounds());
+                pane.view.reset_visibility();
+            }
+            Action::Panes(n) => {
+                anyhow::ensure!(
+                    (1..=crate::panes::MAX_PANES).contains(n),
+                    "panes: {n} is not 1 to {}",
+                    crate::panes::MAX_PANES
+                );
+                crate::panes::set_count(&mut self.panes, *n, &self.review.tree.bounds());
+                self.active = self.active.min(n - 1);
+            }
+            Action::Pane(i) => {
+                anyhow::ensure!(
+                    *i < self.panes.len(),
+                    "pane {i}: there are {}",
+                    self.panes.len()
+                );
+                self.active = *i;
+            }
+            Action::Record(path) => {
+                self.review.recorder = path.as_deref().map(Recorder::create).transpose()?;
+            }
+            Action::Clearance(c) => {
+                self.review.settings.clearance = *c;
+                self.review.check();
+            }
+            Action::Occlusion(o) => o.apply(&mut self.panes[self.active].view),
             Action::Undo => result = Some(json!({ "part_id": self.review.undo().map(|p| p.0) })),
             Action::Redo => result = Some(json!({ "part_id": self.review.redo().map(|p| p.0) })),
             Action::Focus => self.focus(None),
-            Action::FrameAll => self.nav.frame(&self.review.tree.bounds()),
+            Action::FrameAll => self.frame_in_active(&self.review.tree.bounds()),
             Action::Culling(name) => {
-                self.view.culling =
+                self.panes[self.active].view.culling =
                     crate::script::culling_from_name(name).context("culling mode")?;
             }
             Action::Overlays(o) => {
@@ -423,6 +549,9 @@ impl App {
                 let saved = self.review.save(path)?;
                 result = Some(json!({ "path": saved.path, "format": saved.format }));
             }
+        }
+        if let Some(e) = self.review.record_error.take() {
+            anyhow::bail!("{}: {e}", action.name());
         }
         self.runner.step += 1;
         if self.runner.step >= action.frames() {
@@ -448,9 +577,7 @@ impl App {
             "path": scene.part_path(part),
             "translation": world.translation.to_array(),
             "matrix3": world.matrix3.to_cols_array(),
-            "clashes": self.review.report.clashes.iter().map(|c| json!({
-                "a": c.a.0, "b": c.b.0, "kind": c.kind.as_str(), "distance": c.distance,
-            })).collect::<Vec<_>>(),
+            "clashes": clashes_json(&self.review.report),
             "move_us": self.review.timings.move_us,
             "check_ms": self.review.timings.check_ms,
         })
@@ -460,20 +587,87 @@ impl App {
         self.runner.index >= self.runner.actions.len()
     }
 
-    /// Highlights the selection in the renderer when it changed.
-    fn sync_highlight(&mut self) {
+    /// Tints the selection, the parts clashing with it and the hovered part
+    /// in the renderer, telling it only what changed.
+    fn sync_tints(&mut self) {
         let Some(renderer) = self.renderer.as_mut() else {
             return;
         };
-        if self.highlighted != self.review.selected {
-            if let Some(p) = self.highlighted {
-                renderer.set_selected(p, false);
-            }
-            if let Some(p) = self.review.selected {
-                renderer.set_selected(p, true);
-            }
-            self.highlighted = self.review.selected;
+        let t = &mut self.tints;
+        let selected = self.review.selected.into_iter().collect();
+        retint(&mut t.selected, selected, |p, on| {
+            renderer.set_selected(p, on)
+        });
+        let clashing = self.review.clashing_parts();
+        retint(&mut t.clashing, clashing, |p, on| {
+            renderer.set_clashing(p, on)
+        });
+        let hovered = self.hovered.into_iter().collect();
+        retint(&mut t.hovered, hovered, |p, on| renderer.set_hovered(p, on));
+    }
+
+    /// Renders every pane into its target (sized as laid out); the stats of
+    /// each. The main pane's drawn cells are noted for cells panes.
+    fn render_panes(&mut self) -> anyhow::Result<Vec<FrameStats>> {
+        let gfx = self.gfx.as_mut().expect("made with the window");
+        let renderer = self.renderer.as_mut().expect("made with the window");
+        gfx.ensure_views(self.panes.len());
+        let mut stats = Vec::with_capacity(self.panes.len());
+        for (i, pane) in self.panes.iter_mut().enumerate() {
+            let rect = self.pane_rects.get(i).copied().unwrap_or((0, 0, 1, 1));
+            gfx.resize_view(i, (rect.2, rect.3));
+            pane.view.size = gfx.views[i].size;
+            pane.view.camera = pane.nav.camera();
+            stats.push(renderer.render(
+                &mut pane.view,
+                &self.review.scene,
+                &self.review.tree,
+                &self.review.scene,
+                gfx.views[i].frame_target(),
+            )?);
         }
+        if self.panes.iter().any(|p| p.kind == PaneKind::Cells) {
+            crate::panes::drawn_cells(
+                &self.review.tree,
+                &self.panes[0].view,
+                &mut self.drawn_cells,
+            );
+        }
+        Ok(stats)
+    }
+
+    /// Each pane for the report: kind, rectangle, camera, triangles drawn and,
+    /// for cells panes, the main pane's drawn cells.
+    fn panes_json(&self, stats: &[FrameStats]) -> Value {
+        let tree = &self.review.tree;
+        let panes: Vec<Value> = self
+            .panes
+            .iter()
+            .zip(stats)
+            .enumerate()
+            .map(|(i, (pane, s))| {
+                let mut v = json!({
+                    "kind": pane.kind_name(),
+                    "rect": rect_json(self.pane_rects[i]),
+                    "camera": camera_json(&pane.nav),
+                    "triangles_drawn": s.triangles_drawn,
+                    "culled_frustum": s.culled_frustum,
+                });
+                if pane.kind == PaneKind::Cells {
+                    let (drawn, culled) = crate::panes::cell_counts(tree, &self.drawn_cells);
+                    let ids: Vec<u32> = tree
+                        .cell_ids()
+                        .filter(|c| self.drawn_cells.get(c.0 as usize) == Some(&true))
+                        .map(|c| c.0)
+                        .collect();
+                    v["cells_drawn"] = json!(drawn);
+                    v["cells_culled"] = json!(culled);
+                    v["drawn_cell_ids"] = json!(ids);
+                }
+                v
+            })
+            .collect();
+        json!(panes)
     }
 
     /// One frame; returns whether the run is over.
@@ -489,20 +683,22 @@ impl App {
             return Ok(false);
         };
         let raw = egui_state.take_egui_input(&gfx.window);
-        let texture = gfx.view_texture;
+        gfx.ensure_views(self.panes.len());
+        let textures: Vec<egui::TextureId> = gfx.views.iter().map(|v| v.texture).collect();
         let mut input = ViewInput::default();
         {
-            let (ui_state, review, nav, view, overlay) = (
-                &mut self.ui,
-                &mut self.review,
-                &mut self.nav,
-                &mut self.view,
-                &self.overlay,
-            );
+            let (ui_state, review, overlay) = (&mut self.ui, &mut self.review, &self.overlay);
+            let mut panes = PaneShow {
+                panes: &mut self.panes,
+                active: self.active,
+                textures: &textures,
+                drawn_cells: &self.drawn_cells,
+            };
             let mut output = self.egui_ctx.run_ui(raw, |ui| {
                 shortcuts(ui, review);
-                input = crate::ui::show(ui, ui_state, review, nav, view, overlay, texture);
+                input = crate::ui::show(ui, ui_state, review, &mut panes, overlay);
             });
+            self.active = self.active.min(self.panes.len() - 1);
             egui_state
                 .handle_platform_output(&gfx.window, std::mem::take(&mut output.platform_output));
             let repaint_now = output
@@ -510,6 +706,9 @@ impl App {
                 .get(&egui::ViewportId::ROOT)
                 .is_some_and(|v| v.repaint_delay < Duration::from_millis(50));
             self.keep_drawing = repaint_now;
+            if input.rects_px.len() == self.panes.len() {
+                self.pane_rects.clone_from(&input.rects_px);
+            }
             self.apply_view_input(&input, dt);
             self.keep_drawing |= input.active();
 
@@ -521,29 +720,22 @@ impl App {
                     .then(|| self.options.screenshot.clone())
                     .flatten()
             });
-            self.sync_highlight();
-            let gfx = self.gfx.as_mut().expect("checked above");
-            gfx.ensure_view_size((input.rect_px.2, input.rect_px.3));
-            self.view.size = gfx.view.size;
-            self.view.camera = self.nav.camera();
-            let renderer = self.renderer.as_mut().expect("made with the window");
-            let stats: FrameStats = match renderer.render(
-                &mut self.view,
-                &self.review.scene,
-                &self.review.tree,
-                &self.review.scene,
-                gfx.view.frame_target(),
-            ) {
+            self.sync_tints();
+            let stats = match self.render_panes() {
                 Ok(stats) => stats,
                 Err(e) => {
                     // egui's output is dropped unpainted; say so, or it asserts.
                     output.textures_delta.clear();
-                    return Err(e.into());
+                    return Err(e);
                 }
             };
+            let main = stats[0];
+            let shown = stats[self.active.min(stats.len() - 1)];
             // Occlusion culling converges over a few frames.
-            self.keep_drawing |= stats.newly_visible > 0;
+            self.keep_drawing |= stats.iter().any(|s| s.newly_visible > 0);
+            let renderer = self.renderer.as_mut().expect("made with the window");
             let resident = renderer.geometry_pool().resident_bytes();
+            let gfx = self.gfx.as_mut().expect("checked above");
             let image = gfx.present(&self.egui_ctx, output, screenshot.is_some())?;
             if let (Some(path), Some(image)) = (&screenshot, image) {
                 if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -557,43 +749,45 @@ impl App {
                 self.frame_ms.pop_front();
             }
             self.overlay = Overlay {
-                frame: stats,
+                frame: shown,
                 frame_ms,
                 frame_ms_avg: self.frame_ms.iter().sum::<f64>() / self.frame_ms.len() as f64,
                 model_triangles: self.review.scene.triangle_count(),
                 resident_bytes: resident,
             };
             if let Some((action, step)) = scripted.label {
-                self.runner.frames.push(json!({
+                let mut record = json!({
                     "frame": self.frames_drawn,
                     "action": action,
                     "step": step,
                     "frame_ms": frame_ms,
-                    "render_cpu_ms": stats.cpu_ms,
-                    "render_gpu_ms": stats.gpu_ms,
-                    "triangles_drawn": stats.triangles_drawn,
-                    "chunks_drawn": stats.chunks_drawn,
-                    "queries": stats.queries,
+                    "render_cpu_ms": main.cpu_ms,
+                    "render_gpu_ms": main.gpu_ms,
+                    "triangles_drawn": main.triangles_drawn,
+                    "chunks_drawn": main.chunks_drawn,
+                    "queries": main.queries,
                     "move_us": self.review.timings.move_us,
                     "check_ms": self.review.timings.check_ms,
-                    "clashes": self.review.report.clashes.len(),
-                }));
+                    "clashes": clashes_json(&self.review.report),
+                });
+                if stats.len() > 1 {
+                    record["pane_triangles_drawn"] =
+                        json!(stats.iter().map(|s| s.triangles_drawn).collect::<Vec<_>>());
+                }
+                self.runner.frames.push(record);
             }
             self.frames_drawn += 1;
-            self.view_rect = input.rect_px;
             if final_frame {
-                self.facts["viewport"] = rect_json(input.rect_px);
-                self.facts["camera"] = json!({
-                    "eye": self.nav.eye.to_array(),
-                    "forward": self.nav.forward().to_array(),
-                    "fov_y_deg": self.nav.fov_y_rad.to_degrees(),
-                });
+                self.facts["viewport"] = rect_json(self.pane_rects[0]);
+                let nav = &self.panes[self.active].nav;
+                self.facts["camera"] = camera_json(nav);
                 self.facts["last_frame"] = json!({
-                    "triangles_drawn": stats.triangles_drawn,
-                    "chunks_drawn": stats.chunks_drawn,
-                    "culled_frustum": stats.culled_frustum,
-                    "culled_occlusion": stats.culled_occlusion,
+                    "triangles_drawn": main.triangles_drawn,
+                    "chunks_drawn": main.chunks_drawn,
+                    "culled_frustum": main.culled_frustum,
+                    "culled_occlusion": main.culled_occlusion,
                 });
+                self.facts["panes"] = self.panes_json(&stats);
             }
             Ok(final_frame)
         }
@@ -623,6 +817,29 @@ fn shortcuts(ui: &mut egui::Ui, review: &mut Review) {
     if escape {
         review.select(None);
     }
+}
+
+/// The clashes of a report: part ids, kind, distance.
+fn clashes_json(report: &Report) -> Value {
+    json!(
+        report
+            .clashes
+            .iter()
+            .map(|c| json!({
+                "a": c.a.0, "b": c.b.0, "kind": c.kind.as_str(), "distance": c.distance,
+            }))
+            .collect::<Vec<_>>()
+    )
+}
+
+/// A camera in the report: eye, view direction, vertical field of view.
+fn camera_json(nav: &Navigator) -> Value {
+    json!({
+        "eye": nav.eye.to_array(),
+        "forward": nav.forward().to_array(),
+        "fov_y_deg": nav.fov_y_rad.to_degrees(),
+        "near": nav.near,
+    })
 }
 
 /// A window rectangle (x, y, width, height) in the report.

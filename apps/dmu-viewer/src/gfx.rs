@@ -7,11 +7,13 @@ use anyhow::Context as _;
 use dmu_render::{CAPTURE_FORMAT, DEPTH_FORMAT, FrameTarget};
 use winit::window::Window;
 
-/// The 3D view's offscreen colour and depth, shown by egui as a texture.
+/// A 3D view's offscreen colour and depth, shown by egui as a texture.
 #[derive(Debug)]
 pub struct ViewTarget {
     /// Size in physical pixels.
     pub size: (u32, u32),
+    /// The egui texture showing it.
+    pub texture: egui::TextureId,
     color_view: wgpu::TextureView,
     /// The same texels read without sRGB decoding: egui expects gamma-space
     /// textures and writes them out unchanged.
@@ -20,6 +22,8 @@ pub struct ViewTarget {
 }
 
 impl ViewTarget {
+    /// Targets of `size` pixels; `texture` is set by the caller once egui
+    /// knows them.
     fn new(device: &wgpu::Device, size: (u32, u32)) -> Self {
         let texture = |label, format, usage, view_formats: &[wgpu::TextureFormat]| {
             device.create_texture(&wgpu::TextureDescriptor {
@@ -52,6 +56,7 @@ impl ViewTarget {
         );
         Self {
             size,
+            texture: egui::TextureId::default(),
             color_view: color.create_view(&Default::default()),
             egui_view: color.create_view(&wgpu::TextureViewDescriptor {
                 format: Some(gamma),
@@ -86,10 +91,8 @@ pub struct Gfx {
     can_read_back: bool,
     /// egui's painter.
     pub egui: egui_wgpu::Renderer,
-    /// The 3D view's target and its egui texture.
-    pub view: ViewTarget,
-    /// The egui texture showing [`Gfx::view`].
-    pub view_texture: egui::TextureId,
+    /// One target per 3D view (pane), each with its egui texture.
+    pub views: Vec<ViewTarget>,
 }
 
 impl std::fmt::Debug for Gfx {
@@ -97,7 +100,7 @@ impl std::fmt::Debug for Gfx {
         f.debug_struct("Gfx")
             .field("adapter", &self.adapter)
             .field("surface", &self.config)
-            .field("view", &self.view.size)
+            .field("views", &self.views.len())
             .finish_non_exhaustive()
     }
 }
@@ -161,7 +164,7 @@ impl Gfx {
             view_formats: vec![],
         };
         surface.configure(&device, &config);
-        let mut egui = egui_wgpu::Renderer::new(
+        let egui = egui_wgpu::Renderer::new(
             &device,
             format,
             egui_wgpu::RendererOptions {
@@ -170,9 +173,6 @@ impl Gfx {
                 ..Default::default()
             },
         );
-        let view = ViewTarget::new(&device, (1, 1));
-        let view_texture =
-            egui.register_native_texture(&device, &view.egui_view, wgpu::FilterMode::Nearest);
         Ok(Self {
             window,
             device,
@@ -182,8 +182,7 @@ impl Gfx {
             config,
             can_read_back,
             egui,
-            view,
-            view_texture,
+            views: Vec::new(),
         })
     }
 
@@ -201,16 +200,34 @@ impl Gfx {
         (self.config.width, self.config.height)
     }
 
-    /// Makes the 3D view `size` pixels (re-pointing its egui texture).
-    pub fn ensure_view_size(&mut self, size: (u32, u32)) {
+    /// Makes `count` 3D view targets exist (new ones 1x1 until sized), each
+    /// with its egui texture.
+    pub fn ensure_views(&mut self, count: usize) {
+        while self.views.len() < count {
+            let mut view = ViewTarget::new(&self.device, (1, 1));
+            view.texture = self.egui.register_native_texture(
+                &self.device,
+                &view.egui_view,
+                wgpu::FilterMode::Nearest,
+            );
+            self.views.push(view);
+        }
+    }
+
+    /// Makes 3D view `index` (made by [`Gfx::ensure_views`]) `size` pixels,
+    /// re-pointing its egui texture when the size changes.
+    pub fn resize_view(&mut self, index: usize, size: (u32, u32)) {
         let size = (size.0.max(1), size.1.max(1));
-        if self.view.size != size {
-            self.view = ViewTarget::new(&self.device, size);
+        let view = &mut self.views[index];
+        if view.size != size {
+            let texture = view.texture;
+            *view = ViewTarget::new(&self.device, size);
+            view.texture = texture;
             self.egui.update_egui_texture_from_wgpu_texture(
                 &self.device,
-                &self.view.egui_view,
+                &view.egui_view,
                 wgpu::FilterMode::Nearest,
-                self.view_texture,
+                texture,
             );
         }
     }

@@ -15,6 +15,12 @@
 //!   tree ([`dmu_tree::Tree::pick`]); moves place parts absolutely and update
 //!   the tree at every drag step; collisions of the selection are checked live
 //!   with dmu-collide; undo and redo restore transforms bit for bit.
+//! - Up to four panes, each with its own camera and its own renderer view (so
+//!   its own culling state); one can show the main pane's cells drawn or
+//!   culled. Parts clashing with the selection and the part under the pointer
+//!   are tinted by the renderer's per-part flags.
+//! - A session can be recorded (`--record`) in the JSON Lines format `dmu
+//!   collide --record` replays: every placement is one absolute pose.
 //! - Automation runs the same frames: `--script` actions go one per frame (a
 //!   drag one step per frame), `--screenshot` reads back the swapchain, and the
 //!   run prints one JSON report (picks with their rays, saves, frame times).
@@ -25,8 +31,11 @@
 mod app;
 mod gfx;
 mod nav;
+mod panes;
+mod record;
 mod review;
 mod script;
+mod settings;
 mod ui;
 
 use std::path::PathBuf;
@@ -67,6 +76,10 @@ struct Cli {
     /// Run a JSON list of actions (pick, move, drag, save, screenshot...), then exit.
     #[arg(long)]
     script: Option<PathBuf>,
+    /// Record every move of the session to this JSON Lines file (the format
+    /// `dmu collide --record` replays, docs/record-format.md).
+    #[arg(long, value_name = "FILE.jsonl")]
+    record: Option<PathBuf>,
     /// Do not wait for vertical sync (measure frame times).
     #[arg(long)]
     no_vsync: bool,
@@ -84,7 +97,12 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
     }
     let loaded = dmu::load::load(&cli.model)?;
     let tree_start = Instant::now();
-    let review = review::Review::new(loaded.scene, loaded.source);
+    let mut review = review::Review::new(loaded.scene, loaded.source);
+    review.recorder = cli
+        .record
+        .as_deref()
+        .map(record::Recorder::create)
+        .transpose()?;
     let tree_ms = tree_start.elapsed().as_secs_f64() * 1e3;
     let facts = json!({
         "model": {

@@ -21,6 +21,49 @@ pub enum Motion {
     Fly,
 }
 
+/// A standard view direction, framing the model ([`Navigator::preset`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Preset {
+    /// Looking down (-Z), +Y up on screen.
+    Top,
+    /// Looking along +Y (from the front, -Y side).
+    Front,
+    /// Looking along -X (from the right, +X side).
+    Side,
+    /// Isometric: from the +X, -Y, +Z corner toward the centre, every axis
+    /// equally foreshortened.
+    Iso,
+}
+
+impl Preset {
+    /// Every preset, in menu order.
+    pub const ALL: [Self; 4] = [Self::Top, Self::Front, Self::Side, Self::Iso];
+
+    /// `top`, `front`, `side` or `iso`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Top => "top",
+            Self::Front => "front",
+            Self::Side => "side",
+            Self::Iso => "iso",
+        }
+    }
+
+    /// Heading and pitch of the view direction, radians. Top stops at the
+    /// pitch limit, so Z up on screen stays defined (the view is 1° off
+    /// vertical).
+    fn yaw_pitch(self) -> (f64, f64) {
+        let iso_pitch = -(1.0 / 2f64.sqrt()).atan();
+        match self {
+            Self::Top => (90f64.to_radians(), -MAX_PITCH),
+            Self::Front => (90f64.to_radians(), 0.0),
+            Self::Side => (180f64.to_radians(), 0.0),
+            Self::Iso => (135f64.to_radians(), iso_pitch),
+        }
+    }
+}
+
 /// Which way the keys push this frame: each component in `[-1, 1]`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Keys {
@@ -186,6 +229,12 @@ impl Navigator {
         self.pivot = center;
     }
 
+    /// Looks from a standard direction and frames `bounds`.
+    pub fn preset(&mut self, preset: Preset, bounds: &Aabb3d) {
+        (self.yaw, self.pitch) = preset.yaw_pitch();
+        self.frame(bounds);
+    }
+
     /// The world ray through the point `(x, y)` of a view `size` pixels wide and
     /// tall (pixel `(i, j)` spans `[i, i+1) x [j, j+1)`, y down), formed in f64
     /// from the same basis as the renderer's view matrix.
@@ -226,6 +275,32 @@ pub fn axis_offset(origin: DVec3, axis: DVec3, ray: &Ray3d) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Each preset looks the way it says and frames the model's centre in the
+    /// middle of the view.
+    #[test]
+    fn presets_look_their_way_and_frame_the_model() {
+        let mut nav = nav();
+        let bounds = Aabb3d::new(
+            DVec3::new(4.5e6, 5.3e6, 1.2e4),
+            DVec3::new(4.6e6, 5.4e6, 4.2e4),
+        );
+        let iso = DVec3::new(-1.0, 1.0, -1.0).normalize();
+        for (preset, dir, tol) in [
+            (Preset::Top, -DVec3::Z, 1.01f64.to_radians()),
+            (Preset::Front, DVec3::Y, 1e-12),
+            (Preset::Side, -DVec3::X, 1e-12),
+            (Preset::Iso, iso, 1e-12),
+        ] {
+            nav.preset(preset, &bounds);
+            let angle = nav.forward().angle_between(dir);
+            assert!(angle <= tol, "{}: off by {angle} rad", preset.name());
+            let centre = nav.ray((800, 600), 400.0, 300.0);
+            let to_centre = (bounds.center() - centre.origin).normalize();
+            assert!(centre.dir.normalize().angle_between(to_centre) < 1e-9);
+            assert_eq!(nav.pivot, bounds.center());
+        }
+    }
 
     fn nav() -> Navigator {
         let bounds = Aabb3d::new(

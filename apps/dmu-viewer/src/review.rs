@@ -10,7 +10,9 @@ use dmu_collide::{Checker, Report, Settings};
 use dmu_geom::Ray3d;
 use dmu_scene::{PartId, Scene};
 use dmu_tree::{Hit, Tree, TreeOptions};
-use glam::{DAffine3, DVec3};
+use glam::{DAffine3, DQuat, DVec3};
+
+use crate::record::Recorder;
 
 /// One undoable move: a part's absolute transform before and after.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -65,6 +67,10 @@ pub struct Review {
     pub live_collision: bool,
     /// Timings of the last step.
     pub timings: EditTimings,
+    /// The manipulation session being recorded, if any.
+    pub recorder: Option<Recorder>,
+    /// Why the recording stopped, when writing it failed.
+    pub record_error: Option<String>,
     checker: Checker,
     undo: Vec<Edit>,
     redo: Vec<Edit>,
@@ -85,6 +91,8 @@ impl Review {
             settings: Settings::default(),
             live_collision: true,
             timings: EditTimings::default(),
+            recorder: None,
+            record_error: None,
             checker,
             undo: Vec::new(),
             redo: Vec::new(),
@@ -125,11 +133,32 @@ impl Review {
         }
     }
 
-    /// Places `part` at `world` (absolute), updating the tree, then checks.
+    /// The parts that clash with the selection, as of the last check (each
+    /// once, the selection itself left out).
+    pub fn clashing_parts(&self) -> Vec<PartId> {
+        let mut parts = Vec::new();
+        for c in &self.report.clashes {
+            for p in [c.a, c.b] {
+                if Some(p) != self.selected && !parts.contains(&p) {
+                    parts.push(p);
+                }
+            }
+        }
+        parts
+    }
+
+    /// Places `part` at `world` (absolute), updating the tree, records the
+    /// pose when recording, then checks.
     fn place(&mut self, part: PartId, world: DAffine3) {
         let start = Instant::now();
         self.tree.move_part(&mut self.scene, part, world);
         self.timings.move_us = start.elapsed().as_secs_f64() * 1e6;
+        if let Some(rec) = self.recorder.as_mut()
+            && let Err(e) = rec.pose(&self.scene, part, world)
+        {
+            self.record_error = Some(format!("recording stopped: {e:#}"));
+            self.recorder = None;
+        }
         if self.selected == Some(part) {
             self.check();
         }
@@ -149,6 +178,34 @@ impl Review {
             part,
             before,
             after,
+        });
+        true
+    }
+
+    /// Turns the selection by `degrees` about a world `axis` through the
+    /// centre of its world bounds, as one undoable edit. Returns false when
+    /// nothing is selected. Panics on a zero or non-finite axis.
+    pub fn rotate_selection(&mut self, axis: DVec3, degrees: f64) -> bool {
+        assert!(
+            axis.is_finite() && axis.length_squared() > 0.0,
+            "rotation axis {axis} must be finite and not zero"
+        );
+        let Some(part) = self.selected else {
+            return false;
+        };
+        self.end_drag();
+        let before = self.scene.part_world(part);
+        let centre = self.scene.part_world_bounds(part).center();
+        let turn = DAffine3::from_translation(centre)
+            * DAffine3::from_quat(DQuat::from_axis_angle(
+                axis.normalize(),
+                degrees.to_radians(),
+            ))
+            * DAffine3::from_translation(-centre);
+        self.apply(Edit {
+            part,
+            before,
+            after: turn * before,
         });
         true
     }
@@ -319,6 +376,38 @@ mod tests {
         assert_eq!(r.moved_parts(), vec![part]);
     }
 
+    /// A typed rotation turns the part about its box centre, keeps the centre,
+    /// four quarter turns come back, and undo restores it bit for bit.
+    #[test]
+    fn rotations_turn_about_the_box_centre_and_undo() {
+        let mut r = review();
+        let part = r.scene.find_part("box_1_0_1").unwrap();
+        let start = r.scene.part_world(part);
+        let centre = r.scene.part_world_bounds(part).center();
+        r.select(Some(part));
+        assert!(r.rotate_selection(DVec3::Z, 30.0));
+        let turned = r.scene.part_world(part);
+        let (_, rotation, _) = turned.to_scale_rotation_translation();
+        let (axis, angle) = rotation.to_axis_angle();
+        assert!((angle - 30f64.to_radians()).abs() < 1e-12, "{angle}");
+        assert!(axis.abs_diff_eq(DVec3::Z, 1e-12));
+        // The centre is a fixed point of the turn.
+        let moved_centre = turned.transform_point3(start.inverse().transform_point3(centre));
+        assert!(moved_centre.abs_diff_eq(centre, 1e-9), "{moved_centre}");
+        r.tree.validate_against(&r.scene).unwrap();
+        assert_eq!(r.undo(), Some(part));
+        assert_eq!(r.scene.part_world(part), start);
+        for _ in 0..4 {
+            r.rotate_selection(DVec3::X, 90.0);
+        }
+        let back = r.scene.part_world(part);
+        assert!(back.matrix3.abs_diff_eq(start.matrix3, 1e-12));
+        assert!(back.translation.abs_diff_eq(start.translation, 1e-9));
+        assert_eq!(r.history(), (4, 0), "a new edit clears the redo");
+        r.select(None);
+        assert!(!r.rotate_selection(DVec3::Z, 10.0));
+    }
+
     /// The live check sees the neighbour when the selection is pushed into it.
     #[test]
     fn moving_into_a_neighbour_clashes() {
@@ -329,8 +418,10 @@ mod tests {
         r.translate_selection(DVec3::new(7.0, 0.0, 0.0));
         let clash = r.report.clashes.first().expect("a clash");
         assert_eq!(r.scene.part_name(clash.b), "box_1_0_0");
+        assert_eq!(r.clashing_parts(), vec![clash.b]);
         r.undo();
         assert!(r.report.clashes.is_empty());
+        assert!(r.clashing_parts().is_empty());
     }
 
     /// Saving to glTF writes the moved transform, which reads back exactly.

@@ -10,7 +10,14 @@
 //!   {"mouse_drag": {"axis": "x", "from": [640, 360], "to": [700, 360], "steps": 10}},
 //!   "undo", "redo", "focus", "frame_all",
 //!   {"select": "U00-L1-PIPE-0003"},
+//!   {"rotate": {"axis": "z", "degrees": 90}},
+//!   {"hover": [640, 360]},
+//!   {"view": "top"},
+//!   {"panes": 4}, {"pane": 1},
+//!   {"record": "/tmp/session.jsonl"}, {"record": null},
+//!   {"clearance": 5},
 //!   {"culling": "chc"},
+//!   {"occlusion": "auto"},
 //!   {"overlays": {"stats": false, "clashes": true}},
 //!   {"frames": 5},
 //!   {"screenshot": "docs/viewer.png"},
@@ -97,6 +104,16 @@ pub struct Overlays {
     pub clashes: Option<bool>,
 }
 
+/// A typed rotation of the selection about a world axis through its box centre.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Rotate {
+    /// The world axis.
+    pub axis: Axis,
+    /// Angle, degrees (counter-clockwise looking down the axis).
+    pub degrees: f64,
+}
+
 fn default_steps() -> u32 {
     1
 }
@@ -115,6 +132,21 @@ pub enum Action {
     Drag(DragBy),
     /// Drag the selection along an axis with the (simulated) mouse.
     MouseDrag(MouseDrag),
+    /// Turn the selection about an axis through its box centre (one edit).
+    Rotate(Rotate),
+    /// Move the pointer over a view pixel `[x, y]` (hover highlight).
+    Hover([f64; 2]),
+    /// Look from a preset direction, framing the model (in the active pane).
+    View(crate::nav::Preset),
+    /// Show this many 3D panes (1 to 4): main, top, cells, front.
+    Panes(usize),
+    /// Make pane `i` (from 0) the active one: picks, moves of the camera,
+    /// presets and culling settings act on it.
+    Pane(usize),
+    /// Start recording the session to a JSON Lines file, or stop (`null`).
+    Record(Option<PathBuf>),
+    /// Soft clash distance of the live check, model units.
+    Clearance(f64),
     /// Undo the last edit.
     Undo,
     /// Redo the last undone edit.
@@ -125,6 +157,8 @@ pub enum Action {
     FrameAll,
     /// Culling mode: `none`, `frustum` or `chc`.
     Culling(String),
+    /// Occlusion culling: `off`, `on` or `auto`.
+    Occlusion(crate::settings::Occlusion),
     /// Show or hide the view's overlays.
     Overlays(Overlays),
     /// Render this many frames without doing anything.
@@ -154,6 +188,14 @@ impl Action {
             Self::Move(_) => "move",
             Self::Drag(_) => "drag",
             Self::MouseDrag(_) => "mouse_drag",
+            Self::Rotate(_) => "rotate",
+            Self::Hover(_) => "hover",
+            Self::View(_) => "view",
+            Self::Panes(_) => "panes",
+            Self::Pane(_) => "pane",
+            Self::Record(_) => "record",
+            Self::Clearance(_) => "clearance",
+            Self::Occlusion(_) => "occlusion",
             Self::Undo => "undo",
             Self::Redo => "redo",
             Self::Focus => "focus",
@@ -172,7 +214,9 @@ pub fn parse(text: &str) -> anyhow::Result<Vec<Action>> {
     let actions: Vec<Action> = serde_json::from_str(text)?;
     for (i, a) in actions.iter().enumerate() {
         let finite = match a {
-            Action::Pick(p) => p.iter().all(|v| v.is_finite()),
+            Action::Pick(p) | Action::Hover(p) => p.iter().all(|v| v.is_finite()),
+            Action::Rotate(r) => r.degrees.is_finite(),
+            Action::Clearance(c) => c.is_finite() && *c >= 0.0,
             Action::Move(d) => d.iter().all(|v| v.is_finite()),
             Action::Drag(d) => d.by.iter().all(|v| v.is_finite()),
             Action::MouseDrag(d) => d.from.iter().chain(&d.to).all(|v| v.is_finite()),
@@ -216,10 +260,26 @@ mod tests {
                 {"mouse_drag": {"axis": "x", "from": [1, 2], "to": [3, 4]}},
                 "undo", "redo", "focus", "frame_all", {"select": "#3"},
                 {"culling": "chc"}, {"frames": 5}, {"overlays": {"stats": false}},
-                {"screenshot": "a.png"}, {"save": "b.glb"}]"##,
+                {"screenshot": "a.png"}, {"save": "b.glb"},
+                {"rotate": {"axis": "y", "degrees": -45}}, {"hover": [3, 4]},
+                {"view": "iso"}, {"record": "s.jsonl"}, {"record": null},
+                {"clearance": 2.5}, {"occlusion": "on"}]"##,
         )
         .unwrap();
-        assert_eq!(script.len(), 14);
+        assert_eq!(script.len(), 21);
+        assert_eq!(
+            script[14],
+            Action::Rotate(Rotate {
+                axis: Axis::Y,
+                degrees: -45.0
+            })
+        );
+        assert_eq!(script[16], Action::View(crate::nav::Preset::Iso));
+        assert_eq!(script[18], Action::Record(None));
+        assert_eq!(
+            script[20],
+            Action::Occlusion(crate::settings::Occlusion::On)
+        );
         assert_eq!(script[0], Action::Pick([640.0, 360.5]));
         assert_eq!(script[2].frames(), 20);
         assert_eq!(script[3].frames(), 2);
@@ -231,6 +291,9 @@ mod tests {
         assert!(parse(r#"[{"pick": [1]}]"#).is_err());
         assert!(parse(r#"[{"teleport": [1, 2, 3]}]"#).is_err());
         assert!(parse(r#"[{"culling": "fast"}]"#).is_err());
+        assert!(parse(r#"[{"clearance": -1}]"#).is_err());
+        assert!(parse(r#"[{"view": "bottom"}]"#).is_err());
+        assert!(parse(r#"[{"occlusion": "sometimes"}]"#).is_err());
         assert!(parse(r#"{"pick": [1, 2]}"#).is_err());
     }
 }

@@ -5,14 +5,17 @@
 use std::path::PathBuf;
 
 use dmu_collide::ClashKind;
-use dmu_render::{Culling, FrameStats, View};
+use dmu_render::{Culling, FrameStats};
 use dmu_scene::{NodeId, PartId, Scene};
 use egui::{Color32, Pos2, Rect, RichText, Sense, Vec2};
 use glam::DVec3;
 
-use crate::nav::{Keys, Motion, Navigator};
+use crate::nav::{Keys, Motion, Navigator, Preset};
+use crate::panes::{MAX_PANES, Pane, PaneKind};
+use crate::record::Recorder;
 use crate::review::Review;
 use crate::script::Axis;
+use crate::settings::Occlusion;
 
 /// Children listed under one node of the structure tree before "… more".
 const CHILDREN_SHOWN: usize = 500;
@@ -20,11 +23,18 @@ const CHILDREN_SHOWN: usize = 500;
 /// A point of the 3D view in physical pixels (origin top-left, y down).
 pub type ViewPoint = (f64, f64);
 
-/// What the pointer and keys did to the 3D view this frame.
+/// A rectangle in window pixels: x, y, width, height.
+pub type RectPx = (u32, u32, u32, u32);
+
+/// What the pointer and keys did to the 3D panes this frame. Points are in the
+/// pixels of the pane the pointer acts in, [`ViewInput::pane`].
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ViewInput {
-    /// The view's rectangle in window pixels: x, y, width, height.
-    pub rect_px: (u32, u32, u32, u32),
+    /// Each pane's rectangle in window pixels.
+    pub rects_px: Vec<RectPx>,
+    /// The pane pressed, dragged or scrolled in this frame (it becomes the
+    /// active pane, which keys and settings act on).
+    pub pane: Option<usize>,
     /// A primary click (not a drag).
     pub clicked: Option<ViewPoint>,
     /// A primary double-click.
@@ -47,6 +57,8 @@ pub struct ViewInput {
     pub focus: bool,
     /// Frame everything.
     pub frame_all: bool,
+    /// The pane the pointer is over and where (for the hover tint).
+    pub hover: Option<(usize, ViewPoint)>,
 }
 
 impl ViewInput {
@@ -83,6 +95,10 @@ pub struct UiState {
     matches_for: String,
     /// The typed translation.
     pub move_by: [f64; 3],
+    /// The typed rotation angle, degrees.
+    pub rotate_deg: f64,
+    /// Where the record button records the session.
+    record_path: String,
     /// The axis a primary drag on the selection slides it along (`None`: drags orbit).
     pub drag_axis: Option<Axis>,
     /// Drag offsets snap to multiples of this (0: no snapping), model units.
@@ -110,6 +126,8 @@ impl UiState {
             matches: Vec::new(),
             matches_for: String::new(),
             move_by: [0.0; 3],
+            rotate_deg: 90.0,
+            record_path: "dmu-session.jsonl".to_owned(),
             drag_axis: None,
             snap: 0.0,
             save_path,
@@ -121,17 +139,28 @@ impl UiState {
     }
 }
 
-/// Lays out one frame of the panels and the 3D view showing `view_texture`.
+/// What the 3D panes show this frame.
+#[derive(Debug)]
+pub struct PaneShow<'a> {
+    /// The panes (1 to [`MAX_PANES`]); the top bar can add or remove some.
+    pub panes: &'a mut Vec<Pane>,
+    /// The pane keys and settings act on.
+    pub active: usize,
+    /// The egui texture of each pane's image.
+    pub textures: &'a [egui::TextureId],
+    /// Cells the main pane drew last frame (by cell id), for cells panes.
+    pub drawn_cells: &'a [bool],
+}
+
+/// Lays out one frame of the panels and the 3D panes.
 pub fn show(
     ui: &mut egui::Ui,
     state: &mut UiState,
     review: &mut Review,
-    nav: &mut Navigator,
-    view: &mut View,
+    panes: &mut PaneShow<'_>,
     overlay: &Overlay,
-    view_texture: egui::TextureId,
 ) -> ViewInput {
-    top_bar(ui, state, review, nav, view);
+    top_bar(ui, state, review, panes.panes, panes.active);
     egui::Panel::left("structure")
         .default_size(280.0)
         .show(ui, |ui| structure_panel(ui, state, review));
@@ -156,9 +185,7 @@ pub fn show(
         });
     });
     egui::CentralPanel::no_frame()
-        .show(ui, |ui| {
-            view_area(ui, state, review, nav, overlay, view_texture)
-        })
+        .show(ui, |ui| view_area(ui, state, review, panes, overlay))
         .inner
 }
 
@@ -166,8 +193,8 @@ fn top_bar(
     ui: &mut egui::Ui,
     state: &mut UiState,
     review: &mut Review,
-    nav: &mut Navigator,
-    view: &mut View,
+    panes: &mut Vec<Pane>,
+    active: usize,
 ) {
     egui::Panel::top("top").show(ui, |ui| {
         ui.horizontal(|ui| {
@@ -191,6 +218,22 @@ fn top_bar(
                 };
             }
             ui.separator();
+            record_button(ui, state, review);
+        });
+        ui.horizontal(|ui| {
+            let mut count = panes.len();
+            egui::ComboBox::from_label("panes")
+                .selected_text(count.to_string())
+                .show_ui(ui, |ui| {
+                    for n in 1..=MAX_PANES {
+                        ui.selectable_value(&mut count, n, n.to_string());
+                    }
+                })
+                .response
+                .on_hover_text("2: + top · 3: + cells of the main view · 4: + front");
+            crate::panes::set_count(panes, count, &review.tree.bounds());
+            let active = active.min(panes.len() - 1);
+            let Pane { nav, view, .. } = &mut panes[active];
             egui::ComboBox::from_label("culling")
                 .selected_text(culling_name(view.culling))
                 .show_ui(ui, |ui| {
@@ -198,6 +241,19 @@ fn top_bar(
                         ui.selectable_value(&mut view.culling, c, culling_name(c));
                     }
                 });
+            let mut occlusion = Occlusion::of(view);
+            egui::ComboBox::from_label("occlusion")
+                .selected_text(occlusion.name())
+                .show_ui(ui, |ui| {
+                    for o in Occlusion::ALL {
+                        ui.selectable_value(&mut occlusion, o, o.name());
+                    }
+                })
+                .response
+                .on_hover_text("auto: queries only where they save more than they cost");
+            if occlusion != Occlusion::of(view) {
+                occlusion.apply(view);
+            }
             ui.add(
                 egui::DragValue::new(&mut view.options.min_pixels)
                     .range(0.0..=64.0)
@@ -205,6 +261,14 @@ fn top_bar(
                     .prefix("min px "),
             )
             .on_hover_text("cells covering fewer pixels across are not drawn");
+            ui.label(memory_text(review)).on_hover_text(MEMORY_HOVER);
+            ui.separator();
+            for preset in Preset::ALL {
+                if ui.button(preset.name()).clicked() {
+                    nav.preset(preset, &review.tree.bounds());
+                    view.reset_visibility();
+                }
+            }
             ui.separator();
             ui.selectable_value(&mut nav.motion, Motion::Walk, "walk");
             ui.selectable_value(&mut nav.motion, Motion::Fly, "fly");
@@ -216,6 +280,53 @@ fn top_bar(
             ui.checkbox(&mut state.show_stats, "stats");
         });
     });
+}
+
+/// Why the memory budget is shown but not set.
+const MEMORY_HOVER: &str = "The viewer loads the whole model (a .dmu store too) and \
+    uploads every chunk once: there is no residency manager here yet, so no budget \
+    is enforced.";
+
+/// The memory setting, read-only: what the model takes.
+fn memory_text(review: &Review) -> String {
+    let kind = match review.source.as_deref().and_then(|p| p.extension()) {
+        Some(e) if e.eq_ignore_ascii_case("dmu") => "store",
+        _ => "model",
+    };
+    format!("memory: whole {kind} resident (no budget)")
+}
+
+/// Starts or stops recording the session to the typed path.
+fn record_button(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) {
+    if let Some(e) = review.record_error.take() {
+        state.status = e;
+    }
+    match &review.recorder {
+        Some(rec) => {
+            let label = format!("stop recording ({} moves)", rec.lines());
+            if ui
+                .button(label)
+                .on_hover_text(rec.path().display().to_string())
+                .clicked()
+            {
+                state.status = format!("recorded {}", rec.path().display());
+                review.recorder = None;
+            }
+        }
+        None => {
+            ui.add(egui::TextEdit::singleline(&mut state.record_path).desired_width(160.0));
+            if ui
+                .button("record")
+                .on_hover_text("record every move as JSON Lines for `dmu collide --record`")
+                .clicked()
+            {
+                match Recorder::create(std::path::Path::new(state.record_path.trim())) {
+                    Ok(rec) => review.recorder = Some(rec),
+                    Err(e) => state.status = format!("record failed: {e:#}"),
+                }
+            }
+        }
+    }
 }
 
 fn culling_name(c: Culling) -> &'static str {
@@ -414,6 +525,23 @@ fn properties_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review)
             }
         });
         ui.horizontal(|ui| {
+            ui.add(
+                egui::DragValue::new(&mut state.rotate_deg)
+                    .speed(1.0)
+                    .suffix("°"),
+            );
+            ui.label("about");
+            for a in [Axis::X, Axis::Y, Axis::Z] {
+                if ui
+                    .button(a.name())
+                    .on_hover_text("turn about this world axis through the box centre")
+                    .clicked()
+                {
+                    review.rotate_selection(a.unit(), state.rotate_deg);
+                }
+            }
+        });
+        ui.horizontal(|ui| {
             ui.label("drag along");
             ui.radio_value(&mut state.drag_axis, None, "off");
             for a in [Axis::X, Axis::Y, Axis::Z] {
@@ -498,68 +626,64 @@ fn view_area(
     ui: &mut egui::Ui,
     state: &UiState,
     review: &Review,
-    nav: &Navigator,
+    show: &PaneShow<'_>,
     overlay: &Overlay,
-    view_texture: egui::TextureId,
 ) -> ViewInput {
-    let (rect, response) = ui.allocate_exact_size(ui.available_size(), Sense::click_and_drag());
-    let painter = ui.painter_at(rect);
-    painter.image(
-        view_texture,
-        rect,
-        Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
-        Color32::WHITE,
-    );
+    let (area, _) = ui.allocate_exact_size(ui.available_size(), Sense::hover());
     let ppp = f64::from(ui.ctx().pixels_per_point());
-    let to_view = |p: Pos2| {
-        (
-            f64::from(p.x - rect.min.x) * ppp,
-            f64::from(p.y - rect.min.y) * ppp,
-        )
-    };
     let px = |v: f32| (f64::from(v) * ppp).round().max(0.0) as u32;
+    let rects = crate::panes::layout(area, show.panes.len());
     let mut input = ViewInput {
-        rect_px: (
-            px(rect.min.x),
-            px(rect.min.y),
-            px(rect.width()),
-            px(rect.height()),
-        ),
+        rects_px: rects
+            .iter()
+            .map(|r| (px(r.min.x), px(r.min.y), px(r.width()), px(r.height())))
+            .collect(),
         ..ViewInput::default()
     };
-    let pointer = response.interact_pointer_pos().or(response.hover_pos());
-    let primary = egui::PointerButton::Primary;
-    if response.double_clicked() {
-        input.double_clicked = pointer.map(to_view);
-    } else if response.clicked() {
-        input.clicked = pointer.map(to_view);
-    }
-    if response.drag_started_by(primary) {
-        let origin = ui.input(|i| i.pointer.press_origin()).or(pointer);
-        input.drag_started = origin.map(to_view);
-    }
-    let delta = response.drag_delta();
-    let delta = (f64::from(delta.x) * ppp, f64::from(delta.y) * ppp);
-    if response.dragged_by(primary)
-        && let Some(p) = pointer
-    {
-        input.dragging = Some((to_view(p), delta));
-    }
-    if response.drag_stopped_by(primary) {
-        input.drag_stopped = true;
-    }
-    if response.dragged_by(egui::PointerButton::Secondary) {
-        input.look = delta;
-    }
-    if response.dragged_by(egui::PointerButton::Middle) {
-        input.pan = delta;
-    }
-    if response.hovered() {
-        let wheel = ui.input(|i| i.smooth_scroll_delta.y);
-        if wheel != 0.0
-            && let Some(p) = response.hover_pos()
-        {
-            input.wheel = Some((f64::from(wheel), to_view(p)));
+    for (i, (&rect, pane)) in rects.iter().zip(show.panes.iter()).enumerate() {
+        let response = ui.interact(
+            rect,
+            ui.scope_id().with(("dmu pane", i)),
+            Sense::click_and_drag(),
+        );
+        let painter = ui.painter_at(rect);
+        painter.image(
+            show.textures[i],
+            rect,
+            Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
+            Color32::WHITE,
+        );
+        pane_input(ui, &response, rect, ppp, i, &mut input);
+        if pane.kind == PaneKind::Cells {
+            crate::panes::paint_cells(
+                &painter,
+                rect,
+                pane,
+                &show.panes[0],
+                &review.tree,
+                show.drawn_cells,
+            );
+        }
+        if state.show_clashes {
+            clash_markers(&painter, rect, review, &pane.nav);
+        }
+        if show.panes.len() > 1 {
+            let stroke = if i == show.active {
+                egui::Stroke::new(1.5, Color32::from_rgb(90, 160, 255))
+            } else {
+                egui::Stroke::new(1.0, Color32::from_gray(70))
+            };
+            painter.rect_stroke(rect, 0.0, stroke, egui::StrokeKind::Inside);
+            painter.text(
+                rect.min + Vec2::new(8.0, 6.0),
+                egui::Align2::LEFT_TOP,
+                format!("{} {}", i + 1, pane.kind_name()),
+                egui::FontId::proportional(13.0),
+                Color32::from_gray(220),
+            );
+        }
+        if state.show_stats && i == show.active {
+            stats_overlay(&painter, rect, overlay, review);
         }
     }
     if !ui.ctx().egui_wants_keyboard_input() {
@@ -580,28 +704,84 @@ fn view_area(
             input.keys = Keys::default();
         }
     }
-    if state.show_clashes {
-        clash_markers(&painter, rect, review, nav, input.rect_px);
-    }
-    if state.show_stats {
-        stats_overlay(&painter, rect, overlay, review);
-    }
     input
 }
 
-/// Marks each clash point of the selection on the view.
-fn clash_markers(
-    painter: &egui::Painter,
+/// The pointer's doings in pane `index` (at `rect`) go into `input`; a pane
+/// pressed, dragged or scrolled becomes `input.pane`.
+fn pane_input(
+    ui: &egui::Ui,
+    response: &egui::Response,
     rect: Rect,
-    review: &Review,
-    nav: &Navigator,
-    rect_px: (u32, u32, u32, u32),
+    ppp: f64,
+    index: usize,
+    input: &mut ViewInput,
 ) {
-    if review.report.clashes.is_empty() || rect_px.2 == 0 || rect_px.3 == 0 {
+    let to_view = |p: Pos2| {
+        (
+            f64::from(p.x - rect.min.x) * ppp,
+            f64::from(p.y - rect.min.y) * ppp,
+        )
+    };
+    if let Some(p) = response.hover_pos() {
+        input.hover = Some((index, to_view(p)));
+    }
+    let pointer = response.interact_pointer_pos().or(response.hover_pos());
+    let primary = egui::PointerButton::Primary;
+    let mut acted = false;
+    if response.double_clicked() {
+        input.double_clicked = pointer.map(to_view);
+        acted = true;
+    } else if response.clicked() {
+        input.clicked = pointer.map(to_view);
+        acted = true;
+    }
+    if response.drag_started_by(primary) {
+        let origin = ui.input(|i| i.pointer.press_origin()).or(pointer);
+        input.drag_started = origin.map(to_view);
+        acted = true;
+    }
+    let delta = response.drag_delta();
+    let delta = (f64::from(delta.x) * ppp, f64::from(delta.y) * ppp);
+    if response.dragged_by(primary)
+        && let Some(p) = pointer
+    {
+        input.dragging = Some((to_view(p), delta));
+        acted = true;
+    }
+    if response.drag_stopped_by(primary) {
+        input.drag_stopped = true;
+        acted = true;
+    }
+    if response.dragged_by(egui::PointerButton::Secondary) {
+        input.look = delta;
+        acted = true;
+    }
+    if response.dragged_by(egui::PointerButton::Middle) {
+        input.pan = delta;
+        acted = true;
+    }
+    if response.hovered() {
+        let wheel = ui.input(|i| i.smooth_scroll_delta.y);
+        if wheel != 0.0
+            && let Some(p) = response.hover_pos()
+        {
+            input.wheel = Some((f64::from(wheel), to_view(p)));
+            acted = true;
+        }
+    }
+    if acted {
+        input.pane = Some(index);
+    }
+}
+
+/// Marks each clash point of the selection on the view.
+fn clash_markers(painter: &egui::Painter, rect: Rect, review: &Review, nav: &Navigator) {
+    if review.report.clashes.is_empty() || rect.width() < 1.0 || rect.height() < 1.0 {
         return;
     }
     let camera = nav.camera();
-    let aspect = f64::from(rect_px.2) / f64::from(rect_px.3);
+    let aspect = f64::from(rect.width()) / f64::from(rect.height());
     let clip_from_world = camera.projection(aspect) * camera.view_matrix();
     for clash in &review.report.clashes {
         let clip = clip_from_world * clash.point.extend(1.0);

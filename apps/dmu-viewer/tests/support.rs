@@ -79,18 +79,28 @@ pub fn dmu_cli() -> PathBuf {
     dmu
 }
 
-/// Runs `dmu` with `args` and parses its JSON output.
+/// Runs `dmu` with `args` and parses its JSON output; it must succeed.
 pub fn dmu(args: &[&str]) -> Value {
+    let (status, json) = dmu_status(args);
+    assert_eq!(status, Some(0), "dmu {args:?} failed");
+    json
+}
+
+/// Runs `dmu` with `args`: its exit status (`dmu collide` exits 1 on clashes)
+/// and its JSON output.
+pub fn dmu_status(args: &[&str]) -> (Option<i32>, Value) {
     let out = Command::new(dmu_cli())
         .args(args)
         .output()
         .expect("run dmu");
-    assert!(
-        out.status.success(),
-        "dmu {args:?} failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("dmu prints JSON")
+    let json = serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!(
+            "dmu {args:?} printed no JSON ({e}, {}):\n{}",
+            out.status,
+            String::from_utf8_lossy(&out.stderr)
+        )
+    });
+    (out.status.code(), json)
 }
 
 /// Where tests leave their screenshots, to be looked at.

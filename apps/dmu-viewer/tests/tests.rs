@@ -1,4 +1,5 @@
 //! The real `dmu-viewer` binary, run under Xvfb on lavapipe.
 
+mod session;
 mod support;
 mod xvfb;

@@ -62,6 +62,10 @@ pub struct Args {
     /// Turn off prefetching along the predicted path.
     #[arg(long)]
     no_prefetch: bool,
+    /// Walk only frames START..END of the path (e.g. a stretch at full frame
+    /// rate with --render, where every frame costs a second on lavapipe).
+    #[arg(long, value_parser = parse_range)]
+    range: Option<(usize, usize)>,
     /// Frames before the walk counts as warm.
     #[arg(long, default_value_t = 60)]
     warmup_frames: usize,
@@ -102,6 +106,18 @@ enum Order {
 enum Budget {
     Bytes(u64),
     Percent(f64),
+}
+
+fn parse_range(s: &str) -> anyhow::Result<(usize, usize)> {
+    let (a, b) = s
+        .split_once("..")
+        .with_context(|| format!("{s:?}: expected START..END, e.g. 300..420"))?;
+    let parse = |v: &str| {
+        v.trim()
+            .parse::<usize>()
+            .with_context(|| format!("{s:?}: {v:?} is not a frame number"))
+    };
+    Ok((parse(a)?, parse(b)?))
 }
 
 fn parse_budget(s: &str) -> anyhow::Result<Budget> {
@@ -147,6 +163,18 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             }
             path
         }
+    };
+    let path = match args.range {
+        Some((start, end)) => {
+            if start >= end || end > path.len() {
+                bail!(
+                    "--range {start}..{end}: the path has frames 0..{}",
+                    path.len()
+                );
+            }
+            path[start..end].to_vec()
+        }
+        None => path,
     };
     if path.is_empty() {
         bail!("the camera path has no frames");
@@ -423,4 +451,22 @@ fn plant_path(fps: f64) -> Vec<CameraFrame> {
         push(d, 180.0 * i as f64 / n as f64);
     }
     path
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranges_and_budgets_parse() {
+        assert_eq!(parse_range("300..420").unwrap(), (300, 420));
+        assert_eq!(parse_range(" 0 .. 7 ").unwrap(), (0, 7));
+        assert!(parse_range("300").is_err());
+        assert!(parse_range("a..b").is_err());
+        assert!(parse_range("-1..4").is_err());
+        assert!(matches!(parse_budget("10%").unwrap(), Budget::Percent(p) if p == 10.0));
+        assert!(matches!(parse_budget("256MiB").unwrap(), Budget::Bytes(b) if b == 256 << 20));
+        assert!(parse_budget("0%").is_err());
+        assert!(parse_budget("150%").is_err());
+    }
 }

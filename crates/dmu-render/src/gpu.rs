@@ -12,7 +12,7 @@ pub(crate) const STEREO_SHADER: &str = concat!(
     include_str!("../../../shaders/stereo.wgsl")
 );
 
-/// `ViewUniform`: projection and highlight colour of one view, and which eye's
+/// `ViewUniform`: projection and highlight colours of one view, and which eye's
 /// model-views the single-view pipelines read (a stereo pair drawn a layer at a
 /// time binds one per eye).
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
@@ -22,6 +22,10 @@ pub(crate) struct ViewUniform {
     pub proj: [[f32; 4]; 4],
     /// Selection colour (rgb) and how much of it is mixed in (a).
     pub highlight: [f32; 4],
+    /// Colour mixed into clashing parts, as `highlight`.
+    pub clash: [f32; 4],
+    /// Colour mixed into the hovered part, as `highlight`.
+    pub hover: [f32; 4],
     /// Model-views per eye: eye `k`'s start at `k * eye_stride` (the part count).
     pub eye_stride: u32,
     /// The eye single-view pipelines draw (0 for a view).
@@ -29,7 +33,7 @@ pub(crate) struct ViewUniform {
     /// WGSL rounds the struct up to 16 bytes.
     pub _pad: [u32; 2],
 }
-const _: () = assert!(size_of::<ViewUniform>() == 96);
+const _: () = assert!(size_of::<ViewUniform>() == 128);
 
 /// `ModelView`: rows of a part's camera-relative affine model-view, formed in
 /// f64 and narrowed to f32 only once small.
@@ -68,8 +72,13 @@ pub(crate) struct QueryBox {
 }
 const _: () = assert!(size_of::<QueryBox>() == 64);
 
-/// Part flag bit: the part is selected (highlighted).
+/// Part flag bit: the part is selected (highlighted). The shader's tint goes
+/// by priority: selected over clashing over hovered.
 pub(crate) const PART_SELECTED: u32 = 1;
+/// Part flag bit: the part clashes with the moved part.
+pub(crate) const PART_CLASHING: u32 = 2;
+/// Part flag bit: the pointer is over the part.
+pub(crate) const PART_HOVERED: u32 = 4;
 
 #[cfg(test)]
 mod tests {

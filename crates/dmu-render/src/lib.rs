@@ -16,8 +16,12 @@
 //!   storage buffer, so millimetres survive at 1e7 from the origin and moving a
 //!   part uploads nothing but its transform.
 //! - A draw is one chunk instance; its instance index is its entry id, which
-//!   selects part, material and selection state in storage buffers, and is what
-//!   the chunk-id oracle ([`Renderer::render_ids`]) writes.
+//!   selects part, material and the part's highlight flags in storage buffers,
+//!   and is what the chunk-id oracle ([`Renderer::render_ids`]) writes.
+//! - Highlights are one flag word per part (selected, clashing, hovered;
+//!   [`Renderer::set_selected`], [`Renderer::set_clashing`],
+//!   [`Renderer::set_hovered`]), so changing one writes 4 bytes and one shader
+//!   branch tints it, by priority, with a colour of [`RendererOptions`].
 //! - Every mode draws in one canonical order (cells front to back, then tree
 //!   order), so the same visible set gives the same image whatever culled the
 //!   rest: the occlusion-culled image is compared with the unculled one exactly.

@@ -12,7 +12,8 @@ use crate::capture::{DEPTH_FORMAT, ID_FORMAT};
 use crate::device::map_read;
 use crate::geometry::{GeometryPool, GeometrySource, PoolVertex};
 use crate::gpu::{
-    EntryGpu, ModelView, PART_SELECTED, QueryBox, SHADER, STEREO_SHADER, ViewUniform,
+    EntryGpu, ModelView, PART_CLASHING, PART_HOVERED, PART_SELECTED, QueryBox, SHADER,
+    STEREO_SHADER, ViewUniform,
 };
 use crate::hierarchy::Hierarchy;
 
@@ -150,6 +151,10 @@ pub struct RendererOptions {
     pub page_bytes: u64,
     /// Selection colour (rgb, linear) and its weight (a).
     pub highlight: [f32; 4],
+    /// Colour of parts clashing with a moved part (rgb, linear) and its weight.
+    pub clash_highlight: [f32; 4],
+    /// Colour of the part under the pointer (rgb, linear) and its weight.
+    pub hover_highlight: [f32; 4],
     /// Background colour (linear).
     pub clear_color: wgpu::Color,
     /// How stereo pairs reach their two layers.
@@ -162,6 +167,8 @@ impl Default for RendererOptions {
             color_format: crate::CAPTURE_FORMAT,
             page_bytes: 64 << 20,
             highlight: [1.0, 0.55, 0.0, 0.7],
+            clash_highlight: [1.0, 0.0, 0.15, 0.75],
+            hover_highlight: [0.3, 0.75, 1.0, 0.35],
             clear_color: wgpu::Color {
                 r: 0.02,
                 g: 0.025,
@@ -469,14 +476,34 @@ impl Renderer {
         }
     }
 
-    /// Highlights a part or not; writes one word to the GPU.
+    /// Highlights a part as selected or not; writes one word to the GPU.
     pub fn set_selected(&mut self, part: PartId, selected: bool) {
+        self.set_part_flag(part, PART_SELECTED, selected);
+    }
+
+    /// Marks a part as clashing (tinted with
+    /// [`RendererOptions::clash_highlight`]) or not; a selected part shows the
+    /// selection colour instead.
+    pub fn set_clashing(&mut self, part: PartId, clashing: bool) {
+        self.set_part_flag(part, PART_CLASHING, clashing);
+    }
+
+    /// Marks a part as under the pointer (tinted with
+    /// [`RendererOptions::hover_highlight`]) or not; selection and clash
+    /// colours take precedence.
+    pub fn set_hovered(&mut self, part: PartId, hovered: bool) {
+        self.set_part_flag(part, PART_HOVERED, hovered);
+    }
+
+    /// Sets or clears one flag bit of a part; writes one word to the GPU when
+    /// it changed.
+    fn set_part_flag(&mut self, part: PartId, bit: u32, on: bool) {
         let flags = &mut self.part_flags[part.index()];
-        *flags = if selected {
-            *flags | PART_SELECTED
-        } else {
-            *flags & !PART_SELECTED
-        };
+        let new = if on { *flags | bit } else { *flags & !bit };
+        if new == *flags {
+            return;
+        }
+        *flags = new;
         self.queue.write_buffer(
             &self.part_flags_buffer,
             4 * part.index() as u64,
@@ -524,6 +551,8 @@ impl Renderer {
             let uniform = ViewUniform {
                 proj: proj.as_mat4().to_cols_array_2d(),
                 highlight: self.options.highlight,
+                clash: self.options.clash_highlight,
+                hover: self.options.hover_highlight,
                 eye_stride: parts as u32,
                 eye: eye as u32,
                 _pad: [0; 2],

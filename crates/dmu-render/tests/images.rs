@@ -289,3 +289,71 @@ fn hidden_and_selected_parts() {
     let hidden_ids = rig.ids(&mut view, &scene, &tree);
     assert!(!hidden_ids.visible_entries().iter().any(of_part));
 }
+
+/// A clashing part changes tint, to a colour other than the selection's, and
+/// no other pixel changes; clearing the flag restores the image exactly.
+#[test]
+fn clashing_part_changes_tint_and_nothing_else() {
+    let scene = grid(3, 10.0, 4.0, 2048);
+    let tree = Tree::build(&scene, TreeOptions::default());
+    let size = (320, 240);
+    let Some(mut rig) = Rig::new(&scene, &tree, size) else {
+        return;
+    };
+    let cam = camera(DVec3::new(-25.0, -35.0, 40.0), DVec3::splat(10.0), 0.5);
+    let mut view = View::new(cam, size, Culling::Frustum);
+    let part = scene.find_part("box_1_0_2").unwrap();
+    let ids = rig.ids(&mut view, &scene, &tree);
+    let of_part = |x: u32, y: u32| {
+        ids.at(x, y)
+            .is_some_and(|e| tree.entries()[e.0 as usize].part == part)
+    };
+    let part_pixels: Vec<(u32, u32)> = (0..size.1)
+        .flat_map(|y| (0..size.0).map(move |x| (x, y)))
+        .filter(|&(x, y)| of_part(x, y))
+        .collect();
+    assert!(part_pixels.len() > 200, "the part shows");
+    rig.frame(&mut view, &scene, &tree);
+    let plain = rig.image();
+
+    rig.renderer.set_clashing(part, true);
+    rig.frame(&mut view, &scene, &tree);
+    let clashing = rig.image();
+    clashing.save(image_path("grid_clashing.png")).unwrap();
+    let diff = differing(&plain, &clashing);
+    assert!(
+        diff.iter().all(|&(x, y)| of_part(x, y)),
+        "only the clashing part's pixels change"
+    );
+    assert!(
+        diff.len() * 10 >= part_pixels.len() * 9,
+        "{} of {} pixels of the part changed",
+        diff.len(),
+        part_pixels.len()
+    );
+    // The clash colour is red: red gains on green and blue wherever it changed.
+    let redder = diff.iter().all(|&(x, y)| {
+        let (p, c) = (plain.get_pixel(x, y).0, clashing.get_pixel(x, y).0);
+        let red_share = |q: [u8; 4]| {
+            f64::from(q[0]) / (1.0 + f64::from(q[0]) + f64::from(q[1]) + f64::from(q[2]))
+        };
+        red_share(c) > red_share(p)
+    });
+    assert!(redder, "clashing pixels turn red");
+
+    // Selection wins over the clash tint, and looks different from it.
+    rig.renderer.set_selected(part, true);
+    rig.frame(&mut view, &scene, &tree);
+    let selected = rig.image();
+    let tint_diff = differing(&clashing, &selected);
+    assert!(tint_diff.len() * 10 >= part_pixels.len() * 9);
+    assert!(tint_diff.iter().all(|&(x, y)| of_part(x, y)));
+
+    rig.renderer.set_selected(part, false);
+    rig.renderer.set_clashing(part, false);
+    rig.frame(&mut view, &scene, &tree);
+    assert!(
+        differing(&plain, &rig.image()).is_empty(),
+        "flags clear exactly"
+    );
+}
