@@ -44,22 +44,8 @@ impl Capture {
     }
 
     fn with_layers(device: &wgpu::Device, size: (u32, u32), layers: u32) -> Self {
-        let texture = |label, format, layers| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width: size.0,
-                    height: size.1,
-                    depth_or_array_layers: layers,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-                view_formats: &[],
-            })
-        };
+        let texture =
+            |label, format, layers| attachment_texture(device, label, size, layers, format);
         let color = texture("dmu capture colour", CAPTURE_FORMAT, layers);
         // The id oracle is a single-view operation.
         let ids = texture("dmu capture ids", ID_FORMAT, 1);
@@ -259,5 +245,29 @@ pub(crate) fn read_texture(
             out.extend_from_slice(&r[..row as usize]);
         }
         out
+    })
+}
+
+/// A 2D render attachment of `layers` layers that can be copied out.
+pub(crate) fn attachment_texture(
+    device: &wgpu::Device,
+    label: &str,
+    size: (u32, u32),
+    layers: u32,
+    format: wgpu::TextureFormat,
+) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: size.0,
+            height: size.1,
+            depth_or_array_layers: layers,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
     })
 }

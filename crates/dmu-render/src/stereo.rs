@@ -6,6 +6,7 @@ use dmu_geom::Frustum;
 use dmu_scene::Scene;
 use dmu_tree::Tree;
 
+use crate::capture::attachment_texture;
 use crate::renderer::{FrameTarget, Renderer, RoundTarget};
 use crate::view::{Camera, Culling, FrameStats, View};
 use crate::{GeometrySource, RenderError};
@@ -116,20 +117,7 @@ pub(crate) fn multiview_clips_correctly(
         multiview_mask: std::num::NonZeroU32::new(0b11),
         cache: None,
     });
-    let texture = device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("dmu multiview probe"),
-        size: wgpu::Extent3d {
-            width: SIZE,
-            height: SIZE,
-            depth_or_array_layers: 2,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-        view_formats: &[],
-    });
+    let texture = attachment_texture(device, "dmu multiview probe", (SIZE, SIZE), 2, format);
     let view = texture.create_view(&wgpu::TextureViewDescriptor {
         dimension: Some(wgpu::TextureViewDimension::D2Array),
         ..Default::default()

@@ -57,7 +57,11 @@ pub struct CullingOptions {
     /// Rounds of query-then-draw per frame; what is left waits for the next frame.
     pub max_rounds: u32,
     /// A visible chunk is re-checked every `requery_interval` frames (plus a
-    /// per-chunk random offset, so re-checks spread over frames).
+    /// per-chunk random offset, so re-checks spread over frames). A re-check
+    /// rides on the chunk's own draw, so it costs little; a longer interval
+    /// keeps chunks that became hidden drawn for longer. Measured on the 10M
+    /// plant's path at 60 Hz (docs/measurements.md): 2 draws 1.33x the exactly
+    /// visible triangles against 1.50x for 8, at the same frame time.
     pub requery_interval: u32,
     /// Tree levels a visible internal node is expanded by before querying again.
     pub expand_levels: u32,
@@ -70,7 +74,7 @@ impl Default for CullingOptions {
         Self {
             min_pixels: 0.0,
             max_rounds: 6,
-            requery_interval: 8,
+            requery_interval: 2,
             expand_levels: 2,
             adaptive: true,
         }

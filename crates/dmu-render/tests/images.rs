@@ -3,6 +3,7 @@
 use dmu_geom::Ray3d;
 use dmu_geom::glam::{DAffine3, DVec2, DVec3, DVec4};
 use dmu_render::{Camera, Culling, View};
+use dmu_scene::Scene;
 use dmu_scene::samples::grid;
 use dmu_tree::{Tree, TreeOptions};
 
@@ -56,17 +57,24 @@ fn edge_distance(h: &[DVec2], p: DVec2) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
+/// The 3x3x3 grid, its tree, a 320x240 rig (or `None`: no GPU) and a camera
+/// that sees every box.
+fn grid_rig() -> Option<(Scene, Tree, Rig, Camera)> {
+    let scene = grid(3, 10.0, 4.0, 2048);
+    let tree = Tree::build(&scene, TreeOptions::default());
+    let rig = Rig::new(&scene, &tree, (320, 240))?;
+    let cam = camera(DVec3::new(-25.0, -35.0, 40.0), DVec3::splat(10.0), 0.5);
+    Some((scene, tree, rig, cam))
+}
+
 /// Every box of a grid covers exactly the pixels inside the hull of its
 /// projected corners, up to a 1-pixel border.
 #[test]
 fn grid_boxes_cover_their_projected_hulls() {
-    let scene = grid(3, 10.0, 4.0, 2048);
-    let tree = Tree::build(&scene, TreeOptions::default());
-    let size = (320, 240);
-    let Some(mut rig) = Rig::new(&scene, &tree, size) else {
+    let Some((scene, tree, mut rig, cam)) = grid_rig() else {
         return;
     };
-    let cam = camera(DVec3::new(-25.0, -35.0, 40.0), DVec3::splat(10.0), 0.5);
+    let size = rig.capture.size();
     let image = rig.shot(cam, Culling::None, &scene, &tree);
     image.save(image_path("grid_hulls.png")).unwrap();
     let hulls: Vec<Vec<DVec2>> = scene
@@ -294,13 +302,10 @@ fn hidden_and_selected_parts() {
 /// no other pixel changes; clearing the flag restores the image exactly.
 #[test]
 fn clashing_part_changes_tint_and_nothing_else() {
-    let scene = grid(3, 10.0, 4.0, 2048);
-    let tree = Tree::build(&scene, TreeOptions::default());
-    let size = (320, 240);
-    let Some(mut rig) = Rig::new(&scene, &tree, size) else {
+    let Some((scene, tree, mut rig, cam)) = grid_rig() else {
         return;
     };
-    let cam = camera(DVec3::new(-25.0, -35.0, 40.0), DVec3::splat(10.0), 0.5);
+    let size = rig.capture.size();
     let mut view = View::new(cam, size, Culling::Frustum);
     let part = scene.find_part("box_1_0_2").unwrap();
     let ids = rig.ids(&mut view, &scene, &tree);
