@@ -43,7 +43,24 @@ enum Command {
     Bench(cmd_bench::Args),
 }
 
+/// Ends the process quietly, as Unix tools do, when the reader of stdout goes
+/// away (`dmu info --json | head -c 1`), instead of panicking in `println!`.
+#[cfg(unix)]
+#[expect(
+    unsafe_code,
+    reason = "restoring the default SIGPIPE action is one libc call"
+)]
+fn die_on_closed_pipe() {
+    // SAFETY: called first thing in `main`, before any other thread exists;
+    // SIG_DFL is a valid action for SIGPIPE.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() -> ExitCode {
+    #[cfg(unix)]
+    die_on_closed_pipe();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Generate(args) => cmd_generate::run(&args),

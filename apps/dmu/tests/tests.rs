@@ -3,7 +3,7 @@
 mod collide;
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
 
 use serde_json::Value;
 
@@ -212,4 +212,21 @@ fn pick_and_move_on_the_grid() {
     let out = dmu(&["move", &file, "--part", "nope", "-o", &moved]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("unknown part \"nope\""));
+}
+
+/// A reader that goes away (`dmu info --json | head -c 1`) ends dmu quietly:
+/// no panic message, no panic exit code (101).
+#[test]
+fn a_closed_stdout_ends_the_command_quietly() {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_dmu"))
+        .args(["info", "--plant-triangles", "10k", "--json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run dmu");
+    drop(child.stdout.take());
+    let out = child.wait_with_output().expect("wait for dmu");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_ne!(out.status.code(), Some(101), "{stderr}");
 }
