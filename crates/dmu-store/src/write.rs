@@ -108,6 +108,7 @@ impl StoreWriter {
             COUNTER.fetch_add(1, Ordering::Relaxed)
         ));
         let temp_path = path.with_file_name(temp_name);
+        remove_stale_temps(path);
         let io = |source| StoreError::Io {
             path: temp_path.clone(),
             source,
@@ -296,6 +297,39 @@ impl PendingStore {
             let _ = d.sync_all();
         }
         Ok(self.summary)
+    }
+}
+
+/// Removes temporary files left beside `path` by writers that died mid-write
+/// (`.NAME.tmpPID-N` of a process that no longer runs), so killed saves do not
+/// pile up copies of a large store. Only where `/proc` tells which processes
+/// run; elsewhere nothing is removed.
+fn remove_stale_temps(path: &Path) {
+    let (Some(name), true) = (path.file_name(), Path::new("/proc/self").exists()) else {
+        return;
+    };
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let prefix = format!(".{}.tmp", name.to_string_lossy());
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let file_name = entry.file_name();
+        let pid = file_name
+            .to_string_lossy()
+            .strip_prefix(&prefix)
+            .and_then(|rest| rest.split_once('-'))
+            .and_then(|(pid, _)| pid.parse::<u32>().ok());
+        if let Some(pid) = pid
+            && pid != std::process::id()
+            && !Path::new(&format!("/proc/{pid}")).exists()
+        {
+            // Best effort: a file that cannot be removed stays a leftover.
+            let _ = std::fs::remove_file(entry.path());
+        }
     }
 }
 

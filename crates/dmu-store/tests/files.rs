@@ -206,4 +206,12 @@ fn killing_a_save_leaves_a_readable_file() {
         moves.push(moved);
     }
     eprintln!("killed saves left part 0 moved by {moves:?} mm");
+    // The killed writers' temporary files go with the next save.
+    let store = Store::open(&path).unwrap();
+    save_edits(&store, store.skeleton()).unwrap();
+    let names: Vec<_> = std::fs::read_dir(path.parent().unwrap())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, ["model.dmu"], "leftovers after a save");
 }
