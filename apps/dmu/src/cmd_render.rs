@@ -16,6 +16,7 @@ use glam::DVec3;
 use serde_json::json;
 
 use crate::load::{ModelArgs, load};
+use crate::units::parse_dvec3;
 
 /// Render the model from a viewpoint into a PNG, headless (any Vulkan, Metal or
 /// DX12 adapter; lavapipe on machines without a GPU).
@@ -71,18 +72,6 @@ pub struct Args {
     /// drawn ones.
     #[arg(long)]
     oracle: bool,
-}
-
-fn parse_vec(what: &str, s: &str) -> anyhow::Result<DVec3> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|p| p.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| anyhow::anyhow!("--{what} {s:?}: expected three numbers x,y,z"))?;
-    match v.as_slice() {
-        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(DVec3::new(*x, *y, *z)),
-        _ => bail!("--{what} {s:?}: expected three finite numbers x,y,z"),
-    }
 }
 
 fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
@@ -184,8 +173,8 @@ fn stats_json(s: &FrameStats) -> serde_json::Value {
 }
 
 pub fn run(args: &Args) -> anyhow::Result<()> {
-    let eye = parse_vec("eye", &args.eye)?;
-    let target = parse_vec("target", &args.target)?;
+    let eye = parse_dvec3(&args.eye).context("--eye")?;
+    let target = parse_dvec3(&args.target).context("--target")?;
     let size = parse_size(&args.size)?;
     if eye == target {
         bail!("--eye and --target must differ");

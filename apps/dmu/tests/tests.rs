@@ -230,3 +230,16 @@ fn a_closed_stdout_ends_the_command_quietly() {
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert_ne!(out.status.code(), Some(101), "{stderr}");
 }
+
+/// A malformed viewpoint is refused before any model or device is opened,
+/// naming the option and the expected form.
+#[test]
+fn render_names_a_malformed_eye() {
+    let out = dmu(&["render", "--eye", "1,2", "--target", "0,0,0", "-o", "x.png"]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("--eye") && stderr.contains("x,y,z"),
+        "{stderr}"
+    );
+}
