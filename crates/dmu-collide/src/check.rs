@@ -9,7 +9,7 @@ use glam::DVec3;
 
 use crate::contain::{Closedness, point_inside};
 use crate::narrow::{
-    ChunkShapes, PairSearch, Placement, box_gap_squared, chunk_pair, part_tolerance,
+    ChunkShapes, PairSearch, Placement, box_gap_squared, chunk_pair, pair_tolerance, part_tolerance,
 };
 use crate::sweep::Path;
 
@@ -357,6 +357,33 @@ impl Checker {
         !(a == b || twice || scene.part(b).hidden || settings.allow.allows(a, b))
     }
 
+    /// Tests `pairs` (chunk pairs of one part pair, placed by `places`) whose
+    /// boxes are within the search's reach, nearest result into `search`,
+    /// until it finds penetration.
+    pub(crate) fn search_chunk_pairs(
+        &self,
+        scene: &Scene,
+        pairs: &[ChunkPair],
+        (place_a, place_b): (&Placement, &Placement),
+        search: &mut PairSearch,
+        report: &mut Report,
+    ) {
+        for pair in pairs {
+            if search.done() {
+                break;
+            }
+            let box_a = scene.chunk(pair.ca).bounds.transformed(&place_a.to_pair);
+            let box_b = scene.chunk(pair.cb).bounds.transformed(&place_b.to_pair);
+            if box_gap_squared(&box_a, &box_b) > search.limit * search.limit {
+                continue;
+            }
+            report.chunk_pairs_tested += 1;
+            let mesh_a = self.shapes.get(scene, pair.ca);
+            let mesh_b = self.shapes.get(scene, pair.cb);
+            chunk_pair(mesh_a, place_a, mesh_b, place_b, search);
+        }
+    }
+
     /// The narrow phase over the candidate chunk pairs, one clash per part pair.
     fn narrow(&mut self, scene: &Scene, settings: &Settings, report: &mut Report) {
         self.pairs.sort_unstable();
@@ -369,23 +396,15 @@ impl Checker {
             let origin = world_a.translation;
             let place_a = Placement::new(&world_a, origin);
             let place_b = Placement::new(&scene.part_world(b), origin);
-            let tolerance = part_tolerance(scene, a, settings.contact_tolerance)
-                .max(part_tolerance(scene, b, settings.contact_tolerance));
+            let tolerance = pair_tolerance(scene, a, b, settings.contact_tolerance);
             let mut search = PairSearch::new(tolerance, settings.clearance);
-            for pair in &self.pairs[start..end] {
-                if search.done() {
-                    break;
-                }
-                let box_a = scene.chunk(pair.ca).bounds.transformed(&place_a.to_pair);
-                let box_b = scene.chunk(pair.cb).bounds.transformed(&place_b.to_pair);
-                if box_gap_squared(&box_a, &box_b) > search.limit * search.limit {
-                    continue;
-                }
-                report.chunk_pairs_tested += 1;
-                let mesh_a = self.shapes.get(scene, pair.ca);
-                let mesh_b = self.shapes.get(scene, pair.cb);
-                chunk_pair(mesh_a, &place_a, mesh_b, &place_b, &mut search);
-            }
+            self.search_chunk_pairs(
+                scene,
+                &self.pairs[start..end],
+                (&place_a, &place_b),
+                &mut search,
+                report,
+            );
             if let Some(clash) = self.classify(scene, settings, a, b, origin, &search) {
                 report.clashes.push(clash);
             }

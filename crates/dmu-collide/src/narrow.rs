@@ -155,6 +155,11 @@ pub(crate) fn chunk_pair(
     }
 }
 
+/// The contact tolerance of a part pair: the larger of the two parts'.
+pub(crate) fn pair_tolerance(scene: &Scene, a: PartId, b: PartId, relative: f64) -> f64 {
+    part_tolerance(scene, a, relative).max(part_tolerance(scene, b, relative))
+}
+
 /// The contact tolerance of a part: `relative` times the larger of its world
 /// size and the magnitude of its local coordinates, the two scales at which its
 /// f32 vertices and f64 transform carry rounding.

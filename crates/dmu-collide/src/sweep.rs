@@ -15,7 +15,7 @@ use dmu_tree::Tree;
 use glam::{DAffine3, DMat3, DQuat, DVec3};
 
 use crate::check::{Checker, ChunkPair, Impact, Report, Settings, run_end};
-use crate::narrow::{PairSearch, Placement, box_gap_squared, chunk_pair, part_tolerance};
+use crate::narrow::{PairSearch, Placement, pair_tolerance};
 
 /// Conservative advancement gives up after this many steps for one pair of parts
 /// (a part sliding past another a hair above the contact tolerance advances in
@@ -221,11 +221,7 @@ impl Checker {
         };
         let path_a = path_of(a).expect("the first part of a swept pair moves");
         let path_b = path_of(b);
-        let tolerance = part_tolerance(scene, a, settings.contact_tolerance).max(part_tolerance(
-            scene,
-            b,
-            settings.contact_tolerance,
-        ));
+        let tolerance = pair_tolerance(scene, a, b, settings.contact_tolerance);
         let bounds = |p: PartId| scene.part_mesh(p).bounds;
         let speed = path_a.reach(path_a.radius(&bounds(a)))
             + path_b.map_or(0.0, |p| p.reach(p.radius(&bounds(b))));
@@ -240,20 +236,7 @@ impl Checker {
             let place_b = Placement::new(&world_b, origin);
             // Only what is within reach for the rest of the motion matters.
             let mut search = PairSearch::new(tolerance, speed * (1.0 - t));
-            for pair in run {
-                let box_a = scene.chunk(pair.ca).bounds.transformed(&place_a.to_pair);
-                let box_b = scene.chunk(pair.cb).bounds.transformed(&place_b.to_pair);
-                if box_gap_squared(&box_a, &box_b) > search.limit * search.limit {
-                    continue;
-                }
-                report.chunk_pairs_tested += 1;
-                let mesh_a = self.shapes.get(scene, pair.ca);
-                let mesh_b = self.shapes.get(scene, pair.cb);
-                chunk_pair(mesh_a, &place_a, mesh_b, &place_b, &mut search);
-                if search.done() {
-                    break;
-                }
-            }
+            self.search_chunk_pairs(scene, run, (&place_a, &place_b), &mut search, report);
             let best = search.best?;
             let impact = Impact {
                 a,
