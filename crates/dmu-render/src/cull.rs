@@ -185,14 +185,7 @@ impl Renderer {
         let cull = Cull::new(view, ipd);
         let cell_distance = self.cell_distances(cull.eye);
         let use_queries = view.culling == Culling::Occlusion && view.decision.enabled;
-        let mut gpu = view.gpu.take();
-        self.prepare_view(
-            &mut gpu,
-            scene,
-            view.camera.projection(view.aspect()),
-            cull.eye_views(),
-        );
-        let mut gpu_state = gpu.expect("prepared");
+        let mut gpu_state = self.prepare_view(view, scene, cull.eye_views());
         view.drawn.clear();
         let outcome = if use_queries {
             self.frame_occlusion(
@@ -258,14 +251,7 @@ impl Renderer {
             ..Cull::new(view, None)
         };
         let cell_distance = self.cell_distances(cull.eye);
-        let mut gpu = view.gpu.take();
-        self.prepare_view(
-            &mut gpu,
-            scene,
-            view.camera.projection(view.aspect()),
-            cull.eye_views(),
-        );
-        let mut gpu_state = gpu.expect("prepared");
+        let mut gpu_state = self.prepare_view(view, scene, cull.eye_views());
         let mut scratch = FrameStats::default();
         let mut draws = self.frustum_draws(scene, tree, &cull, &mut scratch);
         sort_draws(&self.hierarchy, &cell_distance, &mut draws);

@@ -16,6 +16,7 @@ use crate::gpu::{
     STEREO_SHADER, ViewUniform,
 };
 use crate::hierarchy::Hierarchy;
+use crate::view::View;
 
 /// The lavapipe bug in Mesa 22.3 returns wrong counts past about 536 occlusion
 /// queries in one render pass; 512 were always exact.
@@ -534,19 +535,23 @@ impl Renderer {
         self.timestamp_period_ns.is_some()
     }
 
-    /// Makes or grows a view's GPU resources and uploads its per-frame data:
-    /// the projection and every part's camera-relative model-view for each eye
+    /// Takes a view's GPU resources (making them the first time) for the
+    /// frame, grows them as needed and uploads its per-frame data: the
+    /// projection and every part's camera-relative model-view for each eye
     /// (one view matrix per eye: one for a view, two for a stereo pair).
     pub(crate) fn prepare_view(
         &self,
-        gpu: &mut Option<ViewGpu>,
+        view: &mut View,
         scene: &Scene,
-        proj: glam::DMat4,
         eye_views: &[glam::DAffine3],
-    ) {
+    ) -> ViewGpu {
+        let proj = view.camera.projection(view.aspect());
         let parts = scene.parts().len();
-        let g = gpu.get_or_insert_with(|| self.make_view_gpu(parts.max(1) * eye_views.len()));
-        self.ensure_capacity(g, parts * eye_views.len(), 0);
+        let mut g = view
+            .gpu
+            .take()
+            .unwrap_or_else(|| self.make_view_gpu(parts.max(1) * eye_views.len()));
+        self.ensure_capacity(&mut g, parts * eye_views.len(), 0);
         for eye in 0..eye_views.len() {
             let uniform = ViewUniform {
                 proj: proj.as_mat4().to_cols_array_2d(),
@@ -594,6 +599,7 @@ impl Renderer {
             self.queue
                 .write_buffer(&g.model_views, 0, bytemuck::cast_slice(&g.staging));
         }
+        g
     }
 
     fn make_view_gpu(&self, model_views: usize) -> ViewGpu {
