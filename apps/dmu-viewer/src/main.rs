@@ -70,8 +70,9 @@ struct Cli {
     /// Save the window as PNG after the last frame (with --frames or --script).
     #[arg(long)]
     screenshot: Option<PathBuf>,
-    /// Draw this many frames, then exit (after the script, if any).
-    #[arg(long)]
+    /// Draw this many frames, then exit (after the script, if any); at most
+    /// 1,000,000.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
     frames: Option<u32>,
     /// Run a JSON list of actions (pick, move, drag, save, screenshot...), then exit.
     #[arg(long)]

@@ -13,7 +13,9 @@ use serde_json::json;
 
 use crate::cmd_bench::{median, percentile};
 use crate::load::{ModelArgs, load};
-use crate::units::parse_count;
+use crate::units::{
+    MAX_CHUNK_TRIANGLES, MAX_LENGTH, MAX_STEPS, MAX_TRIANGLES, count_in, number_in,
+};
 
 /// Collision checks per second for a part moving through the model.
 #[derive(Debug, clap::Args)]
@@ -21,29 +23,29 @@ pub struct CollideArgs {
     /// Model file; the built-in plant of `--triangles` when omitted.
     file: Option<PathBuf>,
     /// Size of the built-in plant.
-    #[arg(long, default_value = "10M", value_parser = parse_count)]
+    #[arg(long, default_value = "10M", value_parser = count_in(10_000, MAX_TRIANGLES))]
     triangles: u64,
     /// The moving part is the one whose triangle count is closest to this.
     #[arg(long, default_value_t = 10_000)]
     part_triangles: u64,
     /// Steps of the motion, each moved through the tree and checked.
-    #[arg(long, default_value_t = 2_000)]
+    #[arg(long, default_value_t = 2_000, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=MAX_STEPS))]
     steps: usize,
     /// Travel per step, model units, straight towards the model's centre
     /// (horizontally) and on past it.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, value_parser = number_in(0.0, MAX_LENGTH))]
     step_length: f64,
     /// Turn per step about the vertical axis through the part's centre, degrees.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, value_parser = number_in(-360.0, 360.0))]
     turn_deg: f64,
     /// Steps of the same motion checked without the tree (all parts tested).
-    #[arg(long, default_value_t = 200)]
+    #[arg(long, default_value_t = 200, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=MAX_STEPS))]
     no_tree_steps: usize,
     /// Soft clash distance, model units.
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, value_parser = number_in(0.0, MAX_LENGTH))]
     clearance: f64,
     /// Maximum triangles per chunk.
-    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES)]
+    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..=MAX_CHUNK_TRIANGLES as i64))]
     chunk_triangles: u32,
     /// Print JSON.
     #[arg(long)]

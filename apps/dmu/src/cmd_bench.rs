@@ -12,7 +12,9 @@ use glam::{DAffine3, DVec3};
 use serde_json::json;
 
 use crate::load::{ModelArgs, load};
-use crate::units::parse_count;
+use crate::units::{
+    MAX_CHUNK_TRIANGLES, MAX_LENGTH, MAX_STEPS, MAX_TRIANGLES, count_in, number_in,
+};
 
 /// Measure a subsystem on a model (the built-in plant by default).
 #[derive(Debug, clap::Args)]
@@ -34,29 +36,29 @@ struct TreeArgs {
     /// Model file; the built-in plant of `--triangles` when omitted.
     file: Option<PathBuf>,
     /// Size of the built-in plant.
-    #[arg(long, default_value = "10M", value_parser = parse_count)]
+    #[arg(long, default_value = "10M", value_parser = count_in(10_000, MAX_TRIANGLES))]
     triangles: u64,
     /// Rays to pick (each aimed at a random triangle, so it hits).
-    #[arg(long, default_value_t = 10_000)]
+    #[arg(long, default_value_t = 10_000, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=MAX_STEPS))]
     rays: usize,
     /// Timed moves of parts of about `--part-triangles`, and untimed random moves
     /// before the SAH comparison.
-    #[arg(long, default_value_t = 10_000)]
+    #[arg(long, default_value_t = 10_000, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=MAX_STEPS))]
     moves: usize,
     /// Size of the parts moved for `move_us_median`.
     #[arg(long, default_value_t = 10_000)]
     part_triangles: u64,
     /// Largest move, model units (1 m in the millimetre plant).
-    #[arg(long, default_value_t = 1000.0)]
+    #[arg(long, default_value_t = 1000.0, value_parser = number_in(0.0, MAX_LENGTH))]
     move_reach: f64,
     /// Cell triangle budget.
-    #[arg(long, default_value_t = TreeOptions::default().cell_triangles)]
+    #[arg(long, default_value_t = TreeOptions::default().cell_triangles, value_parser = clap::value_parser!(u32).range(1..=1 << 24))]
     cell_triangles: u32,
     /// Nodes the re-insertion search may expand (0: unlimited, the exact branch and bound).
     #[arg(long, default_value_t = TreeOptions::default().insert_search_nodes)]
     insert_search_nodes: usize,
     /// Maximum triangles per chunk.
-    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES)]
+    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..=MAX_CHUNK_TRIANGLES as i64))]
     chunk_triangles: u32,
     #[arg(long, default_value_t = 1)]
     seed: u64,

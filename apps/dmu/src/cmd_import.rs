@@ -25,7 +25,7 @@ pub struct Args {
     #[arg(long, default_value = "2GiB", value_parser = parse_bytes)]
     memory_budget: u64,
     /// Maximum triangles per chunk (the unit of loading, drawing and picking).
-    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..=crate::units::MAX_CHUNK_TRIANGLES as i64))]
     chunk_triangles: u32,
     /// Quantize geometry: positions to 16 bits per axis in each chunk's box,
     /// normals to 32 bits (10 instead of 24 bytes a vertex).

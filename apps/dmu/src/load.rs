@@ -24,10 +24,10 @@ pub struct ModelArgs {
     /// Model file (.glb, .gltf, or a .dmu store); the built-in plant when omitted.
     pub file: Option<PathBuf>,
     /// Maximum triangles per chunk (the unit of loading, drawing and picking).
-    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..=crate::units::MAX_CHUNK_TRIANGLES as i64))]
     pub chunk_triangles: u32,
-    /// Size of the built-in plant used when no file is given.
-    #[arg(long = "plant-triangles", default_value = "2M", value_parser = crate::units::parse_count)]
+    /// Size of the built-in plant used when no file is given (10k to 1G).
+    #[arg(long = "plant-triangles", default_value = "2M", value_parser = crate::units::count_in(10_000, crate::units::MAX_TRIANGLES))]
     pub plant_triangles: u64,
 }
 
@@ -57,7 +57,7 @@ fn import(path: &Path, chunk_triangles: u32) -> anyhow::Result<(Scene, ImportRep
     let ext = path
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase());
-    if ext.as_deref() == Some("dmu") {
+    if ext.as_deref() == Some("dmu") || is_store(path) {
         // A store is chunked already: its own chunks are kept.
         let store = dmu_store::Store::open(path)?;
         let scene = store
@@ -94,6 +94,15 @@ fn import(path: &Path, chunk_triangles: u32) -> anyhow::Result<(Scene, ImportRep
         .with_context(|| format!("importing {}", path.display()));
     bar.finish_and_clear();
     result
+}
+
+/// Whether the file starts with a store's magic, whatever its name says (a store
+/// renamed `.glb` is read as the store it is, not reported as malformed JSON).
+fn is_store(path: &Path) -> bool {
+    use std::io::Read as _;
+    let mut magic = [0; 8];
+    std::fs::File::open(path).is_ok_and(|mut f| f.read_exact(&mut magic).is_ok())
+        && &magic == b"DMUSTORE"
 }
 
 /// Styles the progress bar of an import's meshes (`pos` meshes of `len`).

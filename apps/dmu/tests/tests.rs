@@ -1,6 +1,7 @@
 //! The `dmu` binary end to end: generate, info, errors and exit codes.
 
 mod collide;
+mod hostile;
 
 use std::path::Path;
 use std::process::{Command, Output, Stdio};

@@ -22,7 +22,7 @@ const UNIT_SLACK: f64 = 1e-3;
 #[non_exhaustive]
 pub enum RecordError {
     /// The file could not be read.
-    #[error("cannot read {}: {source}", path.display())]
+    #[error("cannot read {}", path.display())]
     Io {
         /// The path.
         path: PathBuf,
@@ -113,6 +113,8 @@ pub fn read_record(path: &Path, scene: &Scene) -> Result<Vec<Step>, RecordError>
 /// one step. Parts are named as [`Scene::find_part`] accepts.
 pub fn parse_record(text: &str, scene: &Scene) -> Result<Vec<Step>, RecordError> {
     let mut steps: Vec<Step> = Vec::new();
+    // Editors on some systems start UTF-8 files with a byte-order mark.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     for (i, raw) in text.lines().enumerate() {
         let line = i + 1;
         if raw.trim().is_empty() {
@@ -151,6 +153,12 @@ pub fn parse_record(text: &str, scene: &Scene) -> Result<Vec<Step>, RecordError>
             q.normalize(),
             DVec3::from_array(parsed.translation),
         );
+        if !scene.is_valid_world(part, &world) {
+            return Err(malformed(format!(
+                "the pose of {} is too large: its world box overflows f64",
+                parsed.part
+            )));
+        }
         let moved = RecordedMove { line, part, world };
         match steps.last_mut() {
             Some(step) if step.t == parsed.t => {

@@ -23,6 +23,7 @@
 //! scene.validate().unwrap();
 //! ```
 
+mod atomic;
 mod chunking;
 mod error;
 mod gltf_export;
@@ -31,6 +32,7 @@ mod ids;
 pub mod samples;
 mod scene;
 
+pub use atomic::{AtomicFile, write_file_atomically};
 pub use chunking::{ChunkData, ChunkedMesh, MeshData, MeshGroup, chunk_mesh, compute_normals};
 pub use error::{ExportError, ImportError, SceneError};
 pub use gltf_export::export_gltf;

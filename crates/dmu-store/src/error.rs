@@ -9,7 +9,7 @@ use std::path::PathBuf;
 pub enum StoreError {
     /// Reading, writing, syncing or renaming failed; a store being written is
     /// left as it was before (writes go to a temporary file renamed at the end).
-    #[error("cannot access {}: {source}", path.display())]
+    #[error("cannot access {}", path.display())]
     Io {
         /// The path.
         path: PathBuf,
@@ -81,13 +81,31 @@ pub enum StoreError {
         what: String,
     },
     /// The glTF input of an import is unreadable.
-    #[error("importing {}: {source}", path.display())]
+    #[error("importing {}", path.display())]
     Import {
         /// The glTF file.
         path: PathBuf,
         /// The cause.
         #[source]
         source: dmu_scene::ImportError,
+    },
+    /// Writing glTF failed.
+    #[error("writing {}", path.display())]
+    Export {
+        /// The output file.
+        path: PathBuf,
+        /// The cause.
+        #[source]
+        source: dmu_scene::ExportError,
+    },
+    /// An output whose extension names no format dmu writes.
+    #[error(
+        "{}: unknown output format (the extension picks it: .dmu for a store, .glb or .gltf for glTF)",
+        path.display()
+    )]
+    UnknownOutputFormat {
+        /// The output file.
+        path: PathBuf,
     },
     /// Saving edits: the scene's structure differs from the store's (only
     /// transforms and visibility may change).

@@ -75,7 +75,7 @@ pub use prefetch::{PrefetchOptions, Prefetcher};
 pub use priority::{Class, LoadOrder, Request};
 pub use read::{Store, StoreInfo};
 pub use residency::{Pacing, Residency, ResidencyOptions, ResidencyStats};
-pub use save::{prepare_save, save_edits};
+pub use save::{SavedFormat, prepare_save, save_edits, save_scene};
 pub use view::{CameraFrame, View, Viewport, Wanted, wanted};
 pub use walk::{Drawn, FrameReport, WalkOptions, WalkReport, WalkTotals, walk, walk_with};
 pub use write::{PendingStore, StoreSummary, StoreWriter, WriteOptions, write_scene};
