@@ -104,7 +104,7 @@ mod tests {
     /// transforms, one step per line, in time order.
     #[test]
     fn poses_read_back_exactly() {
-        let scene = dmu_scene::samples::grid(2, 10.0, 4.0, 2048);
+        let scene = dmu_samples::grid(2, 10.0, 4.0, 2048);
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("session.jsonl");
         let mut rec = Recorder::create(&path).unwrap();

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context as _;
-use dmu_scene::samples::{PlantOptions, grid, plant};
+use dmu_samples::{PlantOptions, grid, plant};
 
 use crate::units::{parse_count, parse_dvec3};
 

@@ -37,12 +37,12 @@ pub fn load(args: &ModelArgs) -> anyhow::Result<Loaded> {
     let (scene, report) = match &args.file {
         Some(path) => import(path, args.chunk_triangles)?,
         None => {
-            let options = dmu_scene::samples::PlantOptions {
+            let options = dmu_samples::PlantOptions {
                 triangles: args.plant_triangles,
                 chunk_triangles: args.chunk_triangles,
                 ..Default::default()
             };
-            (dmu_scene::samples::plant(&options), ImportReport::default())
+            (dmu_samples::plant(&options), ImportReport::default())
         }
     };
     Ok(Loaded {

@@ -52,7 +52,7 @@
 //! use dmu_tree::{Tree, TreeOptions};
 //!
 //! // Boxes of side 4 on a lattice of pitch 10.
-//! let mut scene = dmu_scene::samples::grid(2, 10.0, 4.0, 2048);
+//! let mut scene = dmu_samples::grid(2, 10.0, 4.0, 2048);
 //! let mut tree = Tree::build(&scene, TreeOptions::default());
 //! let mut checker = Checker::new(&scene);
 //! let mut report = Report::default();

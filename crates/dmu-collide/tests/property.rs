@@ -1,7 +1,7 @@
 //! Through the tree equals brute force over all part pairs, on random scenes.
 
 use dmu_collide::{Checker, Report, Settings};
-use dmu_scene::samples::Rng;
+use dmu_samples::Rng;
 use dmu_scene::{PartId, Scene};
 use dmu_tree::{Tree, TreeOptions};
 use glam::{DAffine3, DQuat, DVec3, Vec3};

@@ -1,7 +1,7 @@
 //! Record parsing (errors name their line) and replay on the grid.
 
 use dmu_collide::{Checker, ClashKind, RecordError, Settings, parse_record, replay};
-use dmu_scene::samples::grid;
+use dmu_samples::grid;
 use dmu_tree::{Tree, TreeOptions};
 use glam::{DQuat, DVec3};
 

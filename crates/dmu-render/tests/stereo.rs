@@ -9,8 +9,8 @@ use dmu_render::{
     Capture, Culling, FrameStats, RendererOptions, StereoCamera, StereoMode, StereoView, View,
     save_png,
 };
+use dmu_samples::grid;
 use dmu_scene::Scene;
-use dmu_scene::samples::grid;
 use dmu_tree::{EntryId, Tree, TreeOptions};
 
 use crate::culling::{small_plant, viewpoints};

@@ -34,7 +34,7 @@
 //!
 //! ```
 //! use std::sync::Arc;
-//! use dmu_scene::samples::grid;
+//! use dmu_samples::grid;
 //! use dmu_store::{Store, WriteOptions, write_scene};
 //!
 //! let dir = tempfile::tempdir().unwrap();

@@ -3,8 +3,8 @@
 
 use std::path::PathBuf;
 
+use dmu_samples::{PlantOptions, plant};
 use dmu_scene::Scene;
-use dmu_scene::samples::{PlantOptions, plant};
 use dmu_store::{WriteOptions, write_scene};
 
 /// A small plant (about `triangles`), far from the origin as real plants are.

@@ -1,8 +1,8 @@
 //! Queries against brute force on random scenes, before and after random moves.
 
 use dmu_geom::Aabb3d;
+use dmu_samples::Rng;
 use dmu_scene::Scene;
-use dmu_scene::samples::Rng;
 use dmu_tree::{Tree, TreeOptions};
 use glam::DVec3;
 use proptest::prelude::*;
