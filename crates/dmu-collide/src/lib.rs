@@ -83,7 +83,8 @@ pub use check::{
     AllowList, Checker, Clash, ClashKind, DEFAULT_CONTACT_TOLERANCE, Impact, Report, Settings,
 };
 pub use record::{
-    RecordError, RecordedMove, Step, StepOutcome, Summary, parse_record, read_record, replay,
+    RecordError, RecordLine, RecordedMove, Step, StepOutcome, Summary, parse_record, read_record,
+    record_part_name, replay, write_record,
 };
 pub use sweep::{MAX_ADVANCEMENT_STEPS, Motion};
 pub use triangle::{TriangleClash, triangle_clash, triangle_distance};
