@@ -244,7 +244,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     }
     let mut reports = Vec::new();
     for order in &args.order {
-        let report = walk(&store, &tree, &path, &options(order)).map_err(anyhow::Error::msg)?;
+        let report = walk(&store, &tree, &path, &options(order))?;
         reports.push(report);
     }
     if args.json {

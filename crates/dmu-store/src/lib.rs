@@ -67,7 +67,7 @@ mod view;
 mod walk;
 mod write;
 
-pub use error::StoreError;
+pub use error::{ResidencyError, StoreError, WalkError};
 pub use format::FORMAT_VERSION;
 pub use geometry::ChunkGeometry;
 pub use import::{ImportOptions, ImportSummary, import_gltf};
@@ -77,5 +77,7 @@ pub use read::{Store, StoreInfo};
 pub use residency::{Pacing, Residency, ResidencyOptions, ResidencyStats};
 pub use save::{prepare_save, save_edits};
 pub use view::{CameraFrame, View, Viewport, Wanted, wanted};
-pub use walk::{Drawn, FrameReport, WalkOptions, WalkReport, WalkTotals, walk, walk_with};
+pub use walk::{
+    DrawError, Drawn, FrameReport, WalkOptions, WalkReport, WalkTotals, walk, walk_with,
+};
 pub use write::{PendingStore, StoreSummary, StoreWriter, WriteOptions, write_scene};

@@ -48,3 +48,4 @@ mod validate;
 
 pub use query::{FrustumNode, Hit, chunk_touches_box, triangle_box_overlap};
 pub use tree::{CellId, Entry, EntryId, Tree, TreeOptions, UpdateStats};
+pub use validate::InvariantError;

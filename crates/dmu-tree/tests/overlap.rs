@@ -35,7 +35,8 @@ proptest! {
             let world = random_transform(&mut rng, DVec3::new(1e7, -3e6, 0.0), 30.0);
             tree.move_part(&mut scene, part, world);
         }
-        tree.validate_against(&scene).map_err(TestCaseError::fail)?;
+        tree.validate_against(&scene)
+            .map_err(|e| TestCaseError::fail(e.to_string()))?;
         let bounds = scene.world_bounds();
         let mut out = Vec::new();
         for _ in 0..20 {

@@ -5,7 +5,9 @@ use std::time::Instant;
 
 use anyhow::{Context as _, bail};
 use dmu_scene::{ImportOptions, ImportReport, Scene};
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressBar;
+
+use crate::progress::style_mesh_bar;
 
 /// A loaded model and how it was obtained.
 #[derive(Debug)]
@@ -94,13 +96,4 @@ fn import(path: &Path, chunk_triangles: u32) -> anyhow::Result<(Scene, ImportRep
         .with_context(|| format!("importing {}", path.display()));
     bar.finish_and_clear();
     result
-}
-
-/// Styles the progress bar of an import's meshes (`pos` meshes of `len`).
-pub fn style_mesh_bar(bar: &ProgressBar) {
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} importing meshes {pos}/{len} [{bar:30}] {elapsed}")
-            .expect("static template")
-            .progress_chars("=> "),
-    );
 }
