@@ -7,7 +7,7 @@ use std::hint::black_box;
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use dmu_collide::{Checker, Report, Settings};
 use dmu_geom::Ray3d;
-use dmu_scene::samples::{PlantOptions, plant};
+use dmu_samples::{PlantOptions, plant};
 use dmu_scene::{ImportOptions, export_gltf, import_gltf};
 use dmu_tree::{Tree, TreeOptions};
 use glam::{DAffine3, DVec3};

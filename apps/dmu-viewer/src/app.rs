@@ -283,7 +283,7 @@ impl App {
             "ray": { "origin": ray.origin.to_array(), "dir": ray.dir.to_array() },
             "hit": hit.map_or_else(
                 || json!({ "hit": false }),
-                |h| dmu::hits::hit_json(scene, &h, length)
+                |h| dmu_app::hits::hit_json(scene, &h, length)
             ),
         })
     }

@@ -321,7 +321,7 @@ mod tests {
     use dmu_store::SavedFormat;
 
     fn review() -> Review {
-        Review::new(dmu_scene::samples::grid(2, 10.0, 4.0, 2048), None)
+        Review::new(dmu_samples::grid(2, 10.0, 4.0, 2048), None)
     }
 
     /// A drag and typed moves undo and redo exactly, and the tree follows.

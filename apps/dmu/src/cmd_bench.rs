@@ -5,8 +5,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use dmu_geom::Ray3d;
+use dmu_samples::Rng;
 use dmu_scene::PartId;
-use dmu_scene::samples::Rng;
 use dmu_tree::{Tree, TreeOptions};
 use glam::{DAffine3, DVec3};
 use serde_json::json;

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context as _;
-use dmu_scene::samples::{PlantOptions, grid, plant};
+use dmu_samples::{PlantOptions, grid, plant};
 
 use crate::units::{MAX_CHUNK_TRIANGLES, MAX_TRIANGLES, count_in, parse_dvec3};
 

@@ -6,7 +6,8 @@ use std::time::Instant;
 use anyhow::Context as _;
 use indicatif::ProgressBar;
 
-use crate::units::{parse_bytes, peak_rss_bytes};
+use crate::progress::{peak_rss_bytes, style_mesh_bar};
+use crate::units::parse_bytes;
 
 /// Import a glTF file (.glb or .gltf) into a dmu store (.dmu).
 ///
@@ -40,7 +41,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let start = Instant::now();
     // Hidden when stderr is not a terminal, so scripts see clean output.
     let bar = ProgressBar::new(0);
-    crate::load::style_mesh_bar(&bar);
+    style_mesh_bar(&bar);
     let progress = |done: usize, total: usize| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);

@@ -54,7 +54,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let scene = &loaded.scene;
     let tree = Tree::build(scene, TreeOptions::default());
     let length = ray.dir.length();
-    let describe = |h: &dmu_tree::Hit| dmu::hits::hit_json(scene, h, length);
+    let describe = |h: &dmu_tree::Hit| dmu_app::hits::hit_json(scene, h, length);
     let out = if args.all {
         json!({ "hits": tree.pick_all(scene, &ray).iter().map(describe).collect::<Vec<_>>() })
     } else {

@@ -244,7 +244,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     }
     let mut reports = Vec::new();
     for order in &args.order {
-        let report = walk(&store, &tree, &path, &options(order)).map_err(anyhow::Error::msg)?;
+        let report = walk(&store, &tree, &path, &options(order))?;
         reports.push(report);
     }
     if args.json {
@@ -406,11 +406,11 @@ fn typical_cell_size(tree: &Tree) -> f64 {
 /// with a snap turn before it, and a last look back. Eye height 1.7 m, 60 degree
 /// field of view; millimetres.
 fn plant_path(fps: f64) -> Vec<CameraFrame> {
-    /// Must match `dmu_scene::samples::plant`'s plot size.
+    /// Must match `dmu_samples::plant`'s plot size.
     const PLOT: f64 = 48_000.0;
     const AISLE: f64 = 12_000.0;
     const EYE: f64 = 1_700.0;
-    let origin = dmu_scene::samples::PlantOptions::default().origin;
+    let origin = dmu_samples::PlantOptions::default().origin;
     let at = |x: f64, y: f64| origin + DVec3::new(x, y, EYE);
     let mut path = Vec::new();
     let mut push = |eye: DVec3, heading_deg: f64| {

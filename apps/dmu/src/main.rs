@@ -15,8 +15,8 @@ mod walk_render;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-// Opening models and parsing units live in the library, shared with dmu-viewer.
-use dmu::{load, units};
+// Opening models, parsing units and progress live in dmu-app, shared with dmu-viewer.
+use dmu_app::{load, progress, resident, units};
 
 /// dmu: walk, pick, move and clash-check massive CAD assemblies.
 ///

@@ -1,4 +1,3 @@
 mod import;
-mod plant;
 mod real_models;
 mod support;

@@ -117,3 +117,41 @@ pub enum StoreError {
         what: String,
     },
 }
+
+/// A residency manager's accounting is off, found by
+/// [`Residency::validate`](crate::Residency::validate): a bug in the manager.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+#[error("{what}")]
+pub struct ResidencyError {
+    /// What disagrees, where (e.g. "chunk 7: state Loading disagrees with its geometry").
+    pub what: String,
+}
+
+/// Errors of a walk through a store ([`walk`](crate::walk),
+/// [`walk_with`](crate::walk_with)).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum WalkError {
+    /// A frame of the path is not a camera (eye on the target, up along the
+    /// view, a field of view out of range).
+    #[error("frame {frame} is not a camera: {camera}")]
+    NotACamera {
+        /// The frame's index.
+        frame: usize,
+        /// The frame as given (`Debug`).
+        camera: String,
+    },
+    /// The caller's `draw` failed on a frame.
+    #[error("frame {frame}: {source}")]
+    Draw {
+        /// The frame's index.
+        frame: usize,
+        /// What `draw` returned.
+        #[source]
+        source: crate::walk::DrawError,
+    },
+    /// The residency manager's accounting was off at the end of the walk.
+    #[error(transparent)]
+    Residency(#[from] ResidencyError),
+}

@@ -18,7 +18,7 @@ fn read_all(path: &Path) -> Result<(), StoreError> {
 }
 
 fn small_store() -> (tempfile::TempDir, std::path::PathBuf, Vec<u8>) {
-    let scene = dmu_scene::samples::grid(3, 10.0, 4.0, 8);
+    let scene = dmu_samples::grid(3, 10.0, 4.0, 8);
     let (dir, path) = stored(&scene, WriteOptions::default());
     let bytes = std::fs::read(&path).unwrap();
     (dir, path, bytes)
@@ -97,7 +97,7 @@ fn other_versions_and_other_files_are_named() {
     ));
     // A glTF file given as a store.
     let glb = dir.path().join("grid.glb");
-    dmu_scene::export_gltf(&dmu_scene::samples::grid(2, 10.0, 4.0, 8), &glb).unwrap();
+    dmu_scene::export_gltf(&dmu_samples::grid(2, 10.0, 4.0, 8), &glb).unwrap();
     let msg = Store::open(&glb).unwrap_err().to_string();
     assert!(
         msg.contains("not a dmu store") && msg.contains("dmu import"),

@@ -24,7 +24,7 @@
 //! use dmu_geom::{Ray3d, glam::{DAffine3, DVec3}};
 //! use dmu_tree::{Tree, TreeOptions};
 //!
-//! let mut scene = dmu_scene::samples::grid(3, 10.0, 4.0, 2048);
+//! let mut scene = dmu_samples::grid(3, 10.0, 4.0, 2048);
 //! let mut tree = Tree::build(&scene, TreeOptions::default());
 //! let ray = Ray3d::new(DVec3::new(0.0, 0.0, -100.0), DVec3::Z);
 //! let hit = tree.pick(&scene, &ray).unwrap();
@@ -48,3 +48,4 @@ mod validate;
 
 pub use query::{FrustumNode, Hit, chunk_touches_box, triangle_box_overlap};
 pub use tree::{CellId, Entry, EntryId, Tree, TreeOptions, UpdateStats};
+pub use validate::InvariantError;

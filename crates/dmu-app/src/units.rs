@@ -92,15 +92,6 @@ pub fn number_in(
     }
 }
 
-/// The process's peak resident set size in bytes (Linux `VmHWM`), or `None`
-/// where the kernel does not report it.
-pub fn peak_rss_bytes() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024)
-}
-
 /// `x,y,z` as f64.
 pub fn parse_dvec3(s: &str) -> anyhow::Result<glam::DVec3> {
     let parts: Vec<f64> = s

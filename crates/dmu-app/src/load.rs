@@ -5,7 +5,9 @@ use std::time::Instant;
 
 use anyhow::{Context as _, bail};
 use dmu_scene::{ImportOptions, ImportReport, Scene};
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressBar;
+
+use crate::progress::style_mesh_bar;
 
 /// A loaded model and how it was obtained.
 #[derive(Debug)]
@@ -37,12 +39,12 @@ pub fn load(args: &ModelArgs) -> anyhow::Result<Loaded> {
     let (scene, report) = match &args.file {
         Some(path) => import(path, args.chunk_triangles)?,
         None => {
-            let options = dmu_scene::samples::PlantOptions {
+            let options = dmu_samples::PlantOptions {
                 triangles: args.plant_triangles,
                 chunk_triangles: args.chunk_triangles,
                 ..Default::default()
             };
-            (dmu_scene::samples::plant(&options), ImportReport::default())
+            (dmu_samples::plant(&options), ImportReport::default())
         }
     };
     Ok(Loaded {
@@ -103,13 +105,4 @@ fn is_store(path: &Path) -> bool {
     let mut magic = [0; 8];
     std::fs::File::open(path).is_ok_and(|mut f| f.read_exact(&mut magic).is_ok())
         && &magic == b"DMUSTORE"
-}
-
-/// Styles the progress bar of an import's meshes (`pos` meshes of `len`).
-pub fn style_mesh_bar(bar: &ProgressBar) {
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} importing meshes {pos}/{len} [{bar:30}] {elapsed}")
-            .expect("static template")
-            .progress_chars("=> "),
-    );
 }
