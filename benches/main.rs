@@ -127,11 +127,11 @@ fn tree(c: &mut Criterion) {
     let settings = Settings::with_clearance(5.0);
     let mut checker = Checker::new(&scene);
     let mut report = Report::default();
-    let mut step = 0u64;
+    let mut there = false;
     group.bench_function("drag_step_10mm_1M", |b| {
         b.iter(|| {
-            step += 1;
-            let offset = if step % 2 == 0 { 0.0 } else { 10.0 };
+            there = !there;
+            let offset = if there { 10.0 } else { 0.0 };
             let world = DAffine3::from_translation(DVec3::new(offset, 0.0, 0.0)) * home;
             tree.move_part(&mut scene, part, world);
             mirror.sync(&tree);
