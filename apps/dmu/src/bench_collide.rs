@@ -52,25 +52,40 @@ pub struct CollideArgs {
     json: bool,
 }
 
-/// The poses of the dragged part: from home, a straight line towards the
-/// model's centre in the horizontal plane, turning about the vertical through
-/// the part's centre.
-fn path(scene: &Scene, part: PartId, args: &CollideArgs) -> Vec<DAffine3> {
+/// The poses of a part dragged `steps` steps of `step_length`: from home, a
+/// straight line towards the model's centre in the horizontal plane, turning
+/// `turn_deg` per step about the vertical through the part's centre.
+pub(crate) fn drag_path(
+    scene: &Scene,
+    part: PartId,
+    steps: usize,
+    step_length: f64,
+    turn_deg: f64,
+) -> Vec<DAffine3> {
     let home = scene.part_world(part);
     let centre = scene.part_world_bounds(part).center();
     let mut towards = scene.world_bounds().center() - centre;
     towards.z = 0.0;
     let dir = towards.normalize_or(DVec3::X);
-    (1..=args.steps)
+    (1..=steps)
         .map(|i| {
             let k = i as f64;
-            let at = centre + dir * (args.step_length * k);
+            let at = centre + dir * (step_length * k);
             DAffine3::from_translation(at)
-                * DAffine3::from_rotation_z((args.turn_deg * k).to_radians())
+                * DAffine3::from_rotation_z((turn_deg * k).to_radians())
                 * DAffine3::from_translation(-centre)
                 * home
         })
         .collect()
+}
+
+/// The visible part whose triangle count is closest to `triangles`: the one dragged.
+pub(crate) fn dragged_part(scene: &Scene, triangles: u64) -> anyhow::Result<PartId> {
+    scene
+        .part_ids()
+        .filter(|&p| !scene.part(p).hidden)
+        .min_by_key(|&p| scene.part_mesh(p).triangle_count().abs_diff(triangles))
+        .ok_or_else(|| anyhow::anyhow!("the model has no visible part"))
 }
 
 /// What a step found, for comparing the two runs.
@@ -117,18 +132,9 @@ pub fn bench_collide(args: &CollideArgs) -> anyhow::Result<()> {
     };
     let mut loaded = load(&model)?;
     let scene = &mut loaded.scene;
-    let part = scene
-        .part_ids()
-        .filter(|&p| !scene.part(p).hidden)
-        .min_by_key(|&p| {
-            scene
-                .part_mesh(p)
-                .triangle_count()
-                .abs_diff(args.part_triangles)
-        })
-        .ok_or_else(|| anyhow::anyhow!("the model has no visible part"))?;
+    let part = dragged_part(scene, args.part_triangles)?;
     let home = scene.part_world(part);
-    let poses = path(scene, part, args);
+    let poses = drag_path(scene, part, args.steps, args.step_length, args.turn_deg);
     let settings = Settings::with_clearance(args.clearance);
     let build_start = Instant::now();
     let mut tree = Tree::build(scene, TreeOptions::default());

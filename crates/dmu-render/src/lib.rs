@@ -90,6 +90,7 @@ pub use capture::{CAPTURE_FORMAT, Capture, DEPTH_FORMAT, ID_FORMAT, IdImage, sav
 pub use device::headless_device;
 pub use error::RenderError;
 pub use geometry::{ChunkGeometry, GeometryPool, GeometrySource};
+pub use hierarchy::Hierarchy;
 pub use renderer::{FrameTarget, Renderer, RendererOptions};
 pub use stereo::{StereoCamera, StereoMode, StereoTarget, StereoView};
 pub use view::{Camera, Culling, CullingOptions, FrameStats, OcclusionDecision, View};

@@ -7,6 +7,9 @@
 //!   3.1.6), bounded by a triangle budget (Interviews3D: 1k-8k), so any triangle
 //!   found maps back to its part. Triangles are never split; child boxes may overlap.
 //! - Built top-down with binned SAH (areas weighted by triangles), in parallel.
+//! - Every move advances the tree's [`Revision`] and logs the nodes, cells
+//!   and entries it changed ([`Tree::changes_since`]), so a mirror of the tree
+//!   (the renderer's) updates in time proportional to the move.
 //! - `move_part` touches only the part's chunks: "better to update than to
 //!   rebuild" (Interviews3D). Chunks that leave their cell are re-inserted by
 //!   branch and bound on the SAH cost increase; cells split and merge to stay in
@@ -39,6 +42,7 @@
 //! ```
 
 mod build;
+mod changes;
 mod chunk_bvh;
 mod overlap;
 mod query;
@@ -46,6 +50,7 @@ mod tree;
 mod update;
 mod validate;
 
+pub use changes::{Change, Changes, NodeId, NodeKind, Revision};
 pub use query::{FrustumNode, Hit, chunk_touches_box, triangle_box_overlap};
 pub use tree::{CellId, Entry, EntryId, Tree, TreeOptions, UpdateStats};
 pub use validate::InvariantError;
