@@ -3,7 +3,6 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::Context as _;
 use dmu_samples::{PlantOptions, grid, plant};
 
 use crate::units::{MAX_CHUNK_TRIANGLES, MAX_TRIANGLES, count_in, parse_dvec3};
@@ -72,16 +71,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     };
     let generate_ms = start.elapsed().as_secs_f64() * 1e3;
     let start = Instant::now();
-    let store = args
-        .output
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("dmu"));
-    if store {
-        dmu_store::write_scene(&scene, &args.output, dmu_store::WriteOptions::default())?;
-    } else {
-        dmu_scene::export_gltf(&scene, &args.output)
-            .with_context(|| format!("writing {}", args.output.display()))?;
-    }
+    dmu_store::save_scene(&scene, None, &args.output)?;
     let write_ms = start.elapsed().as_secs_f64() * 1e3;
     let bytes = std::fs::metadata(&args.output)
         .map(|m| m.len())

@@ -19,8 +19,8 @@ use crate::units::parse_bytes;
 pub struct Args {
     /// The glTF file.
     input: PathBuf,
-    /// The store to write.
-    #[arg(short, long)]
+    /// The store to write (`.dmu`).
+    #[arg(short, long, value_parser = crate::units::output_with("dmu"))]
     output: PathBuf,
     /// Peak memory to stay within, e.g. 2GiB, 512MiB.
     #[arg(long, default_value = "2GiB", value_parser = parse_bytes)]

@@ -51,7 +51,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10_000))]
     frames: u32,
     /// Output PNG (with --stereo, OUTPUT-left.png and OUTPUT-right.png).
-    #[arg(short, long)]
+    #[arg(short, long, value_parser = crate::units::output_with("png"))]
     output: PathBuf,
     /// Render a stereo pair around the eye (parallel axes, --ipd apart along
     /// screen right), culled once and drawn in one multiview pass; also renders

@@ -110,6 +110,29 @@ fn move_writes_the_format_its_output_names() {
     refused(&out, "unknown output format");
     assert!(!dir.path().join("g.txt").exists());
     assert_eq!(std::fs::read(&store).unwrap(), before);
+    // Other writers: a PNG is never written over a model, nor a store over glTF.
+    let glb = path(dir.path(), "copy.glb");
+    let model = std::fs::read(&glb).unwrap();
+    for args in [
+        vec!["render", "--eye", "0,0,0", "--target", "1,0,0", "-o", &glb],
+        vec!["import", &glb, "-o", &glb],
+        vec![
+            "generate",
+            "grid",
+            "--n",
+            "2",
+            "-o",
+            &path(dir.path(), "g.txt"),
+        ],
+    ] {
+        let err = String::from_utf8_lossy(&dmu(&args).stderr).into_owned();
+        assert!(
+            err.contains("give a name ending in") || err.contains("unknown output format"),
+            "{args:?}: {err}"
+        );
+    }
+    assert_eq!(std::fs::read(&glb).unwrap(), model);
+    assert!(!dir.path().join("g.txt").exists());
 }
 
 /// A buffer URI may only name a regular file inside the model's folder: not a

@@ -92,6 +92,24 @@ pub fn number_in(
     }
 }
 
+/// A clap value parser for an output file whose extension is `ext` (any case):
+/// the extension names the format written, so `-o model.glb` on a command that
+/// writes PNG is refused instead of replacing a model with an image.
+pub fn output_with(
+    ext: &'static str,
+) -> impl Fn(&str) -> anyhow::Result<std::path::PathBuf> + Clone + Send + Sync + 'static {
+    move |s| {
+        let path = std::path::PathBuf::from(s);
+        if !path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case(ext))
+        {
+            bail!("{s:?}: this command writes .{ext} files; give a name ending in .{ext}");
+        }
+        Ok(path)
+    }
+}
+
 /// `x,y,z` as f64.
 pub fn parse_dvec3(s: &str) -> anyhow::Result<glam::DVec3> {
     let parts: Vec<f64> = s
