@@ -138,27 +138,6 @@ fn box_distance_sq(b: &Aabb3d, p: DVec3) -> f64 {
 }
 
 impl Renderer {
-    /// Renders one frame of `view` into `target`: culls, draws and (with
-    /// [`Culling::Occlusion`]) queries in rounds, waits for the GPU, and
-    /// returns what it did. `geometry` supplies chunks not yet on the GPU.
-    pub fn render(
-        &mut self,
-        view: &mut View,
-        scene: &Scene,
-        tree: &Tree,
-        geometry: &dyn GeometrySource,
-        target: FrameTarget<'_>,
-    ) -> Result<FrameStats, RenderError> {
-        self.render_frame(
-            view,
-            None,
-            scene,
-            tree,
-            geometry,
-            RoundTarget::single(target),
-        )
-    }
-
     /// A frame of `view`, or with `ipd` of the stereo pair around its camera
     /// (culled once, drawn in one multiview pass).
     pub(crate) fn render_frame(
@@ -229,6 +208,21 @@ impl Renderer {
         self.decide(view, &mut stats);
         view.last = stats;
         Ok(stats)
+    }
+
+    /// Renders one frame of `view` into `target`: culls, draws and (with
+    /// [`Culling::Occlusion`]) queries in rounds, waits for the GPU, and
+    /// returns what it did. `geometry` supplies chunks not yet on the GPU.
+    pub fn render(
+        &mut self,
+        view: &mut View,
+        scene: &Scene,
+        tree: &Tree,
+        geometry: &dyn GeometrySource,
+        target: FrameTarget<'_>,
+    ) -> Result<FrameStats, RenderError> {
+        let target = RoundTarget::single(target);
+        self.render_frame(view, None, scene, tree, geometry, target)
     }
 
     /// The chunk instances owning at least one pixel of `view`, by drawing

@@ -46,6 +46,7 @@ mod changes;
 mod chunk_bvh;
 mod overlap;
 mod query;
+mod smallest;
 mod tree;
 mod update;
 mod validate;
