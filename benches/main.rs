@@ -83,7 +83,9 @@ fn remap_to_mesh(scene: &dmu_scene::Scene, mesh: &dmu_scene::Mesh) -> Vec<u32> {
         .flat_map(|c| {
             let chunk = scene.chunk(c);
             let base = chunk.vertices.start;
-            mesh.indices[3 * chunk.triangles.start as usize..3 * chunk.triangles.end as usize]
+            mesh.chunk_geometry(chunk)
+                .expect("the bench model is loaded")
+                .indices
                 .iter()
                 .map(move |&i| i + base)
         })

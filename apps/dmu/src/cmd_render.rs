@@ -144,6 +144,14 @@ fn oracle_json(
     }))
 }
 
+/// `count` frames of one view (or pair), each drawn by `frame`.
+fn render_frames(
+    count: u32,
+    mut frame: impl FnMut() -> Result<FrameStats, dmu_render::RenderError>,
+) -> Result<Vec<FrameStats>, dmu_render::RenderError> {
+    (0..count).map(|_| frame()).collect()
+}
+
 fn stats_json(s: &FrameStats) -> serde_json::Value {
     json!({
         "frame": s.frame,
@@ -235,30 +243,16 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let capture = Capture::new(&device, size);
     let mut view = View::new(single_camera, size, culling);
     view.options.min_pixels = args.min_pixels;
-    let mut single_frames = Vec::new();
-    for _ in 0..args.frames {
-        single_frames.push(renderer.render(
-            &mut view,
-            scene,
-            &tree,
-            scene,
-            capture.frame_target(),
-        )?);
-    }
+    let single_frames = render_frames(args.frames, || {
+        renderer.render(&mut view, scene, &tree, scene, capture.frame_target())
+    })?;
     let stereo = if args.stereo {
         let capture = Capture::stereo(&device, size);
         let mut pair = StereoView::new(stereo_camera, size, culling);
         pair.view.options.min_pixels = args.min_pixels;
-        let mut frames = Vec::new();
-        for _ in 0..args.frames {
-            frames.push(renderer.render_stereo(
-                &mut pair,
-                scene,
-                &tree,
-                scene,
-                capture.stereo_target(),
-            )?);
-        }
+        let frames = render_frames(args.frames, || {
+            renderer.render_stereo(&mut pair, scene, &tree, scene, capture.stereo_target())
+        })?;
         let outputs = [
             eye_path(&args.output, "left"),
             eye_path(&args.output, "right"),

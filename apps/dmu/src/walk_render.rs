@@ -70,13 +70,7 @@ fn culling_name(c: Culling) -> &'static str {
 /// The renderer's camera for a path frame, the near plane at 1/10 000 of the
 /// model's diagonal.
 fn camera(frame: &CameraFrame, tree: &Tree) -> Camera {
-    Camera {
-        eye: frame.eye,
-        target: frame.target,
-        up: frame.up,
-        fov_y_rad: frame.fov_y_deg.to_radians(),
-        near: (tree.bounds().extent().length() * 1e-4).max(1e-6),
-    }
+    frame.camera((tree.bounds().extent().length() * 1e-4).max(1e-6))
 }
 
 fn mode_frame(stats: &FrameStats, differing_pixels: Option<u64>) -> ModeFrame {

@@ -3,8 +3,8 @@
 
 use std::sync::{Arc, OnceLock};
 
-use dmu_render::{ChunkGeometry, GeometrySource};
-use dmu_scene::ChunkId;
+use dmu_render::GeometrySource;
+use dmu_scene::{ChunkGeometry, ChunkId};
 use dmu_store::Residency;
 
 /// Chunk geometry for one frame from a residency manager: each chunk the
@@ -19,7 +19,7 @@ use dmu_store::Residency;
 #[derive(Debug)]
 pub struct ResidentSource<'a> {
     residency: &'a Residency,
-    pins: Vec<OnceLock<Option<Arc<dmu_store::ChunkGeometry>>>>,
+    pins: Vec<OnceLock<Option<Arc<dmu_store::OwnedChunkGeometry>>>>,
 }
 
 impl<'a> ResidentSource<'a> {
@@ -40,10 +40,6 @@ impl GeometrySource for ResidentSource<'_> {
             .get(chunk.index())?
             .get_or_init(|| self.residency.get(chunk))
             .as_ref()?;
-        Some(ChunkGeometry {
-            positions: &g.positions,
-            normals: &g.normals,
-            indices: &g.indices,
-        })
+        Some(g.geometry())
     }
 }

@@ -34,12 +34,12 @@ impl ChunkShapes {
     /// chunk's `i`-th triangle.
     pub fn get(&self, scene: &Scene, chunk: ChunkId) -> &TriMesh {
         self.slots[chunk.index()].get_or_init(|| {
-            let c = scene.chunk(chunk);
-            let mesh = scene.mesh(c.mesh);
-            let vertices =
-                mesh.positions[c.vertices.start as usize..c.vertices.end as usize].to_vec();
-            let indices = mesh.indices
-                [3 * c.triangles.start as usize..3 * c.triangles.end as usize]
+            let g = scene
+                .chunk_geometry(chunk)
+                .expect("collision needs the geometry loaded");
+            let vertices = g.positions.to_vec();
+            let indices = g
+                .indices
                 .chunks_exact(3)
                 .map(|t| [t[0], t[1], t[2]])
                 .collect();

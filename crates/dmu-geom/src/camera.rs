@@ -4,6 +4,97 @@
 use glam::dcamera::rh::{proj::directx, view};
 use glam::{DMat4, DVec3};
 
+use crate::{Aabb3d, Frustum};
+
+/// A perspective camera in world coordinates (f64), the one camera of dmu: the
+/// renderer draws through it and the store's walks decide what to load with
+/// it. Paths on disk carry the field of view in degrees (`dmu_store::CameraFrame`)
+/// and convert into this.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Eye position.
+    pub eye: DVec3,
+    /// Point looked at.
+    pub target: DVec3,
+    /// Screen up direction (any length, not parallel to the view direction).
+    pub up: DVec3,
+    /// Vertical field of view, radians.
+    pub fov_y_rad: f64,
+    /// Near plane distance, world units; the far plane is at infinity.
+    pub near: f64,
+}
+
+impl Camera {
+    /// Whether the matrices below are defined: finite, eye off the target, up
+    /// not along the view direction, field of view in `(0, π)`, near positive.
+    pub fn is_valid(&self) -> bool {
+        let forward = self.target - self.eye;
+        self.eye.is_finite()
+            && self.target.is_finite()
+            && self.up.is_finite()
+            && forward.cross(self.up) != DVec3::ZERO
+            && self.fov_y_rad > 0.0
+            && self.fov_y_rad < std::f64::consts::PI
+            && self.near > 0.0
+            && self.near.is_finite()
+    }
+
+    /// World to view (right-handed, looking down -Z).
+    pub fn view_matrix(&self) -> DMat4 {
+        look_at(self.eye, self.target, self.up)
+    }
+
+    /// View to clip, reverse-Z with an infinite far plane.
+    pub fn projection(&self, aspect: f64) -> DMat4 {
+        reverse_z_perspective(self.fov_y_rad, aspect, self.near, None)
+    }
+
+    /// The world-space culling frustum.
+    pub fn frustum(&self, aspect: f64) -> Frustum {
+        Frustum::from_view_proj_reverse_z(&(self.projection(aspect) * self.view_matrix()))
+    }
+
+    /// The screen-coverage metric of this camera on a viewport `height_px` tall.
+    pub fn coverage(&self, height_px: u32) -> Coverage {
+        Coverage {
+            eye: self.eye,
+            eye_spread: 0.0,
+            focal_px: f64::from(height_px) / (2.0 * (self.fov_y_rad * 0.5).tan()),
+        }
+    }
+}
+
+/// Screen coverage of boxes seen from an eye: the one metric behind every
+/// `min_pixels` threshold (the renderer's culling and the loader's wanted set).
+///
+/// A box's size on screen is its diagonal over the distance from the eye to
+/// the box's nearest point, in pixels. That is conservative: it is never less
+/// than the projected extent of the box's bounding sphere seen from its
+/// centre, and never smaller for a box than for a box inside it, so a subtree
+/// can be cut on its root's size.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Coverage {
+    /// The eye, or the midpoint of a stereo pair's eyes.
+    pub eye: DVec3,
+    /// Every eye lies within this distance of `eye` (0 for a single eye).
+    pub eye_spread: f64,
+    /// Pixels per unit of size at unit distance: `height / (2 tan(fov_y / 2))`.
+    pub focal_px: f64,
+}
+
+impl Coverage {
+    /// Projected size of `b` in pixels from the nearest eye; infinite when an
+    /// eye may be in the box.
+    pub fn size_px(&self, b: &Aabb3d) -> f64 {
+        let nearest = self.eye.clamp(b.min, b.max);
+        let distance = self.eye.distance(nearest) - self.eye_spread;
+        if distance <= 0.0 {
+            return f64::INFINITY;
+        }
+        (b.max - b.min).length() / distance * self.focal_px
+    }
+}
+
 /// A right-handed perspective projection with reverse-Z depth: view-space
 /// `z = -near` maps to depth 1, `z = -far` to depth 0, and `far = None` puts the far
 /// plane at infinity (depth tends to 0). Clip y points up and depth spans `[0, 1]`,

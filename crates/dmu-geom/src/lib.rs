@@ -58,7 +58,7 @@ mod ray_box;
 mod triangle;
 
 pub use aabb::{Aabb3d, Aabb3f};
-pub use camera::{look_at, reverse_z_perspective};
+pub use camera::{Camera, Coverage, look_at, reverse_z_perspective};
 pub use frustum::{Containment, Frustum};
 pub use glam;
 pub use plane::Plane;

@@ -3,9 +3,9 @@
 
 use std::time::Instant;
 
-use dmu_geom::{Aabb3d, Frustum};
+use dmu_geom::{Aabb3d, Coverage, Frustum};
 use dmu_scene::Scene;
-use dmu_tree::Tree;
+use dmu_tree::{EntryVisibility, Tree};
 use glam::{DAffine3, DVec3};
 
 use crate::RenderError;
@@ -19,18 +19,14 @@ use crate::view::{Culling, EntryState, FrameStats, View};
 
 /// Per-frame culling context of one view, or of a stereo pair culled once.
 struct Cull {
-    /// The eye, or the midpoint of a stereo pair's eyes.
-    eye: DVec3,
-    /// Every eye lies within this distance of `eye` (half the interpupillary
-    /// distance; 0 for a single view).
-    eye_spread: f64,
+    /// Screen coverage from the eye, or from the midpoint of a stereo pair's
+    /// eyes with half the interpupillary distance as its spread.
+    coverage: Coverage,
     /// The view's frustum, or one enclosing both eyes' frusta.
     frustum: Frustum,
     /// World to view of each eye; the first `eye_count` are used.
     eye_views: [DAffine3; 2],
     eye_count: usize,
-    /// Pixels per unit of `radius / distance`.
-    pixel_scale: f64,
     min_pixels: f64,
     /// How far the near plane's corners reach from an eye.
     near_reach: f64,
@@ -57,12 +53,13 @@ impl Cull {
             }
         };
         Self {
-            eye: c.eye,
-            eye_spread,
+            coverage: Coverage {
+                eye_spread,
+                ..c.coverage(view.size.1)
+            },
             frustum,
             eye_views,
             eye_count,
-            pixel_scale: f64::from(view.size.1) / t,
             min_pixels: view.options.min_pixels,
             near_reach: c.near * (1.0 + t * t * (1.0 + a * a)).sqrt(),
         }
@@ -73,28 +70,28 @@ impl Cull {
         &self.eye_views[..self.eye_count]
     }
 
-    /// Bounding-sphere coverage below the knob from the nearest eye (never
-    /// when an eye may be inside).
+    /// Coverage below the knob from the nearest eye (never when an eye may
+    /// be inside).
     fn too_small(&self, b: &Aabb3d) -> bool {
-        if self.min_pixels <= 0.0 {
-            return false;
-        }
-        let r = b.extent().length() * 0.5;
-        let d = (b.center() - self.eye).length() - self.eye_spread;
-        d > r && r / d * self.pixel_scale < self.min_pixels
+        self.coverage.size_px(b) < self.min_pixels
+    }
+
+    /// The eye, or the midpoint of a stereo pair's eyes.
+    fn eye(&self) -> DVec3 {
+        self.coverage.eye
     }
 
     /// Rounding between the f64 boxes and the f32 geometry: queried boxes grow
     /// by this so that a box never hides behind the geometry it encloses.
     fn margin(&self, b: &Aabb3d) -> f64 {
-        1e-5 * ((b.center() - self.eye).length() + self.eye_spread + b.extent().length())
+        1e-5 * ((b.center() - self.eye()).length() + self.coverage.eye_spread + b.extent().length())
     }
 
     /// True when the near plane of an eye may cut the box: its query would be
     /// wrong, so the node counts as visible without one.
     fn eye_near(&self, b: &Aabb3d) -> bool {
-        b.inflated(self.near_reach + self.eye_spread + self.margin(b))
-            .contains_point(self.eye)
+        b.inflated(self.near_reach + self.coverage.eye_spread + self.margin(b))
+            .contains_point(self.eye())
     }
 
     /// The boxes as the query pipeline draws them, in each eye's view space:
@@ -141,27 +138,6 @@ fn box_distance_sq(b: &Aabb3d, p: DVec3) -> f64 {
 }
 
 impl Renderer {
-    /// Renders one frame of `view` into `target`: culls, draws and (with
-    /// [`Culling::Occlusion`]) queries in rounds, waits for the GPU, and
-    /// returns what it did. `geometry` supplies chunks not yet on the GPU.
-    pub fn render(
-        &mut self,
-        view: &mut View,
-        scene: &Scene,
-        tree: &Tree,
-        geometry: &dyn GeometrySource,
-        target: FrameTarget<'_>,
-    ) -> Result<FrameStats, RenderError> {
-        self.render_frame(
-            view,
-            None,
-            scene,
-            tree,
-            geometry,
-            RoundTarget::single(target),
-        )
-    }
-
     /// A frame of `view`, or with `ipd` of the stereo pair around its camera
     /// (culled once, drawn in one multiview pass).
     pub(crate) fn render_frame(
@@ -184,7 +160,7 @@ impl Renderer {
             ..FrameStats::default()
         };
         let cull = Cull::new(view, ipd);
-        let cell_distance = self.cell_distances(cull.eye);
+        let cell_distance = self.cell_distances(cull.eye());
         let use_queries = view.culling == Culling::Occlusion && view.decision.enabled;
         let mut gpu_state = self.prepare_view(view, scene, cull.eye_views());
         view.drawn.clear();
@@ -234,6 +210,21 @@ impl Renderer {
         Ok(stats)
     }
 
+    /// Renders one frame of `view` into `target`: culls, draws and (with
+    /// [`Culling::Occlusion`]) queries in rounds, waits for the GPU, and
+    /// returns what it did. `geometry` supplies chunks not yet on the GPU.
+    pub fn render(
+        &mut self,
+        view: &mut View,
+        scene: &Scene,
+        tree: &Tree,
+        geometry: &dyn GeometrySource,
+        target: FrameTarget<'_>,
+    ) -> Result<FrameStats, RenderError> {
+        let target = RoundTarget::single(target);
+        self.render_frame(view, None, scene, tree, geometry, target)
+    }
+
     /// The chunk instances owning at least one pixel of `view`, by drawing
     /// every non-hidden chunk instance in the frustum (no occlusion culling)
     /// as ids; `capture` must have the view's size.
@@ -251,7 +242,7 @@ impl Renderer {
             min_pixels: 0.0,
             ..Cull::new(view, None)
         };
-        let cell_distance = self.cell_distances(cull.eye);
+        let cell_distance = self.cell_distances(cull.eye());
         let mut gpu_state = self.prepare_view(view, scene, cull.eye_views());
         let mut scratch = FrameStats::default();
         let mut draws = self.frustum_draws(scene, tree, &cull, &mut scratch);
@@ -309,38 +300,28 @@ impl Renderer {
         stats: &mut FrameStats,
     ) -> Vec<Draw> {
         let mut draws = Vec::new();
-        let (mut visited, mut expected) = (0u64, 1u64);
-        tree.visit_frustum(&cull.frustum, &mut |node| {
-            visited += 1;
-            if cull.too_small(&node.bounds) {
-                stats.culled_coverage += 1;
-                return false;
-            }
-            let Some(cell) = node.cell else {
-                expected += 2;
-                return true;
-            };
-            let cell_node = self.hierarchy.cell_node[cell.0 as usize];
-            for &e in self.hierarchy.children(cell_node) {
-                let entry = &tree.entries()[e as usize];
+        let nodes = tree.visit_visible(
+            &cull.frustum,
+            &cull.coverage,
+            cull.min_pixels,
+            &mut |e, entry, v| {
                 stats.nodes_visited += 1;
-                if !cull.frustum.intersects_aabb(&entry.bounds) {
-                    stats.culled_frustum += 1;
-                } else if cull.too_small(&entry.bounds) {
-                    stats.culled_coverage += 1;
-                } else if scene.part(entry.part).hidden {
-                    stats.hidden += 1;
-                } else {
-                    draws.push(Draw {
-                        entry: e,
+                match v {
+                    EntryVisibility::OutsideFrustum => stats.culled_frustum += 1,
+                    EntryVisibility::InFrustum { wanted: false, .. } => {
+                        stats.culled_coverage += 1;
+                    }
+                    _ if scene.part(entry.part).hidden => stats.hidden += 1,
+                    EntryVisibility::InFrustum { wanted: true, .. } => draws.push(Draw {
+                        entry: e.0,
                         query: false,
-                    });
+                    }),
                 }
-            }
-            false
-        });
-        stats.nodes_visited += visited;
-        stats.culled_frustum += expected - visited;
+            },
+        );
+        stats.nodes_visited += nodes.visited;
+        stats.culled_frustum += nodes.culled_frustum;
+        stats.culled_coverage += nodes.culled_coverage;
         draws
     }
 

@@ -2,23 +2,12 @@
 //! pooled buffers it lives in ([`GeometryPool`]).
 
 use bytemuck::{Pod, Zeroable};
-use dmu_scene::{ChunkId, Scene};
-use glam::Vec3;
-
-/// One chunk's geometry, part-local f32, indices relative to its first vertex.
-#[derive(Clone, Copy, Debug)]
-pub struct ChunkGeometry<'a> {
-    /// Positions.
-    pub positions: &'a [Vec3],
-    /// Unit normals, parallel to `positions`.
-    pub normals: &'a [Vec3],
-    /// Chunk-local indices, three per triangle, each `< positions.len()`.
-    pub indices: &'a [u32],
-}
+use dmu_scene::{ChunkGeometry, ChunkId, Scene};
 
 /// Where the renderer gets chunk geometry: "give me this chunk if it is resident".
 ///
-/// The in-memory [`Scene`] always has it; the store's residency manager answers
+/// The in-memory [`Scene`] has it when its meshes are loaded (a store's
+/// skeleton has none); the store's residency manager answers
 /// `None` for chunks not loaded yet, which the renderer skips for the frame (and
 /// counts in [`crate::FrameStats::not_resident`]).
 pub trait GeometrySource {
@@ -33,15 +22,7 @@ pub trait GeometrySource {
 
 impl GeometrySource for Scene {
     fn chunk_geometry(&self, chunk: ChunkId) -> Option<ChunkGeometry<'_>> {
-        let c = self.chunk(chunk);
-        let mesh = self.mesh(c.mesh);
-        let v = c.vertices.start as usize..c.vertices.end as usize;
-        let t = 3 * c.triangles.start as usize..3 * c.triangles.end as usize;
-        Some(ChunkGeometry {
-            positions: &mesh.positions[v.clone()],
-            normals: &mesh.normals[v],
-            indices: &mesh.indices[t],
-        })
+        Scene::chunk_geometry(self, chunk)
     }
 }
 

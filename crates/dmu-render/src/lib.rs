@@ -88,10 +88,11 @@ mod view;
 
 pub use capture::{CAPTURE_FORMAT, Capture, DEPTH_FORMAT, ID_FORMAT, IdImage, save_png};
 pub use device::headless_device;
+pub use dmu_geom::Camera;
 pub use error::RenderError;
-pub use geometry::{ChunkGeometry, GeometryPool, GeometrySource};
+pub use geometry::{GeometryPool, GeometrySource};
 pub use hierarchy::Hierarchy;
 pub use renderer::{FrameTarget, Renderer, RendererOptions};
 pub use stereo::{StereoCamera, StereoMode, StereoTarget, StereoView};
-pub use view::{Camera, Culling, CullingOptions, FrameStats, OcclusionDecision, View};
+pub use view::{Culling, CullingOptions, FrameStats, OcclusionDecision, View};
 pub use wgpu;

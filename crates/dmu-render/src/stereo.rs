@@ -8,8 +8,9 @@ use dmu_tree::Tree;
 
 use crate::capture::attachment_texture;
 use crate::renderer::{FrameTarget, Renderer, RoundTarget};
-use crate::view::{Camera, Culling, FrameStats, View};
+use crate::view::{Culling, FrameStats, View};
 use crate::{GeometrySource, RenderError};
+use dmu_geom::Camera;
 
 /// Two eyes either side of a centre camera, `ipd` apart along its screen right,
 /// looking along parallel axes with the centre camera's symmetric projection

@@ -1,40 +1,7 @@
 //! Views: a camera, a viewport, a culling mode and the per-node visibility
 //! state that coherent occlusion culling carries from frame to frame.
 
-use dmu_geom::{Frustum, look_at, reverse_z_perspective};
-use glam::{DMat4, DVec3};
-
-/// A perspective camera in world coordinates (f64).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Camera {
-    /// Eye position.
-    pub eye: DVec3,
-    /// Point looked at.
-    pub target: DVec3,
-    /// Screen up direction (any length, not parallel to the view direction).
-    pub up: DVec3,
-    /// Vertical field of view, radians.
-    pub fov_y_rad: f64,
-    /// Near plane distance, world units; the far plane is at infinity.
-    pub near: f64,
-}
-
-impl Camera {
-    /// World to view (right-handed, looking down -Z).
-    pub fn view_matrix(&self) -> DMat4 {
-        look_at(self.eye, self.target, self.up)
-    }
-
-    /// View to clip, reverse-Z with an infinite far plane.
-    pub fn projection(&self, aspect: f64) -> DMat4 {
-        reverse_z_perspective(self.fov_y_rad, aspect, self.near, None)
-    }
-
-    /// The world-space culling frustum.
-    pub fn frustum(&self, aspect: f64) -> Frustum {
-        Frustum::from_view_proj_reverse_z(&(self.projection(aspect) * self.view_matrix()))
-    }
-}
+use dmu_geom::Camera;
 
 /// How a view decides what to draw.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -51,8 +18,8 @@ pub enum Culling {
 /// Knobs of culling, each with its cost shown in [`FrameStats`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CullingOptions {
-    /// Nodes whose bounding sphere projects to fewer pixels across are dropped
-    /// (0 keeps everything: images stay exact).
+    /// Nodes covering fewer pixels across ([`dmu_geom::Coverage::size_px`],
+    /// from the nearest eye) are dropped (0 keeps everything: images stay exact).
     pub min_pixels: f64,
     /// Rounds of query-then-draw per frame; what is left waits for the next frame.
     pub max_rounds: u32,

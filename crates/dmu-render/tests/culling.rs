@@ -168,8 +168,8 @@ fn views_are_independent() {
 /// once everything is resident the image converges to the unculled one.
 #[test]
 fn occlusion_culling_survives_geometry_that_is_not_resident() {
-    use dmu_render::{ChunkGeometry, GeometrySource};
-    use dmu_scene::ChunkId;
+    use dmu_render::GeometrySource;
+    use dmu_scene::{ChunkGeometry, ChunkId};
 
     struct EveryOther<'a>(&'a Scene);
     impl GeometrySource for EveryOther<'_> {

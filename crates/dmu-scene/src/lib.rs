@@ -51,5 +51,6 @@ pub use gltf_import::{
 pub use gltf_import::{StreamOptions, import_gltf_streaming};
 pub use ids::{ChunkId, MaterialId, MeshId, NodeId, PartId};
 pub use scene::{
-    AssemblyNode, Chunk, DEFAULT_CHUNK_TRIANGLES, Material, Mesh, Part, Scene, SceneBuilder,
+    AssemblyNode, Chunk, ChunkGeometry, DEFAULT_CHUNK_TRIANGLES, Material, Mesh, Part, Scene,
+    SceneBuilder,
 };

@@ -98,6 +98,61 @@ impl Mesh {
     pub fn chunk_ids(&self) -> impl ExactSizeIterator<Item = ChunkId> + use<> {
         self.chunks.clone().map(ChunkId)
     }
+
+    /// One of this mesh's chunks' geometry; `None` when the mesh's geometry
+    /// is not loaded.
+    pub fn chunk_geometry(&self, chunk: &Chunk) -> Option<ChunkGeometry<'_>> {
+        self.is_loaded().then(|| {
+            ChunkGeometry::slice(
+                &self.positions,
+                &self.normals,
+                &self.indices,
+                &chunk.vertices,
+                &chunk.triangles,
+            )
+        })
+    }
+}
+
+/// One chunk's geometry, borrowed: part-local f32 vertices and chunk-local
+/// indices. What the renderer uploads, collision and picking read and the
+/// store writes; the store's decoded chunks lend it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChunkGeometry<'a> {
+    /// Positions.
+    pub positions: &'a [Vec3],
+    /// Unit normals, parallel to `positions`.
+    pub normals: &'a [Vec3],
+    /// Chunk-local indices, three per triangle, each `< positions.len()`.
+    pub indices: &'a [u32],
+}
+
+impl<'a> ChunkGeometry<'a> {
+    /// The chunk with vertex range `vertices` and triangle range `triangles`
+    /// (index positions divided by three) of a mesh's arrays.
+    ///
+    /// # Panics
+    /// When a range reaches beyond its array.
+    pub fn slice(
+        positions: &'a [Vec3],
+        normals: &'a [Vec3],
+        indices: &'a [u32],
+        vertices: &Range<u32>,
+        triangles: &Range<u32>,
+    ) -> Self {
+        let v = vertices.start as usize..vertices.end as usize;
+        let t = 3 * triangles.start as usize..3 * triangles.end as usize;
+        Self {
+            positions: &positions[v.clone()],
+            normals: &normals[v],
+            indices: &indices[t],
+        }
+    }
+
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
 }
 
 /// A chunk: a spatially compact run of one mesh's triangles with one material.
@@ -307,6 +362,13 @@ impl Scene {
             .reduce(|| Aabb3d::EMPTY, Aabb3d::union)
     }
 
+    /// A chunk's geometry; `None` when its mesh's geometry is not loaded (a
+    /// store's skeleton).
+    pub fn chunk_geometry(&self, id: ChunkId) -> Option<ChunkGeometry<'_>> {
+        let c = self.chunk(id);
+        self.mesh(c.mesh).chunk_geometry(c)
+    }
+
     /// The three local vertex positions of a chunk's triangle `t` (mesh-relative index).
     pub fn triangle_local(&self, mesh: MeshId, chunk: ChunkId, t: u32) -> [Vec3; 3] {
         let m = self.mesh(mesh);
@@ -420,23 +482,19 @@ impl Scene {
                     return fail(format!("chunk {c}: ranges not contiguous"));
                 }
                 (tri, vert) = (chunk.triangles.end, chunk.vertices.end);
-                if !loaded {
-                    // Nothing to check the box against but its own sanity.
+                let Some(g) = mesh.chunk_geometry(chunk) else {
+                    // Not loaded: nothing to check the box against but its own sanity.
                     if chunk.bounds.is_empty() || !chunk.bounds.is_finite() {
                         return fail(format!("chunk {c}: box empty or not finite"));
                     }
                     bounds = bounds.union(chunk.bounds);
                     continue;
-                }
+                };
                 let verts = chunk.vertices.end - chunk.vertices.start;
-                let idx = &mesh.indices
-                    [3 * chunk.triangles.start as usize..3 * chunk.triangles.end as usize];
-                if let Some(bad) = idx.iter().find(|&&i| i >= verts) {
+                if let Some(bad) = g.indices.iter().find(|&&i| i >= verts) {
                     return fail(format!("chunk {c}: index {bad} >= {verts} vertices"));
                 }
-                let pos =
-                    &mesh.positions[chunk.vertices.start as usize..chunk.vertices.end as usize];
-                if chunk.bounds != Aabb3f::from_points(pos.iter().copied()) {
+                if chunk.bounds != Aabb3f::from_points(g.positions.iter().copied()) {
                     return fail(format!("chunk {c}: box does not fit its vertices"));
                 }
                 bounds = bounds.union(chunk.bounds);

@@ -33,10 +33,11 @@ struct GeometryHeader {
 }
 const _: () = assert!(size_of::<GeometryHeader>() == 16);
 
-/// One chunk's geometry, decoded: part-local f32 vertices and chunk-local
-/// indices, what a renderer uploads and picking reads.
+/// One chunk's geometry, decoded and owned (what the residency manager holds):
+/// part-local f32 vertices and chunk-local indices; it lends
+/// [`dmu_scene::ChunkGeometry`], which the renderer uploads and picking reads.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct ChunkGeometry {
+pub struct OwnedChunkGeometry {
     /// Part-local positions.
     pub positions: Vec<Vec3>,
     /// Unit normals, one per position.
@@ -45,7 +46,16 @@ pub struct ChunkGeometry {
     pub indices: Vec<u32>,
 }
 
-impl ChunkGeometry {
+impl OwnedChunkGeometry {
+    /// The borrowed geometry.
+    pub fn geometry(&self) -> dmu_scene::ChunkGeometry<'_> {
+        dmu_scene::ChunkGeometry {
+            positions: &self.positions,
+            normals: &self.normals,
+            indices: &self.indices,
+        }
+    }
+
     /// Bytes this geometry holds in memory: what the residency budget counts.
     pub fn resident_bytes(&self) -> u64 {
         resident_bytes(self.positions.len() as u64, (self.indices.len() / 3) as u64)
@@ -104,7 +114,7 @@ pub(crate) fn decode(
     vertices: u32,
     triangles: u32,
     bounds: &Aabb3f,
-) -> Result<ChunkGeometry, String> {
+) -> Result<OwnedChunkGeometry, String> {
     let head = bytes
         .get(..HEADER_LEN)
         .ok_or_else(|| format!("{} bytes, shorter than its header", bytes.len()))?;
@@ -160,7 +170,7 @@ pub(crate) fn decode(
     if Aabb3f::from_points(positions.iter().copied()) != *bounds {
         return Err("its vertices do not fill the chunk's box".into());
     }
-    Ok(ChunkGeometry {
+    Ok(OwnedChunkGeometry {
         positions,
         normals,
         indices,

@@ -69,7 +69,7 @@ mod write;
 
 pub use error::{ResidencyError, StoreError, WalkError};
 pub use format::FORMAT_VERSION;
-pub use geometry::ChunkGeometry;
+pub use geometry::OwnedChunkGeometry;
 pub use import::{ImportOptions, ImportSummary, import_gltf};
 pub use prefetch::{PrefetchOptions, Prefetcher};
 pub use priority::{Class, LoadOrder, Request};

@@ -8,7 +8,7 @@ use dmu_scene::{ChunkId, Scene};
 
 use crate::error::StoreError;
 use crate::format::{self, FORMAT_VERSION, Layout, TocEntry};
-use crate::geometry::{self, ChunkGeometry, resident_bytes};
+use crate::geometry::{self, OwnedChunkGeometry, resident_bytes};
 use crate::skeleton;
 
 /// An open store: the skeleton in memory, geometry on disk until asked for.
@@ -124,7 +124,7 @@ impl Store {
     ///
     /// # Panics
     /// When `chunk` is not a chunk of this store.
-    pub fn chunk_geometry(&self, chunk: ChunkId) -> Result<ChunkGeometry, StoreError> {
+    pub fn chunk_geometry(&self, chunk: ChunkId) -> Result<OwnedChunkGeometry, StoreError> {
         let bytes = self.chunk_segment(chunk)?;
         let c = self.skeleton.chunk(chunk);
         geometry::decode(

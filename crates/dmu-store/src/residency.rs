@@ -23,7 +23,7 @@ use std::thread::JoinHandle;
 use dmu_scene::ChunkId;
 
 use crate::error::ResidencyError;
-use crate::geometry::ChunkGeometry;
+use crate::geometry::OwnedChunkGeometry;
 use crate::priority::{LoadOrder, Request};
 use crate::read::Store;
 
@@ -91,7 +91,7 @@ enum SlotState {
 #[derive(Debug)]
 struct Slot {
     state: SlotState,
-    geometry: Option<Arc<ChunkGeometry>>,
+    geometry: Option<Arc<OwnedChunkGeometry>>,
     /// LRU stamp (larger is more recent); the LRU set holds `(last_use, chunk)`
     /// for every resident chunk.
     last_use: u64,
@@ -276,7 +276,7 @@ impl Residency {
 
     /// The chunk's geometry if resident, marking it used. Holding the returned
     /// `Arc` pins the chunk: it is not evicted while any clone lives.
-    pub fn get(&self, chunk: ChunkId) -> Option<Arc<ChunkGeometry>> {
+    pub fn get(&self, chunk: ChunkId) -> Option<Arc<OwnedChunkGeometry>> {
         let mut st = lock(&self.shared.state);
         let frame = st.frame;
         let slot = &st.slots[chunk.index()];
@@ -536,7 +536,7 @@ impl State {
         true
     }
 
-    fn complete(&mut self, job: &Job, result: Result<ChunkGeometry, String>) {
+    fn complete(&mut self, job: &Job, result: Result<OwnedChunkGeometry, String>) {
         self.in_flight -= 1;
         self.stats.reserved_bytes -= job.bytes;
         let slot = &mut self.slots[job.chunk as usize];

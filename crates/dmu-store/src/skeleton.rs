@@ -12,7 +12,7 @@ use glam::{DAffine3, Vec3};
 use serde::{Deserialize, Serialize};
 
 use crate::error::StoreError;
-use crate::geometry::ChunkGeometry;
+use crate::geometry::OwnedChunkGeometry;
 
 /// The largest skeleton decoded: a bound on what a corrupt length prefix can
 /// make the decoder allocate. A million parts take about 150 MB.
@@ -245,7 +245,7 @@ fn check(r: &Record) -> Result<(), String> {
 /// The scene of `skeleton` with its geometry, chunk by chunk from `geometry`.
 pub(crate) fn with_geometry(
     skeleton: &Scene,
-    geometry: &(dyn Fn(MeshId) -> Result<Vec<ChunkGeometry>, StoreError> + Sync),
+    geometry: &(dyn Fn(MeshId) -> Result<Vec<OwnedChunkGeometry>, StoreError> + Sync),
 ) -> Result<Scene, StoreError> {
     use rayon::prelude::*;
     let mut b = SceneBuilder::new(skeleton.name(), DEFAULT_CHUNK_TRIANGLES);

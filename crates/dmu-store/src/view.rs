@@ -2,9 +2,9 @@
 //! culling give the chunks to draw, and those in view but below the coverage
 //! threshold.
 
-use dmu_geom::{Aabb3d, Containment, Frustum, Plane, look_at, reverse_z_perspective};
+use dmu_geom::{Aabb3d, Camera, Coverage, Frustum, Plane};
 use dmu_scene::{ChunkId, Scene};
-use dmu_tree::Tree;
+use dmu_tree::{EntryVisibility, Tree};
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
@@ -32,7 +32,8 @@ pub struct Viewport {
     pub height: u32,
 }
 
-/// A camera prepared for culling.
+/// A camera prepared for culling: the one [`Camera`], its frustum and its
+/// [`Coverage`] on the viewport.
 #[derive(Clone, Copy, Debug)]
 pub struct View {
     /// The eye.
@@ -42,38 +43,39 @@ pub struct View {
     /// The frame it came from.
     pub frame: CameraFrame,
     frustum: Frustum,
-    /// Pixels per unit of size at unit distance: `height / (2 tan(fov / 2))`.
-    focal_px: f64,
+    coverage: Coverage,
+}
+
+impl CameraFrame {
+    /// The camera of this frame with its near plane at `near`.
+    pub fn camera(&self, near: f64) -> Camera {
+        Camera {
+            eye: self.eye,
+            target: self.target,
+            up: self.up,
+            fov_y_rad: self.fov_y_deg.to_radians(),
+            near,
+        }
+    }
 }
 
 impl View {
     /// Prepares a camera; `None` when the frame is not a camera (non-finite,
     /// eye on the target, up along the view, field of view out of range).
     pub fn new(frame: &CameraFrame, viewport: Viewport) -> Option<View> {
-        let fov = frame.fov_y_deg.to_radians();
+        // The near plane only trims what touches the eye: any small value will do.
+        let camera = frame.camera(1e-3);
         let dir = (frame.target - frame.eye).try_normalize()?;
-        let ok = frame.eye.is_finite()
-            && frame.target.is_finite()
-            && frame.up.is_finite()
-            && dir.cross(frame.up) != DVec3::ZERO
-            && fov > 0.0
-            && fov < std::f64::consts::PI
-            && viewport.width > 0
-            && viewport.height > 0;
-        if !ok {
+        if !camera.is_valid() || viewport.width == 0 || viewport.height == 0 {
             return None;
         }
         let aspect = f64::from(viewport.width) / f64::from(viewport.height);
-        // The near plane only trims what touches the eye: any small value will do.
-        let near = 1e-3;
-        let view_proj = reverse_z_perspective(fov, aspect, near, None)
-            * look_at(frame.eye, frame.target, frame.up);
         Some(View {
             eye: frame.eye,
             dir,
             frame: *frame,
-            frustum: Frustum::from_view_proj_reverse_z(&view_proj),
-            focal_px: f64::from(viewport.height) / (2.0 * (fov * 0.5).tan()),
+            frustum: camera.frustum(aspect),
+            coverage: camera.coverage(viewport.height),
         })
     }
 
@@ -87,17 +89,9 @@ impl View {
         View::new(&frame, viewport)
     }
 
-    /// Projected size in pixels of a box: its diagonal over its distance from
-    /// the eye (size and distance together). Never smaller for a box than for a
-    /// box inside it, so a subtree can be cut on its root's size.
+    /// Projected size in pixels of a box ([`Coverage::size_px`]).
     pub fn size_px(&self, b: &Aabb3d) -> f64 {
-        let nearest = self.eye.clamp(b.min, b.max);
-        let distance = self.eye.distance(nearest);
-        let diagonal = (b.max - b.min).length();
-        if distance <= 0.0 {
-            return f64::INFINITY;
-        }
-        diagonal / distance * self.focal_px
+        self.coverage.size_px(b)
     }
 }
 
@@ -168,30 +162,13 @@ pub fn wanted(
         planes: [Plane::ACCEPT_ALL; 6],
     };
     let frustum = if omni { &all } else { &view.frustum };
-    tree.visit_frustum(frustum, &mut |node| {
-        if view.size_px(&node.bounds) < min_pixels {
-            return false;
+    tree.visit_visible(frustum, &view.coverage, min_pixels, &mut |_, entry, v| {
+        if let EntryVisibility::InFrustum { size_px, wanted } = v
+            && !scene.part(entry.part).hidden
+        {
+            let area = (size_px * size_px).min(f64::from(f32::MAX)) as f32;
+            out.add(entry.chunk, area, wanted);
         }
-        let Some(cell) = node.cell else {
-            return true;
-        };
-        for (part, entries) in tree.cell_groups(cell) {
-            if scene.part(part).hidden {
-                continue;
-            }
-            for &e in entries {
-                let entry = &tree.entries()[e as usize];
-                if node.containment != Containment::Inside
-                    && !frustum.intersects_aabb(&entry.bounds)
-                {
-                    continue;
-                }
-                let size = view.size_px(&entry.bounds);
-                let area = (size * size).min(f64::from(f32::MAX)) as f32;
-                out.add(entry.chunk, area, size >= min_pixels);
-            }
-        }
-        false
     });
     out.end();
 }

@@ -17,7 +17,7 @@ use dmu_scene::ChunkId;
 use dmu_tree::Tree;
 
 use crate::error::WalkError;
-use crate::geometry::ChunkGeometry;
+use crate::geometry::OwnedChunkGeometry;
 use crate::prefetch::{PrefetchOptions, Prefetcher};
 use crate::priority::{Class, LoadOrder, Request};
 use crate::read::Store;
@@ -130,7 +130,7 @@ pub struct Drawn {
     /// Chunks drawn: requested as [`Class::Visible`] next frame.
     pub visible: Vec<ChunkId>,
     /// Geometry in use until the frame ends (the loaders run meanwhile).
-    pub pins: Vec<Arc<ChunkGeometry>>,
+    pub pins: Vec<Arc<OwnedChunkGeometry>>,
 }
 
 /// Walks `path` through `store` (whose skeleton `tree` was built from) with a

@@ -4,12 +4,10 @@
 
 use std::fs::File;
 use std::io::{BufWriter, Seek as _, SeekFrom, Write as _};
-use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use dmu_geom::Aabb3f;
-use dmu_scene::{AtomicFile, ChunkedMesh, Scene};
-use glam::Vec3;
+use dmu_scene::{AtomicFile, ChunkGeometry, ChunkedMesh, Scene};
 use xxhash_rust::xxh3::Xxh3;
 
 use crate::error::StoreError;
@@ -41,14 +39,6 @@ pub struct StoreSummary {
     pub geometry_resident_bytes: u64,
     /// Bytes of the skeleton segment.
     pub skeleton_bytes: u64,
-}
-
-/// A mesh's vertex and index arrays, whose chunks are ranges of them.
-#[derive(Clone, Copy)]
-struct MeshArrays<'a> {
-    positions: &'a [Vec3],
-    normals: &'a [Vec3],
-    indices: &'a [u32],
 }
 
 /// Writes a store segment by segment: chunk geometry as it is produced (and can
@@ -128,26 +118,16 @@ impl StoreWriter {
         Ok(entry)
     }
 
-    /// Appends the geometry of the next chunk (chunk ids follow the write order):
-    /// its vertex and triangle ranges of its mesh's arrays.
-    fn chunk(
-        &mut self,
-        mesh: MeshArrays<'_>,
-        vertices: &Range<u32>,
-        triangles: &Range<u32>,
-        bounds: &Aabb3f,
-    ) -> Result<(), StoreError> {
-        let v = vertices.start as usize..vertices.end as usize;
-        let t = 3 * triangles.start as usize..3 * triangles.end as usize;
-        let (positions, indices) = (&mesh.positions[v.clone()], &mesh.indices[t]);
+    /// Appends the geometry of the next chunk (chunk ids follow the write order).
+    fn chunk(&mut self, g: ChunkGeometry<'_>, bounds: &Aabb3f) -> Result<(), StoreError> {
         let bytes = geometry::encode(
-            positions,
-            &mesh.normals[v],
-            indices,
+            g.positions,
+            g.normals,
+            g.indices,
             bounds,
             self.options.quantize,
         );
-        self.chunk_segment(&bytes, positions.len() as u32, (indices.len() / 3) as u32)
+        self.chunk_segment(&bytes, g.positions.len() as u32, g.triangle_count() as u32)
     }
 
     /// Appends an encoded chunk segment of the given shape.
@@ -171,16 +151,14 @@ impl StoreWriter {
     /// ids they have in the skeleton given to [`StoreWriter::finish`].
     pub fn add_mesh(&mut self, mesh: &ChunkedMesh) -> Result<(), StoreError> {
         for c in &mesh.chunks {
-            self.chunk(
-                MeshArrays {
-                    positions: &mesh.positions,
-                    normals: &mesh.normals,
-                    indices: &mesh.indices,
-                },
+            let g = ChunkGeometry::slice(
+                &mesh.positions,
+                &mesh.normals,
+                &mesh.indices,
                 &c.vertices,
                 &c.triangles,
-                &c.bounds,
-            )?;
+            );
+            self.chunk(g, &c.bounds)?;
         }
         Ok(())
     }
@@ -267,16 +245,8 @@ pub fn write_scene(
     for mesh in scene.meshes() {
         for c in mesh.chunk_ids() {
             let chunk = scene.chunk(c);
-            writer.chunk(
-                MeshArrays {
-                    positions: &mesh.positions,
-                    normals: &mesh.normals,
-                    indices: &mesh.indices,
-                },
-                &chunk.vertices,
-                &chunk.triangles,
-                &chunk.bounds,
-            )?;
+            let g = mesh.chunk_geometry(chunk).expect("asserted loaded above");
+            writer.chunk(g, &chunk.bounds)?;
         }
     }
     writer.finish(scene)?.commit()

@@ -1,12 +1,12 @@
 //! Queries: nearest and all ray hits, parts in a box, frustum traversal.
 
-use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
 use dmu_geom::{Aabb3d, Containment, Frustum, Ray3d, RayBoxTest3d};
 use dmu_scene::{ChunkId, PartId, Scene};
 use glam::DVec3;
 
+use crate::smallest::Smallest;
 use crate::tree::{CellId, Kind, Tree};
 
 /// A ray hit on a triangle.
@@ -84,9 +84,13 @@ impl Tree {
         let mut t_max = f64::INFINITY;
         let mut heap = BinaryHeap::new();
         if let Some((t, _)) = test.hit(&self.nodes[self.root as usize].bounds, t_max) {
-            heap.push(Near { t, node: self.root });
+            heap.push(Smallest {
+                key: t,
+                item: self.root,
+            });
         }
-        while let Some(Near { t, node }) = heap.pop() {
+        // Nodes nearest entry first.
+        while let Some(Smallest { key: t, item: node }) = heap.pop() {
             if t > t_max {
                 break;
             }
@@ -94,7 +98,7 @@ impl Tree {
                 Kind::Internal(children) => {
                     for c in children {
                         if let Some((t, _)) = test.hit(&self.nodes[c as usize].bounds, t_max) {
-                            heap.push(Near { t, node: c });
+                            heap.push(Smallest { key: t, item: c });
                         }
                     }
                 }
@@ -255,29 +259,4 @@ pub fn triangle_box_overlap(v: [DVec3; 3], h: DVec3) -> bool {
         }
     }
     true
-}
-
-/// A node waiting in the ray queue, nearest entry first.
-#[derive(Clone, Copy, Debug)]
-struct Near {
-    t: f64,
-    node: u32,
-}
-
-impl PartialEq for Near {
-    fn eq(&self, other: &Self) -> bool {
-        self.t.total_cmp(&other.t) == Ordering::Equal
-    }
-}
-impl Eq for Near {}
-impl PartialOrd for Near {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
-    }
-}
-impl Ord for Near {
-    /// Reversed for the max-heap: smallest `t` first.
-    fn cmp(&self, other: &Self) -> Ordering {
-        other.t.total_cmp(&self.t)
-    }
 }

@@ -4,7 +4,6 @@
 //! merge with a leaf sibling; ancestors refit; a bounded number of rotations on
 //! the touched paths keeps a long editing session from degrading the tree.
 
-use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
 use dmu_geom::Aabb3d;
@@ -13,6 +12,7 @@ use glam::DAffine3;
 
 use crate::build::{sah_partition, sort_key};
 use crate::changes::Change;
+use crate::smallest::Smallest;
 use crate::tree::{EntryId, Kind, NONE, Tree};
 
 impl Tree {
@@ -198,15 +198,13 @@ impl Tree {
         let mut heap = BinaryHeap::from(std::mem::take(&mut self.search_scratch));
         heap.clear();
         heap.push(Candidate {
-            bound: floor(&eb, &self.nodes[self.root as usize].bounds, et),
-            inherited: 0.0,
-            node: self.root,
+            key: floor(&eb, &self.nodes[self.root as usize].bounds, et),
+            item: (0.0, self.root),
         });
         let mut budget = self.options.insert_search_nodes;
         while let Some(Candidate {
-            bound,
-            inherited,
-            node,
+            key: bound,
+            item: (inherited, node),
         }) = heap.pop()
         {
             if bound >= best.0 || budget == 0 {
@@ -228,9 +226,8 @@ impl Tree {
                         let bound = inherited + floor(&eb, &self.nodes[child as usize].bounds, et);
                         if bound < best.0 {
                             heap.push(Candidate {
-                                bound,
-                                inherited,
-                                node: child,
+                                key: bound,
+                                item: (inherited, child),
                             });
                         }
                     }
@@ -395,28 +392,6 @@ fn floor(eb: &Aabb3d, node: &Aabb3d, et: f64) -> f64 {
     stretched.surface_area() * et
 }
 
-/// A subtree waiting in the branch-and-bound queue, cheapest bound first.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Candidate {
-    bound: f64,
-    inherited: f64,
-    node: u32,
-}
-
-impl PartialEq for Candidate {
-    fn eq(&self, other: &Self) -> bool {
-        self.bound.total_cmp(&other.bound) == Ordering::Equal
-    }
-}
-impl Eq for Candidate {}
-impl PartialOrd for Candidate {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
-    }
-}
-impl Ord for Candidate {
-    /// Reversed: `BinaryHeap` is a max-heap and the smallest bound comes first.
-    fn cmp(&self, other: &Self) -> Ordering {
-        other.bound.total_cmp(&self.bound)
-    }
-}
+/// A subtree waiting in the branch-and-bound queue, cheapest bound first:
+/// the bound, and the cost inherited from above and the node.
+pub(crate) type Candidate = Smallest<(f64, u32)>;

@@ -1,9 +1,9 @@
 //! Queries against brute force on random scenes, before and after random moves.
 
-use dmu_geom::Aabb3d;
+use dmu_geom::{Aabb3d, Camera};
 use dmu_samples::Rng;
 use dmu_scene::Scene;
-use dmu_tree::{Tree, TreeOptions};
+use dmu_tree::{EntryVisibility, Tree, TreeOptions};
 use glam::DVec3;
 use proptest::prelude::*;
 
@@ -81,8 +81,73 @@ fn grazes(ray: &dmu_geom::Ray3d, v: [DVec3; 3], t: f64) -> bool {
     })
 }
 
+/// The visibility traversal against every chunk instance: since a box's
+/// coverage never exceeds its parent's and a box meeting the frustum has
+/// parents meeting it, the traversal must yield, as wanted, exactly the
+/// instances whose own box meets the frustum and covers `min_pixels`; what
+/// else it yields it must classify right.
+fn check_visible(tree: &Tree, scene: &Scene, rng: &mut Rng) -> Result<usize, TestCaseError> {
+    let bounds = scene
+        .world_bounds()
+        .inflated(scene.world_bounds().extent().length() * 0.2);
+    let point = |rng: &mut Rng| {
+        bounds.min + DVec3::new(rng.unit(), rng.unit(), rng.unit()) * bounds.extent()
+    };
+    let camera = Camera {
+        eye: point(rng),
+        target: point(rng),
+        up: DVec3::Z,
+        fov_y_rad: rng.range(0.3, 2.0),
+        near: 1e-3,
+    };
+    prop_assume!(camera.is_valid());
+    let height = 100 + (rng.unit() * 900.0) as u32;
+    let (frustum, coverage) = (camera.frustum(1.5), camera.coverage(height));
+    let min_pixels = rng.range(0.0, 60.0);
+    let mut seen = vec![false; tree.entries().len()];
+    let mut wanted = Vec::new();
+    let mut result = Ok(());
+    tree.visit_visible(&frustum, &coverage, min_pixels, &mut |e, entry, v| {
+        let in_frustum = frustum.intersects_aabb(&entry.bounds);
+        let size = coverage.size_px(&entry.bounds);
+        let ok = !std::mem::replace(&mut seen[e.0 as usize], true)
+            && match v {
+                EntryVisibility::OutsideFrustum => !in_frustum,
+                EntryVisibility::InFrustum { size_px, wanted: w } => {
+                    in_frustum && size_px == size && w == (size >= min_pixels)
+                }
+            };
+        if !ok && result.is_ok() {
+            result = Err(TestCaseError::fail(format!("entry {} told {v:?}", e.0)));
+        }
+        if matches!(v, EntryVisibility::InFrustum { wanted: true, .. }) {
+            wanted.push(e.0);
+        }
+    });
+    result?;
+    let brute: Vec<u32> = (0..tree.entries().len() as u32)
+        .filter(|&e| {
+            let b = &tree.entries()[e as usize].bounds;
+            frustum.intersects_aabb(b) && coverage.size_px(b) >= min_pixels
+        })
+        .collect();
+    wanted.sort_unstable();
+    prop_assert_eq!(&wanted, &brute);
+    Ok(brute.len())
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
+
+    #[test]
+    fn the_visible_walk_equals_brute_force(seed in any::<u64>(), parts in 1usize..40) {
+        let scene = random_scene(seed, parts, DVec3::ZERO);
+        let tree = Tree::build(&scene, options());
+        let mut rng = Rng::new(seed ^ 3);
+        for _ in 0..8 {
+            check_visible(&tree, &scene, &mut rng)?;
+        }
+    }
 
     #[test]
     fn pick_and_box_equal_brute_force(seed in any::<u64>(), parts in 1usize..40) {
@@ -110,6 +175,18 @@ proptest! {
         }
         check_queries(&tree, &scene, &mut rng, 40)?;
     }
+}
+
+#[test]
+fn random_cameras_do_want_something_often_enough_to_test_something() {
+    let scene = random_scene(7, 30, DVec3::ZERO);
+    let tree = Tree::build(&scene, options());
+    let mut rng = Rng::new(11);
+    let wanted: usize = (0..40)
+        .filter_map(|_| check_visible(&tree, &scene, &mut rng).ok())
+        .filter(|&n| n > 0)
+        .count();
+    assert!(wanted >= 10, "only {wanted} of 40 cameras wanted anything");
 }
 
 #[test]

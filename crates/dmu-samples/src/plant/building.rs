@@ -403,30 +403,23 @@ fn frame(plan: &mut UnitPlan, area: u16, s: usize, n: [usize; 2], bay: [f64; 2],
         }
     }
     let beam_z = top - 225.0;
+    // A beam spanning a bay of `bay` between columns, at `pose`.
+    let mut beam = |bay: f64, pose| {
+        let spec = Spec::Profile {
+            section: SEC_BEAM,
+            len: bay as u32 - 320,
+        };
+        plan.put(area, System::Struct, spec, pose);
+    };
     for j in 0..=ny {
         for i in 0..nx {
-            let spec = Spec::Profile {
-                section: SEC_BEAM,
-                len: bx as u32 - 320,
-            };
-            plan.put(
-                area,
-                System::Struct,
-                spec,
-                at(xs(i) + bx * 0.5, ys(j), beam_z),
-            );
+            beam(bx, at(xs(i) + bx * 0.5, ys(j), beam_z));
         }
     }
     for i in 0..=nx {
         for j in 0..ny {
-            let spec = Spec::Profile {
-                section: SEC_BEAM,
-                len: by as u32 - 320,
-            };
-            plan.put(
-                area,
-                System::Struct,
-                spec,
+            beam(
+                by,
                 place(ALONG_Y, DVec3::new(xs(i), ys(j) + by * 0.5, beam_z)),
             );
         }
