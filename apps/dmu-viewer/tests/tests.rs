@@ -3,3 +3,7 @@
 mod session;
 mod support;
 mod xvfb;
+#[path = "../../../fuzz/bodies/script_parse.rs"]
+mod fuzz_script_parse;
+#[path = "../../../fuzz/replay.rs"]
+mod fuzz_replay;

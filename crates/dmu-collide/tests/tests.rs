@@ -4,3 +4,7 @@ mod property;
 mod record;
 mod support;
 mod triangles;
+#[path = "../../../fuzz/bodies/record_parse.rs"]
+mod fuzz_record_parse;
+#[path = "../../../fuzz/replay.rs"]
+mod fuzz_replay;
