@@ -1,10 +1,10 @@
 mod analytic;
 mod continuous;
-mod property;
-mod record;
-mod support;
-mod triangles;
 #[path = "../../../fuzz/bodies/record_parse.rs"]
 mod fuzz_record_parse;
 #[path = "../../../fuzz/replay.rs"]
 mod fuzz_replay;
+mod property;
+mod record;
+mod support;
+mod triangles;

@@ -1,8 +1,8 @@
-mod import;
-mod plant;
-mod real_models;
-mod support;
 #[path = "../../../fuzz/bodies/gltf_import.rs"]
 mod fuzz_gltf_import;
 #[path = "../../../fuzz/replay.rs"]
 mod fuzz_replay;
+mod import;
+mod plant;
+mod real_models;
+mod support;
