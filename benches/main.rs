@@ -7,7 +7,7 @@ use std::hint::black_box;
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use dmu_collide::{Checker, Report, Settings};
 use dmu_geom::Ray3d;
-use dmu_scene::samples::{PlantOptions, plant};
+use dmu_samples::{PlantOptions, plant};
 use dmu_scene::{ImportOptions, export_gltf, import_gltf};
 use dmu_tree::{Tree, TreeOptions};
 use glam::{DAffine3, DVec3};
@@ -120,6 +120,25 @@ fn tree(c: &mut Criterion) {
             tree.move_part(&mut scene, part, home);
         })
     });
+    // A drag step as the viewer makes it: 10 mm, the renderer's mirror of the
+    // tree brought up to date, the part checked for collisions; back and forth.
+    let mut mirror = dmu_render::Hierarchy::default();
+    mirror.sync(&tree);
+    let settings = Settings::with_clearance(5.0);
+    let mut checker = Checker::new(&scene);
+    let mut report = Report::default();
+    let mut there = false;
+    group.bench_function("drag_step_10mm_1M", |b| {
+        b.iter(|| {
+            there = !there;
+            let offset = if there { 10.0 } else { 0.0 };
+            let world = DAffine3::from_translation(DVec3::new(offset, 0.0, 0.0)) * home;
+            tree.move_part(&mut scene, part, world);
+            mirror.sync(&tree);
+            checker.check(&scene, &tree, &[part], &settings, &mut report);
+        })
+    });
+    tree.move_part(&mut scene, part, home);
     group.bench_function("rebuild_1M", |b| {
         b.iter_batched(
             || Tree::build(&scene, options),

@@ -2,6 +2,9 @@
 # Runs every fuzz target of fuzz/ for a bounded time from its committed corpus
 # (fuzz/corpus/<target>) and fails on any crash, leak of memory past the limit,
 # or timeout. Usage: scripts/fuzz.sh [SECONDS_PER_TARGET] (default 30).
+# FUZZ_VIEWER=1 adds `script_parse`, whose build pulls in the viewer (wgpu, egui,
+# winit: a long instrumented build); CI runs the other three, and the normal
+# test suite replays the script corpus on every run.
 #
 # Stable Rust only: cargo-fuzz is installed if missing and run with
 # RUSTC_BOOTSTRAP=1 (it passes -Z flags to rustc) and without a sanitizer
@@ -12,13 +15,18 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${1:-30}
-targets=(gltf_import store_open record_parse script_parse)
+targets=(gltf_import store_open record_parse)
+features=()
+if [ "${FUZZ_VIEWER:-}" = 1 ]; then
+    targets+=(script_parse)
+    features=(--features viewer)
+fi
 
 command -v cargo-fuzz >/dev/null 2>&1 || cargo install cargo-fuzz --locked
 export RUSTC_BOOTSTRAP=1
-fuzz=(cargo fuzz run --sanitizer none --fuzz-dir fuzz)
+fuzz=(cargo fuzz run --sanitizer none --fuzz-dir fuzz "${features[@]}")
 
-cargo fuzz build --sanitizer none --fuzz-dir fuzz
+cargo fuzz build --sanitizer none --fuzz-dir fuzz "${features[@]}"
 scratch=$(mktemp -d)
 trap 'rm -rf "$scratch"' EXIT
 summary=()

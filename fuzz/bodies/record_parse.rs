@@ -5,7 +5,7 @@ use std::sync::LazyLock;
 
 use dmu_scene::Scene;
 
-static SCENE: LazyLock<Scene> = LazyLock::new(|| dmu_scene::samples::grid(2, 10.0, 4.0, 2048));
+static SCENE: LazyLock<Scene> = LazyLock::new(|| dmu_samples::grid(2, 10.0, 4.0, 2048));
 
 /// Parses `data` (when it is UTF-8) as a record.
 pub fn run(data: &[u8]) {

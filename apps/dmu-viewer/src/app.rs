@@ -283,7 +283,7 @@ impl App {
             "ray": { "origin": ray.origin.to_array(), "dir": ray.dir.to_array() },
             "hit": hit.map_or_else(
                 || json!({ "hit": false }),
-                |h| dmu::hits::hit_json(scene, &h, length)
+                |h| dmu_app::hits::hit_json(scene, &h, length)
             ),
         })
     }
@@ -446,7 +446,7 @@ impl App {
             }
             Action::Move(d) => {
                 anyhow::ensure!(
-                    self.review.translate_selection(DVec3::from_array(*d)),
+                    self.review.translate_selection(DVec3::from_array(*d))?,
                     "move: nothing is selected"
                 );
                 result = Some(self.selection_facts());
@@ -489,7 +489,7 @@ impl App {
             }
             Action::Rotate(r) => {
                 anyhow::ensure!(
-                    self.review.rotate_selection(r.axis.unit(), r.degrees),
+                    self.review.rotate_selection(r.axis.unit(), r.degrees)?,
                     "rotate: nothing is selected"
                 );
                 result = Some(self.selection_facts());

@@ -9,7 +9,7 @@
 //!   egui shows as an image, so panels never cover the 3D view and picking
 //!   works in the view's own pixels.
 //! - The model opens through the same code and arguments as the `dmu` command
-//!   line (`dmu::load`), so `--plant-triangles 10M` is the same plant in both
+//!   line (`dmu_app::load`), so `--plant-triangles 10M` is the same plant in both
 //!   and a pick here equals `dmu pick` for the same ray.
 //! - Picking forms the ray in f64 from the camera's basis and asks the cell
 //!   tree ([`dmu_tree::Tree::pick`]); moves place parts absolutely and update
@@ -55,7 +55,7 @@ use serde_json::json;
 #[command(name = "dmu-viewer", version, about, long_about)]
 struct Cli {
     #[command(flatten)]
-    model: dmu::load::ModelArgs,
+    model: dmu_app::load::ModelArgs,
     /// Window width, pixels.
     #[arg(long, default_value_t = 1280, value_parser = clap::value_parser!(u32).range(64..=16384))]
     width: u32,
@@ -68,8 +68,9 @@ struct Cli {
     /// Save the window as PNG after the last frame (with --frames or --script).
     #[arg(long)]
     screenshot: Option<PathBuf>,
-    /// Draw this many frames, then exit (after the script, if any).
-    #[arg(long)]
+    /// Draw this many frames, then exit (after the script, if any); at most
+    /// 1,000,000.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
     frames: Option<u32>,
     /// Run a JSON list of actions (pick, move, drag, save, screenshot...), then exit.
     #[arg(long)]
@@ -93,7 +94,7 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
     if cli.screenshot.is_some() && cli.frames.is_none() && script.is_empty() {
         anyhow::bail!("--screenshot needs --frames or --script (it is taken at the end)");
     }
-    let loaded = dmu::load::load(&cli.model)?;
+    let loaded = dmu_app::load::load(&cli.model)?;
     let tree_start = Instant::now();
     let mut review = review::Review::new(loaded.scene, loaded.source);
     review.recorder = cli

@@ -248,7 +248,7 @@ mod tests {
     /// The cells drawn are those of the drawn entries; counts add up.
     #[test]
     fn drawn_cells_follow_the_drawn_entries() {
-        let scene = dmu_scene::samples::grid(3, 10.0, 4.0, 2048);
+        let scene = dmu_samples::grid(3, 10.0, 4.0, 2048);
         let tree = Tree::build(&scene, Default::default());
         let view = View::new(
             Navigator::overview(&tree.bounds()).camera(),

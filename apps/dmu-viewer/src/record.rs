@@ -1,6 +1,7 @@
 //! Recording a manipulation session in the collision issue's JSON Lines format
-//! (docs/record-format.md), so `dmu collide --record` replays it and finds the
-//! clashes the viewer showed.
+//! (docs/record-format.md, written by dmu-collide's `RecordLine`, beside its
+//! reader), so `dmu collide --record` replays it and finds the clashes the
+//! viewer showed.
 //!
 //! Every placement of a part (a drag step, a typed move or rotation, an undo
 //! or a redo) is one line and one step: its absolute world pose, the time in
@@ -14,9 +15,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context as _;
+use dmu_collide::{RecordLine, record_part_name};
 use dmu_scene::{PartId, Scene};
 use glam::DAffine3;
-use serde_json::json;
 
 /// Times of consecutive lines differ by at least this (seconds), so every
 /// placement stays a step of its own even when two fall in one clock tick.
@@ -70,28 +71,13 @@ impl Recorder {
         let name = self
             .names
             .entry(part)
-            .or_insert_with(|| record_name(scene, part));
-        let (_, rotation, translation) = world.to_scale_rotation_translation();
-        let line = json!({
-            "t": t,
-            "part": name,
-            "translation": translation.to_array(),
-            "rotation": rotation.normalize().to_array(),
-        });
-        writeln!(self.out, "{line}")
+            .or_insert_with(|| record_part_name(scene, part));
+        let line = RecordLine::new(t, name.clone(), world);
+        line.write(&mut self.out)
             .and_then(|()| self.out.flush())
             .with_context(|| format!("writing {}", self.path.display()))?;
         self.lines += 1;
         Ok(())
-    }
-}
-
-/// The part's full path when that finds exactly it, else `#id`.
-fn record_name(scene: &Scene, part: PartId) -> String {
-    let path = scene.part_path(part);
-    match scene.find_part(&path) {
-        Ok(found) if found == part => path,
-        _ => format!("#{}", part.0),
     }
 }
 
@@ -104,7 +90,7 @@ mod tests {
     /// transforms, one step per line, in time order.
     #[test]
     fn poses_read_back_exactly() {
-        let scene = dmu_scene::samples::grid(2, 10.0, 4.0, 2048);
+        let scene = dmu_samples::grid(2, 10.0, 4.0, 2048);
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("session.jsonl");
         let mut rec = Recorder::create(&path).unwrap();

@@ -5,7 +5,6 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::Context as _;
 use dmu_collide::{Checker, Report, Settings};
 use dmu_geom::Ray3d;
 use dmu_scene::{PartId, Scene};
@@ -44,8 +43,8 @@ pub struct EditTimings {
 pub struct Saved {
     /// The file written.
     pub path: PathBuf,
-    /// `gltf` or `dmu`.
-    pub format: &'static str,
+    /// In what format.
+    pub format: dmu_store::SavedFormat,
 }
 
 /// The model under review and everything done to it.
@@ -165,10 +164,11 @@ impl Review {
     }
 
     /// Moves the selection by a world translation, as one undoable edit.
-    /// Returns false when nothing is selected.
-    pub fn translate_selection(&mut self, delta: DVec3) -> bool {
+    /// Returns false when nothing is selected, an error (and moves nothing) when
+    /// the result would leave f64's range.
+    pub fn translate_selection(&mut self, delta: DVec3) -> anyhow::Result<bool> {
         let Some(part) = self.selected else {
-            return false;
+            return Ok(false);
         };
         self.end_drag();
         let before = self.scene.part_world(part);
@@ -178,20 +178,21 @@ impl Review {
             part,
             before,
             after,
-        });
-        true
+        })?;
+        Ok(true)
     }
 
     /// Turns the selection by `degrees` about a world `axis` through the
     /// centre of its world bounds, as one undoable edit. Returns false when
-    /// nothing is selected. Panics on a zero or non-finite axis.
-    pub fn rotate_selection(&mut self, axis: DVec3, degrees: f64) -> bool {
+    /// nothing is selected, an error (and moves nothing) when the result would
+    /// leave f64's range. Panics on a zero or non-finite axis.
+    pub fn rotate_selection(&mut self, axis: DVec3, degrees: f64) -> anyhow::Result<bool> {
         assert!(
             axis.is_finite() && axis.length_squared() > 0.0,
             "rotation axis {axis} must be finite and not zero"
         );
         let Some(part) = self.selected else {
-            return false;
+            return Ok(false);
         };
         self.end_drag();
         let before = self.scene.part_world(part);
@@ -206,16 +207,22 @@ impl Review {
             part,
             before,
             after: turn * before,
-        });
-        true
+        })?;
+        Ok(true)
     }
 
-    fn apply(&mut self, edit: Edit) {
+    fn apply(&mut self, edit: Edit) -> anyhow::Result<()> {
+        anyhow::ensure!(
+            self.scene.is_valid_world(edit.part, &edit.after),
+            "{}: the move would take the part beyond f64's range; not moved",
+            self.scene.part_name(edit.part)
+        );
         self.place(edit.part, edit.after);
         if edit.before != edit.after {
             self.undo.push(edit);
             self.redo.clear();
         }
+        Ok(())
     }
 
     /// Starts dragging the selection (ends any drag in progress).
@@ -239,7 +246,10 @@ impl Review {
         };
         let mut world = drag.start;
         world.translation += offset;
-        self.place(drag.part, world);
+        // A step past f64's range is not taken: the part stays where it was.
+        if self.scene.is_valid_world(drag.part, &world) {
+            self.place(drag.part, world);
+        }
     }
 
     /// Ends the drag: what it did becomes one undoable edit.
@@ -297,32 +307,7 @@ impl Review {
     /// temporary file and renamed over `path`.
     pub fn save(&mut self, path: &Path) -> anyhow::Result<Saved> {
         self.end_drag();
-        let ext = path
-            .extension()
-            .map(|e| e.to_string_lossy().to_ascii_lowercase());
-        let format = match ext.as_deref() {
-            Some("dmu") => {
-                let same = self.source.as_deref().is_some_and(|s| same_file(s, path));
-                if same {
-                    let store = dmu_store::Store::open(path)?;
-                    dmu_store::save_edits(&store, &self.scene)
-                        .with_context(|| format!("saving edits into {}", path.display()))?;
-                } else {
-                    dmu_store::write_scene(&self.scene, path, Default::default())
-                        .with_context(|| format!("writing {}", path.display()))?;
-                }
-                "dmu"
-            }
-            Some("glb" | "gltf") => {
-                dmu_scene::export_gltf(&self.scene, path)
-                    .with_context(|| format!("writing {}", path.display()))?;
-                "gltf"
-            }
-            _ => anyhow::bail!(
-                "{}: save as .glb, .gltf or .dmu (the extension picks the format)",
-                path.display()
-            ),
-        };
+        let format = dmu_store::save_scene(&self.scene, self.source.as_deref(), path)?;
         Ok(Saved {
             path: path.to_owned(),
             format,
@@ -330,19 +315,13 @@ impl Review {
     }
 }
 
-fn same_file(a: &Path, b: &Path) -> bool {
-    match (a.canonicalize(), b.canonicalize()) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => a == b,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use dmu_store::SavedFormat;
 
     fn review() -> Review {
-        Review::new(dmu_scene::samples::grid(2, 10.0, 4.0, 2048), None)
+        Review::new(dmu_samples::grid(2, 10.0, 4.0, 2048), None)
     }
 
     /// A drag and typed moves undo and redo exactly, and the tree follows.
@@ -357,7 +336,7 @@ mod tests {
             r.drag_to(DVec3::new(0.37 * f64::from(i), 0.0, 0.0));
         }
         r.end_drag();
-        assert!(r.translate_selection(DVec3::new(0.0, 0.0, 100.0)));
+        assert!(r.translate_selection(DVec3::new(0.0, 0.0, 100.0)).unwrap());
         assert_eq!(r.history(), (2, 0));
         let end = r.scene.part_world(part);
         assert_eq!(
@@ -385,7 +364,7 @@ mod tests {
         let start = r.scene.part_world(part);
         let centre = r.scene.part_world_bounds(part).center();
         r.select(Some(part));
-        assert!(r.rotate_selection(DVec3::Z, 30.0));
+        assert!(r.rotate_selection(DVec3::Z, 30.0).unwrap());
         let turned = r.scene.part_world(part);
         let (_, rotation, _) = turned.to_scale_rotation_translation();
         let (axis, angle) = rotation.to_axis_angle();
@@ -398,14 +377,14 @@ mod tests {
         assert_eq!(r.undo(), Some(part));
         assert_eq!(r.scene.part_world(part), start);
         for _ in 0..4 {
-            r.rotate_selection(DVec3::X, 90.0);
+            r.rotate_selection(DVec3::X, 90.0).unwrap();
         }
         let back = r.scene.part_world(part);
         assert!(back.matrix3.abs_diff_eq(start.matrix3, 1e-12));
         assert!(back.translation.abs_diff_eq(start.translation, 1e-9));
         assert_eq!(r.history(), (4, 0), "a new edit clears the redo");
         r.select(None);
-        assert!(!r.rotate_selection(DVec3::Z, 10.0));
+        assert!(!r.rotate_selection(DVec3::Z, 10.0).unwrap());
     }
 
     /// The live check sees the neighbour when the selection is pushed into it.
@@ -415,13 +394,35 @@ mod tests {
         let part = r.scene.find_part("box_0_0_0").unwrap();
         r.select(Some(part));
         assert!(r.report.clashes.is_empty());
-        r.translate_selection(DVec3::new(7.0, 0.0, 0.0));
+        r.translate_selection(DVec3::new(7.0, 0.0, 0.0)).unwrap();
         let clash = r.report.clashes.first().expect("a clash");
         assert_eq!(r.scene.part_name(clash.b), "box_1_0_0");
         assert_eq!(r.clashing_parts(), vec![clash.b]);
         r.undo();
         assert!(r.report.clashes.is_empty());
         assert!(r.clashing_parts().is_empty());
+    }
+
+    /// A move past f64's range is refused and changes nothing (it panicked in
+    /// the scene's transform check); a drag step past it is not taken.
+    #[test]
+    fn issue_20_moves_past_f64_are_refused() {
+        let mut r = review();
+        let part = r.scene.find_part("box_0_0_0").unwrap();
+        r.select(Some(part));
+        assert!(r.translate_selection(DVec3::new(1e308, 0.0, 0.0)).unwrap());
+        let far = r.scene.part_world(part);
+        let err = r
+            .translate_selection(DVec3::new(1e308, 0.0, 0.0))
+            .unwrap_err();
+        assert!(err.to_string().contains("beyond f64"), "{err}");
+        assert_eq!(r.scene.part_world(part), far);
+        assert_eq!(r.history(), (1, 0));
+        r.begin_drag();
+        r.drag_to(DVec3::new(1e308, 0.0, 0.0));
+        assert_eq!(r.scene.part_world(part), far);
+        r.end_drag();
+        r.tree.validate_against(&r.scene).unwrap();
     }
 
     /// Saving to glTF writes the moved transform, which reads back exactly.
@@ -431,14 +432,14 @@ mod tests {
         let mut r = review();
         let part = r.scene.find_part("box_1_1_1").unwrap();
         r.select(Some(part));
-        r.translate_selection(DVec3::new(100.0, 0.0, 0.0));
+        r.translate_selection(DVec3::new(100.0, 0.0, 0.0)).unwrap();
         let glb = dir.path().join("out.glb");
-        assert_eq!(r.save(&glb).unwrap().format, "gltf");
+        assert_eq!(r.save(&glb).unwrap().format, SavedFormat::Gltf);
         let (back, _) = dmu_scene::import_gltf(&glb, &Default::default()).unwrap();
         let id = back.find_part(&r.scene.part_path(part)).unwrap();
         assert_eq!(back.part_world(id), r.scene.part_world(part));
         let store = dir.path().join("out.dmu");
-        assert_eq!(r.save(&store).unwrap().format, "dmu");
+        assert_eq!(r.save(&store).unwrap().format, SavedFormat::Store);
         let back = dmu_store::Store::open(&store)
             .unwrap()
             .load_scene()

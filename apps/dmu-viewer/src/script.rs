@@ -209,9 +209,19 @@ impl Action {
     }
 }
 
-/// Parses a script: a JSON list of actions.
+/// The most frames one `frames` action may ask for (about 4.6 hours at 60 Hz).
+pub const MAX_FRAMES: u32 = 1_000_000;
+
+/// Parses a script: a JSON list of at least one action (an empty list is
+/// refused: it would leave the viewer waiting for actions that never come).
 pub fn parse(text: &str) -> anyhow::Result<Vec<Action>> {
+    // Editors on some systems start UTF-8 files with a byte-order mark.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let actions: Vec<Action> = serde_json::from_str(text)?;
+    anyhow::ensure!(
+        !actions.is_empty(),
+        "the script is an empty list: give at least one action (e.g. [{{\"frames\": 1}}])"
+    );
     for (i, a) in actions.iter().enumerate() {
         let finite = match a {
             Action::Pick(p) | Action::Hover(p) => p.iter().all(|v| v.is_finite()),
@@ -227,6 +237,12 @@ pub fn parse(text: &str) -> anyhow::Result<Vec<Action>> {
             _ => true,
         };
         anyhow::ensure!(finite, "action {i} ({}): numbers must be finite", a.name());
+        if let Action::Frames(n) = a {
+            anyhow::ensure!(
+                *n <= MAX_FRAMES,
+                "action {i} (frames): {n} frames is more than the limit of {MAX_FRAMES}"
+            );
+        }
     }
     Ok(actions)
 }
@@ -251,6 +267,17 @@ pub fn read(path: &Path) -> anyhow::Result<Vec<Action>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An empty script is refused (the viewer waited for actions forever), a
+    /// byte-order mark is skipped, and frame counts have a limit.
+    #[test]
+    fn issue_20_empty_scripts_marks_and_huge_frame_counts() {
+        let err = parse("[]").unwrap_err().to_string();
+        assert!(err.contains("empty list"), "{err}");
+        assert_eq!(parse("\u{feff}[{\"frames\": 2}]").unwrap().len(), 1);
+        let err = parse("[{\"frames\": 4000000000}]").unwrap_err().to_string();
+        assert!(err.contains("limit"), "{err}");
+    }
 
     #[test]
     fn parses_every_action() {

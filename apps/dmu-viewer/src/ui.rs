@@ -520,8 +520,10 @@ fn properties_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review)
             for (v, name) in state.move_by.iter_mut().zip(["dx ", "dy ", "dz "]) {
                 ui.add(egui::DragValue::new(v).speed(1.0).prefix(name));
             }
-            if ui.button("move").clicked() {
-                review.translate_selection(DVec3::from_array(state.move_by));
+            if ui.button("move").clicked()
+                && let Err(e) = review.translate_selection(DVec3::from_array(state.move_by))
+            {
+                state.status = format!("{e:#}");
             }
         });
         ui.horizontal(|ui| {
@@ -536,8 +538,9 @@ fn properties_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review)
                     .button(a.name())
                     .on_hover_text("turn about this world axis through the box centre")
                     .clicked()
+                    && let Err(e) = review.rotate_selection(a.unit(), state.rotate_deg)
                 {
-                    review.rotate_selection(a.unit(), state.rotate_deg);
+                    state.status = format!("{e:#}");
                 }
             }
         });

@@ -56,7 +56,7 @@ fn recorded_drag_replays_to_the_same_clashes_under_xvfb() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let scene = dmu_scene::samples::grid(2, 10.0, 4.0, 2048);
+    let scene = dmu_samples::grid(2, 10.0, 4.0, 2048);
     let glb = dir.path().join("grid.glb");
     dmu_scene::export_gltf(&scene, &glb).unwrap();
     let record = dir.path().join("session.jsonl");

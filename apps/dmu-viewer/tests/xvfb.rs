@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use dmu_scene::samples::{PlantOptions, plant};
+use dmu_samples::{PlantOptions, plant};
 use dmu_scene::{PartId, Scene};
 use glam::{DAffine3, DVec3};
 use serde_json::{Value, json};

@@ -13,7 +13,9 @@ use serde_json::json;
 
 use crate::cmd_bench::{median, percentile};
 use crate::load::{ModelArgs, load};
-use crate::units::parse_count;
+use crate::units::{
+    MAX_CHUNK_TRIANGLES, MAX_LENGTH, MAX_STEPS, MAX_TRIANGLES, count_in, number_in,
+};
 
 /// Collision checks per second for a part moving through the model.
 #[derive(Debug, clap::Args)]
@@ -21,54 +23,69 @@ pub struct CollideArgs {
     /// Model file; the built-in plant of `--triangles` when omitted.
     file: Option<PathBuf>,
     /// Size of the built-in plant.
-    #[arg(long, default_value = "10M", value_parser = parse_count)]
+    #[arg(long, default_value = "10M", value_parser = count_in(10_000, MAX_TRIANGLES))]
     triangles: u64,
     /// The moving part is the one whose triangle count is closest to this.
     #[arg(long, default_value_t = 10_000)]
     part_triangles: u64,
     /// Steps of the motion, each moved through the tree and checked.
-    #[arg(long, default_value_t = 2_000)]
+    #[arg(long, default_value_t = 2_000, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=MAX_STEPS))]
     steps: usize,
     /// Travel per step, model units, straight towards the model's centre
     /// (horizontally) and on past it.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, value_parser = number_in(0.0, MAX_LENGTH))]
     step_length: f64,
     /// Turn per step about the vertical axis through the part's centre, degrees.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, value_parser = number_in(-360.0, 360.0))]
     turn_deg: f64,
     /// Steps of the same motion checked without the tree (all parts tested).
-    #[arg(long, default_value_t = 200)]
+    #[arg(long, default_value_t = 200, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=MAX_STEPS))]
     no_tree_steps: usize,
     /// Soft clash distance, model units.
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, value_parser = number_in(0.0, MAX_LENGTH))]
     clearance: f64,
     /// Maximum triangles per chunk.
-    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES)]
+    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..=MAX_CHUNK_TRIANGLES as i64))]
     chunk_triangles: u32,
     /// Print JSON.
     #[arg(long)]
     json: bool,
 }
 
-/// The poses of the dragged part: from home, a straight line towards the
-/// model's centre in the horizontal plane, turning about the vertical through
-/// the part's centre.
-fn path(scene: &Scene, part: PartId, args: &CollideArgs) -> Vec<DAffine3> {
+/// The poses of a part dragged `steps` steps of `step_length`: from home, a
+/// straight line towards the model's centre in the horizontal plane, turning
+/// `turn_deg` per step about the vertical through the part's centre.
+pub(crate) fn drag_path(
+    scene: &Scene,
+    part: PartId,
+    steps: usize,
+    step_length: f64,
+    turn_deg: f64,
+) -> Vec<DAffine3> {
     let home = scene.part_world(part);
     let centre = scene.part_world_bounds(part).center();
     let mut towards = scene.world_bounds().center() - centre;
     towards.z = 0.0;
     let dir = towards.normalize_or(DVec3::X);
-    (1..=args.steps)
+    (1..=steps)
         .map(|i| {
             let k = i as f64;
-            let at = centre + dir * (args.step_length * k);
+            let at = centre + dir * (step_length * k);
             DAffine3::from_translation(at)
-                * DAffine3::from_rotation_z((args.turn_deg * k).to_radians())
+                * DAffine3::from_rotation_z((turn_deg * k).to_radians())
                 * DAffine3::from_translation(-centre)
                 * home
         })
         .collect()
+}
+
+/// The visible part whose triangle count is closest to `triangles`: the one dragged.
+pub(crate) fn dragged_part(scene: &Scene, triangles: u64) -> anyhow::Result<PartId> {
+    scene
+        .part_ids()
+        .filter(|&p| !scene.part(p).hidden)
+        .min_by_key(|&p| scene.part_mesh(p).triangle_count().abs_diff(triangles))
+        .ok_or_else(|| anyhow::anyhow!("the model has no visible part"))
 }
 
 /// What a step found, for comparing the two runs.
@@ -115,18 +132,9 @@ pub fn bench_collide(args: &CollideArgs) -> anyhow::Result<()> {
     };
     let mut loaded = load(&model)?;
     let scene = &mut loaded.scene;
-    let part = scene
-        .part_ids()
-        .filter(|&p| !scene.part(p).hidden)
-        .min_by_key(|&p| {
-            scene
-                .part_mesh(p)
-                .triangle_count()
-                .abs_diff(args.part_triangles)
-        })
-        .ok_or_else(|| anyhow::anyhow!("the model has no visible part"))?;
+    let part = dragged_part(scene, args.part_triangles)?;
     let home = scene.part_world(part);
-    let poses = path(scene, part, args);
+    let poses = drag_path(scene, part, args.steps, args.step_length, args.turn_deg);
     let settings = Settings::with_clearance(args.clearance);
     let build_start = Instant::now();
     let mut tree = Tree::build(scene, TreeOptions::default());

@@ -4,15 +4,20 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use dmu_collide::{Checker, Report, Settings};
 use dmu_geom::Ray3d;
-use dmu_scene::PartId;
-use dmu_scene::samples::Rng;
+use dmu_render::Hierarchy;
+use dmu_samples::Rng;
+use dmu_scene::{PartId, Scene};
 use dmu_tree::{Tree, TreeOptions};
 use glam::{DAffine3, DVec3};
 use serde_json::json;
 
+use crate::bench_collide::{drag_path, dragged_part};
 use crate::load::{ModelArgs, load};
-use crate::units::parse_count;
+use crate::units::{
+    MAX_CHUNK_TRIANGLES, MAX_LENGTH, MAX_STEPS, MAX_TRIANGLES, count_in, number_in,
+};
 
 /// Measure a subsystem on a model (the built-in plant by default).
 #[derive(Debug, clap::Args)]
@@ -34,29 +39,39 @@ struct TreeArgs {
     /// Model file; the built-in plant of `--triangles` when omitted.
     file: Option<PathBuf>,
     /// Size of the built-in plant.
-    #[arg(long, default_value = "10M", value_parser = parse_count)]
+    #[arg(long, default_value = "10M", value_parser = count_in(10_000, MAX_TRIANGLES))]
     triangles: u64,
     /// Rays to pick (each aimed at a random triangle, so it hits).
-    #[arg(long, default_value_t = 10_000)]
+    #[arg(long, default_value_t = 10_000, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=MAX_STEPS))]
     rays: usize,
     /// Timed moves of parts of about `--part-triangles`, and untimed random moves
     /// before the SAH comparison.
-    #[arg(long, default_value_t = 10_000)]
+    #[arg(long, default_value_t = 10_000, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=MAX_STEPS))]
     moves: usize,
     /// Size of the parts moved for `move_us_median`.
     #[arg(long, default_value_t = 10_000)]
     part_triangles: u64,
     /// Largest move, model units (1 m in the millimetre plant).
-    #[arg(long, default_value_t = 1000.0)]
+    #[arg(long, default_value_t = 1000.0, value_parser = number_in(0.0, MAX_LENGTH))]
     move_reach: f64,
+    /// Steps of the timed drag (`drag_step_us_median`): the part of about
+    /// `--part-triangles` dragged towards the model's centre.
+    #[arg(long, default_value_t = 1_000)]
+    drag_steps: usize,
+    /// Travel per drag step, model units (10 mm in the millimetre plant, as the viewer's drag).
+    #[arg(long, default_value_t = 10.0)]
+    drag_step: f64,
+    /// Soft clash distance of the drag's collision check, model units.
+    #[arg(long, default_value_t = 5.0)]
+    clearance: f64,
     /// Cell triangle budget.
-    #[arg(long, default_value_t = TreeOptions::default().cell_triangles)]
+    #[arg(long, default_value_t = TreeOptions::default().cell_triangles, value_parser = clap::value_parser!(u32).range(1..=1 << 24))]
     cell_triangles: u32,
     /// Nodes the re-insertion search may expand (0: unlimited, the exact branch and bound).
     #[arg(long, default_value_t = TreeOptions::default().insert_search_nodes)]
     insert_search_nodes: usize,
     /// Maximum triangles per chunk.
-    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES)]
+    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..=MAX_CHUNK_TRIANGLES as i64))]
     chunk_triangles: u32,
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -175,6 +190,8 @@ fn bench_tree(args: &TreeArgs) -> anyhow::Result<()> {
         tree.move_part(scene, p, w);
     }
 
+    let drag = drag(scene, &mut tree, args)?;
+
     // What a move would cost without incremental update: a rebuild from the boxes.
     let (_, rebuild_s) = time(|| tree.rebuild());
 
@@ -211,6 +228,13 @@ fn bench_tree(args: &TreeArgs) -> anyhow::Result<()> {
         "move_us_median": move_median,
         "move_us_p95": percentile(&mut move_us, 0.95),
         "random_move_us_median": median(&mut random_move_us),
+        "drag_part_triangles": drag.part_triangles,
+        "drag_steps": args.drag_steps,
+        "drag_step_us_median": median(&mut drag.step_us.clone()),
+        "drag_step_us_p90": percentile(&mut drag.step_us.clone(), 0.9),
+        "drag_tree_us_median": median(&mut drag.tree_us.clone()),
+        "drag_mirror_us_median": median(&mut drag.mirror_us.clone()),
+        "drag_collide_us_median": median(&mut drag.collide_us.clone()),
         "rebuild_ms": rebuild_s * 1e3,
         "rebuild_over_move": rebuild_s * 1e6 / move_median,
         "sah_after_moves_over_fresh": tree.sah_cost() / fresh.sah_cost(),
@@ -242,6 +266,8 @@ fn bench_tree(args: &TreeArgs) -> anyhow::Result<()> {
             "pick_us_median_cold",
             "move_us_median",
             "move_us_p95",
+            "drag_step_us_median",
+            "drag_step_us_p90",
             "rebuild_ms",
             "rebuild_over_move",
             "sah_after_moves_over_fresh",
@@ -250,4 +276,59 @@ fn bench_tree(args: &TreeArgs) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// Per-step times of a drag, µs.
+struct Drag {
+    part_triangles: u64,
+    /// Whole steps: tree move, mirror update and collision check.
+    step_us: Vec<f64>,
+    tree_us: Vec<f64>,
+    mirror_us: Vec<f64>,
+    collide_us: Vec<f64>,
+}
+
+/// What a drag step in the viewer costs on the CPU: the part moved in the tree,
+/// the renderer's mirror of the tree brought up to date, the part checked for
+/// collisions. Dragged once untimed (collision meshes are built on first use),
+/// then timed; the part ends at home.
+fn drag(scene: &mut Scene, tree: &mut Tree, args: &TreeArgs) -> anyhow::Result<Drag> {
+    let part = dragged_part(scene, args.part_triangles)?;
+    let home = scene.part_world(part);
+    let poses = drag_path(scene, part, args.drag_steps, args.drag_step, 0.0);
+    let settings = Settings::with_clearance(args.clearance);
+    let mut checker = Checker::new(scene);
+    let mut report = Report::default();
+    let mut hierarchy = Hierarchy::default();
+    hierarchy.sync(tree);
+    for &pose in &poses {
+        tree.move_part(scene, part, pose);
+        hierarchy.sync(tree);
+        checker.check(scene, tree, &[part], &settings, &mut report);
+    }
+    tree.move_part(scene, part, home);
+    hierarchy.sync(tree);
+    let mut out = Drag {
+        part_triangles: scene.part_mesh(part).triangle_count(),
+        step_us: Vec::with_capacity(poses.len()),
+        tree_us: Vec::with_capacity(poses.len()),
+        mirror_us: Vec::with_capacity(poses.len()),
+        collide_us: Vec::with_capacity(poses.len()),
+    };
+    for &pose in &poses {
+        let start = Instant::now();
+        tree.move_part(scene, part, pose);
+        let moved = Instant::now();
+        hierarchy.sync(tree);
+        let synced = Instant::now();
+        checker.check(scene, tree, &[part], &settings, &mut report);
+        let done = Instant::now();
+        let us = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e6;
+        out.step_us.push(us(start, done));
+        out.tree_us.push(us(start, moved));
+        out.mirror_us.push(us(moved, synced));
+        out.collide_us.push(us(synced, done));
+    }
+    tree.move_part(scene, part, home);
+    Ok(out)
 }

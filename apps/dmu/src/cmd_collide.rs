@@ -33,7 +33,7 @@ pub struct Args {
     record: PathBuf,
     /// Soft clash below this distance, model units (millimetres in the plant);
     /// 0 reports hard clashes and contacts only.
-    #[arg(long, default_value_t = 5.0, value_parser = parse_clearance)]
+    #[arg(long, default_value_t = 5.0, value_parser = crate::units::number_in(0.0, crate::units::MAX_LENGTH))]
     clearance: f64,
     /// Also sweep every move from the part's pose before it and report the time
     /// of first impact, so a fast move cannot pass through a thin plate.
@@ -48,17 +48,6 @@ pub struct Args {
     /// Print CSV, one row per finding; the summary goes to standard error.
     #[arg(long)]
     csv: bool,
-}
-
-fn parse_clearance(s: &str) -> anyhow::Result<f64> {
-    let v: f64 = s
-        .trim()
-        .parse()
-        .with_context(|| format!("{s:?} is not a number"))?;
-    if !(v.is_finite() && v >= 0.0) {
-        bail!("{s:?}: the clearance must be finite and not negative");
-    }
-    Ok(v)
 }
 
 fn allow_list(scene: &Scene, pairs: &[String]) -> anyhow::Result<AllowList> {

@@ -4,9 +4,9 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context as _;
-use dmu_scene::samples::{PlantOptions, grid, plant};
+use dmu_samples::{PlantOptions, grid, plant};
 
-use crate::units::{parse_count, parse_dvec3};
+use crate::units::{MAX_CHUNK_TRIANGLES, MAX_TRIANGLES, count_in, parse_dvec3};
 
 /// Generate a sample model and write it as glTF (.glb, or .gltf with an embedded
 /// buffer) or as a dmu store (.dmu).
@@ -18,8 +18,8 @@ pub struct Args {
     /// (N×N×N boxes, a trivial oracle).
     #[arg(value_enum)]
     model: Model,
-    /// Triangle target for `plant`: 10k to 500M; suffixes k, M, G.
-    #[arg(long, default_value = "1M", value_parser = parse_count)]
+    /// Triangle target for `plant`: 10k to 1G; suffixes k, M, G.
+    #[arg(long, default_value = "1M", value_parser = count_in(10_000, MAX_TRIANGLES))]
     triangles: u64,
     /// Random seed.
     #[arg(long, default_value_t = 1)]
@@ -27,11 +27,11 @@ pub struct Args {
     /// World offset of the plant in millimetres (real plants sit far from 0).
     #[arg(long, value_parser = parse_dvec3)]
     origin: Option<glam::DVec3>,
-    /// Boxes per side for `grid`.
-    #[arg(long, default_value_t = 10)]
+    /// Boxes per side for `grid` (1 to 400: 64M boxes, 768M triangles).
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=400))]
     n: u32,
     /// Maximum triangles per chunk.
-    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..=MAX_CHUNK_TRIANGLES as i64))]
     chunk_triangles: u32,
     /// Output file (.glb, .gltf or .dmu).
     #[arg(short, long)]

@@ -6,7 +6,8 @@ use std::time::Instant;
 use anyhow::Context as _;
 use indicatif::ProgressBar;
 
-use crate::units::{parse_bytes, peak_rss_bytes};
+use crate::progress::{peak_rss_bytes, style_mesh_bar};
+use crate::units::parse_bytes;
 
 /// Import a glTF file (.glb or .gltf) into a dmu store (.dmu).
 ///
@@ -25,7 +26,7 @@ pub struct Args {
     #[arg(long, default_value = "2GiB", value_parser = parse_bytes)]
     memory_budget: u64,
     /// Maximum triangles per chunk (the unit of loading, drawing and picking).
-    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..=crate::units::MAX_CHUNK_TRIANGLES as i64))]
     chunk_triangles: u32,
     /// Quantize geometry: positions to 16 bits per axis in each chunk's box,
     /// normals to 32 bits (10 instead of 24 bytes a vertex).
@@ -40,7 +41,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let start = Instant::now();
     // Hidden when stderr is not a terminal, so scripts see clean output.
     let bar = ProgressBar::new(0);
-    crate::load::style_mesh_bar(&bar);
+    style_mesh_bar(&bar);
     let progress = |done: usize, total: usize| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);

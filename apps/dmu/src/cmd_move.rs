@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context as _, bail};
+use anyhow::bail;
 use dmu_tree::{Tree, TreeOptions};
 use glam::{DAffine3, DQuat, DVec3};
 
@@ -30,7 +30,9 @@ pub struct Args {
     /// Pivot of the rotation.
     #[arg(long, value_enum, default_value = "center")]
     about: Pivot,
-    /// Output file (.glb or .gltf).
+    /// Output file: `.glb` or `.gltf` for glTF, `.dmu` for a store (the input
+    /// store itself saves the edit into it). Written to a temporary file and
+    /// renamed, so a failure leaves any previous file as it was.
     #[arg(short, long)]
     output: PathBuf,
     /// Print JSON instead of text.
@@ -88,11 +90,16 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         * DAffine3::from_quat(rotation)
         * DAffine3::from_translation(-pivot);
     let after = delta * before;
+    if !scene.is_valid_world(part, &after) {
+        bail!(
+            "{}: the moved transform is not finite (translation or rotation too large for f64)",
+            args.part
+        );
+    }
     let start = std::time::Instant::now();
     tree.move_part(scene, part, after);
     let move_us = start.elapsed().as_secs_f64() * 1e6;
-    dmu_scene::export_gltf(scene, &args.output)
-        .with_context(|| format!("writing {}", args.output.display()))?;
+    let format = dmu_store::save_scene(scene, loaded.source.as_deref(), &args.output)?;
     let out = serde_json::json!({
         "part": scene.part_name(part),
         "part_id": part.0,
@@ -107,6 +114,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             "cells": tree.cell_count(),
         },
         "output": args.output.display().to_string(),
+        "format": format,
     });
     if args.json {
         println!("{}", serde_json::to_string_pretty(&out)?);

@@ -26,7 +26,8 @@ pub struct Args {
     json: bool,
 }
 
-/// Parses `ox,oy,oz,dx,dy,dz`.
+/// Parses `ox,oy,oz,dx,dy,dz`; a direction too short or too long to square is
+/// scaled by a power of two ([`Ray3d::with_safe_dir`]).
 pub fn parse_ray(s: &str) -> anyhow::Result<Ray3d> {
     let v: Vec<f64> = s
         .split(',')
@@ -36,14 +37,15 @@ pub fn parse_ray(s: &str) -> anyhow::Result<Ray3d> {
     let [ox, oy, oz, dx, dy, dz] = v.as_slice() else {
         bail!("--ray {s:?}: expected six numbers, got {}", v.len())
     };
-    let ray = Ray3d::new(
+    Ray3d::with_safe_dir(
         glam::DVec3::new(*ox, *oy, *oz),
         glam::DVec3::new(*dx, *dy, *dz),
-    );
-    if !(ray.origin.is_finite() && ray.dir.is_finite()) || ray.dir == glam::DVec3::ZERO {
-        bail!("--ray {s:?}: origin and direction must be finite and the direction non-zero");
-    }
-    Ok(ray)
+    )
+    .ok_or_else(|| {
+        anyhow::anyhow!(
+            "--ray {s:?}: origin and direction must be finite and the direction non-zero"
+        )
+    })
 }
 
 pub fn run(args: &Args) -> anyhow::Result<()> {
@@ -52,7 +54,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let scene = &loaded.scene;
     let tree = Tree::build(scene, TreeOptions::default());
     let length = ray.dir.length();
-    let describe = |h: &dmu_tree::Hit| dmu::hits::hit_json(scene, h, length);
+    let describe = |h: &dmu_tree::Hit| dmu_app::hits::hit_json(scene, h, length);
     let out = if args.all {
         json!({ "hits": tree.pick_all(scene, &ray).iter().map(describe).collect::<Vec<_>>() })
     } else {

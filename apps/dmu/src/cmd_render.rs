@@ -16,7 +16,7 @@ use glam::DVec3;
 use serde_json::json;
 
 use crate::load::{ModelArgs, load};
-use crate::units::parse_dvec3;
+use crate::units::{MAX_LENGTH, number_in, parse_dvec3};
 
 /// Render the model from a viewpoint into a PNG, headless (any Vulkan, Metal or
 /// DX12 adapter; lavapipe on machines without a GPU).
@@ -30,24 +30,25 @@ pub struct Args {
     /// Point looked at, `x,y,z`.
     #[arg(long, allow_hyphen_values = true)]
     target: String,
-    /// Vertical field of view, degrees.
-    #[arg(long, default_value_t = 60.0)]
+    /// Vertical field of view, degrees (1 to 179).
+    #[arg(long, default_value_t = 60.0, value_parser = number_in(1.0, 179.0))]
     fov: f64,
     /// Image size `WIDTHxHEIGHT`.
     #[arg(long, default_value = "1280x720")]
     size: String,
-    /// Near plane distance, world units (default: 1/10 000 of the model's diagonal).
-    #[arg(long)]
+    /// Near plane distance, world units, more than 0 (default: 1/10 000 of the
+    /// model's diagonal).
+    #[arg(long, value_parser = number_in(1e-9, MAX_LENGTH))]
     near: Option<f64>,
     /// Culling: none, frustum (with coverage) or chc (plus occlusion queries).
     #[arg(long, default_value = "frustum", value_parser = ["none", "frustum", "chc"])]
     culling: String,
     /// Nodes covering fewer pixels across than this are dropped (0: none).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, value_parser = number_in(0.0, 1e6))]
     min_pixels: f64,
     /// Frames rendered from the viewpoint (occlusion culling converges over a
     /// few); the image and stats are the last frame's.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10_000))]
     frames: u32,
     /// Output PNG (with --stereo, OUTPUT-left.png and OUTPUT-right.png).
     #[arg(short, long)]
@@ -58,7 +59,7 @@ pub struct Args {
     #[arg(long)]
     stereo: bool,
     /// Interpupillary distance for --stereo, world units (65: millimetres).
-    #[arg(long, default_value_t = 65.0, requires = "stereo")]
+    #[arg(long, default_value_t = 65.0, requires = "stereo", value_parser = number_in(0.0, MAX_LENGTH))]
     ipd: f64,
     /// How --stereo reaches the two layers: auto (multiview where the driver
     /// draws it correctly), multiview, or layers (a pass per eye).

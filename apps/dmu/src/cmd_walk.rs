@@ -11,7 +11,7 @@ use dmu_store::{
 use dmu_tree::{Tree, TreeOptions};
 use glam::DVec3;
 
-use crate::units::parse_bytes;
+use crate::units::{number_in, parse_bytes};
 
 /// Replay a camera path through a store and report what the residency manager
 /// kept in memory: per frame and in total, the chunks wanted (in the frustum and
@@ -44,20 +44,20 @@ pub struct Args {
     /// Let loader threads run in real time instead, frames paced at --fps.
     #[arg(long)]
     real_time: bool,
-    /// Frames per second of the path.
-    #[arg(long, default_value_t = 60.0)]
+    /// Frames per second of the path (0.01 to 1000).
+    #[arg(long, default_value_t = 60.0, value_parser = number_in(0.01, 1000.0))]
     fps: f64,
     /// Loader threads.
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=64))]
     loader_threads: u32,
-    /// Viewport width in pixels.
-    #[arg(long, default_value_t = 1920)]
+    /// Viewport width in pixels (16 to 16384).
+    #[arg(long, default_value_t = 1920, value_parser = clap::value_parser!(u32).range(16..=16384))]
     width: u32,
-    /// Viewport height in pixels.
-    #[arg(long, default_value_t = 1080)]
+    /// Viewport height in pixels (16 to 16384).
+    #[arg(long, default_value_t = 1080, value_parser = clap::value_parser!(u32).range(16..=16384))]
     height: u32,
     /// Screen-coverage threshold: chunks whose box spans fewer pixels are not drawn.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = number_in(0.0, 1e6))]
     min_pixels: f64,
     /// Turn off prefetching along the predicted path.
     #[arg(long)]
@@ -67,7 +67,7 @@ pub struct Args {
     #[arg(long, value_parser = parse_range)]
     range: Option<(usize, usize)>,
     /// Frames before the walk counts as warm.
-    #[arg(long, default_value_t = 60)]
+    #[arg(long, default_value_t = 60, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=1_000_000))]
     warmup_frames: usize,
     /// Print every frame (text mode).
     #[arg(long)]
@@ -244,7 +244,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     }
     let mut reports = Vec::new();
     for order in &args.order {
-        let report = walk(&store, &tree, &path, &options(order)).map_err(anyhow::Error::msg)?;
+        let report = walk(&store, &tree, &path, &options(order))?;
         reports.push(report);
     }
     if args.json {
@@ -406,11 +406,11 @@ fn typical_cell_size(tree: &Tree) -> f64 {
 /// with a snap turn before it, and a last look back. Eye height 1.7 m, 60 degree
 /// field of view; millimetres.
 fn plant_path(fps: f64) -> Vec<CameraFrame> {
-    /// Must match `dmu_scene::samples::plant`'s plot size.
+    /// Must match `dmu_samples::plant`'s plot size.
     const PLOT: f64 = 48_000.0;
     const AISLE: f64 = 12_000.0;
     const EYE: f64 = 1_700.0;
-    let origin = dmu_scene::samples::PlantOptions::default().origin;
+    let origin = dmu_samples::PlantOptions::default().origin;
     let at = |x: f64, y: f64| origin + DVec3::new(x, y, EYE);
     let mut path = Vec::new();
     let mut push = |eye: DVec3, heading_deg: f64| {

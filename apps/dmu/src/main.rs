@@ -15,8 +15,8 @@ mod walk_render;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-// Opening models and parsing units live in the library, shared with dmu-viewer.
-use dmu::{load, units};
+// Opening models, parsing units and progress live in dmu-app, shared with dmu-viewer.
+use dmu_app::{load, progress, resident, units};
 
 /// dmu: walk, pick, move and clash-check massive CAD assemblies.
 ///
@@ -58,7 +58,23 @@ fn die_on_closed_pipe() {
     }
 }
 
+/// Turns off Mesa's device-select Vulkan layer unless the user set it up: the
+/// command chooses its adapter itself, and the layer, only to order GPUs, opens
+/// a Wayland connection that prints `error: XDG_RUNTIME_DIR is invalid or not
+/// set` twice on every headless machine although nothing is wrong.
+#[expect(
+    unsafe_code,
+    reason = "setting an environment variable is sound before any thread starts"
+)]
+fn quiet_headless_vulkan() {
+    if std::env::var_os("NODEVICE_SELECT").is_none() {
+        // SAFETY: called first in main, while the process has one thread.
+        unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
+    }
+}
+
 fn main() -> ExitCode {
+    quiet_headless_vulkan();
     #[cfg(unix)]
     die_on_closed_pipe();
     let cli = Cli::parse();

@@ -6,19 +6,19 @@
 //! culling).
 
 use std::collections::BTreeSet;
-use std::sync::{Arc, OnceLock};
+use std::sync::Arc;
 
 use anyhow::Context as _;
 use dmu_render::{
-    Camera, Capture, ChunkGeometry, Culling, CullingOptions, FrameStats, GeometrySource, Renderer,
-    View, headless_device,
+    Camera, Capture, Culling, CullingOptions, FrameStats, Renderer, View, headless_device,
 };
-use dmu_scene::{ChunkId, Scene};
-use dmu_store::{CameraFrame, Drawn, Residency, Store, WalkOptions};
+use dmu_scene::Scene;
+use dmu_store::{CameraFrame, Drawn, Store, WalkOptions};
 use dmu_tree::{EntryId, Tree};
 use serde::Serialize;
 
 use crate::cmd_bench::percentile;
+use crate::resident::ResidentSource;
 
 /// One mode's frame.
 #[derive(Debug, Serialize)]
@@ -236,35 +236,6 @@ pub fn run(
     }))
 }
 
-/// Chunk geometry for one frame from a residency manager: each chunk the
-/// renderer asks for is looked up once and pinned until the frame is drawn.
-struct ResidentSource<'a> {
-    residency: &'a Residency,
-    pins: Vec<OnceLock<Option<Arc<dmu_store::ChunkGeometry>>>>,
-}
-
-impl<'a> ResidentSource<'a> {
-    fn new(residency: &'a Residency, chunks: usize) -> Self {
-        Self {
-            residency,
-            pins: (0..chunks).map(|_| OnceLock::new()).collect(),
-        }
-    }
-}
-
-impl GeometrySource for ResidentSource<'_> {
-    fn chunk_geometry(&self, chunk: ChunkId) -> Option<ChunkGeometry<'_>> {
-        let g = self.pins[chunk.index()]
-            .get_or_init(|| self.residency.get(chunk))
-            .as_ref()?;
-        Some(ChunkGeometry {
-            positions: &g.positions,
-            normals: &g.normals,
-            indices: &g.indices,
-        })
-    }
-}
-
 /// Renders `path` from `store` through a residency manager within
 /// `options.budget_bytes`: the renderer draws what is resident (its GPU copies
 /// of evicted chunks are dropped with them), and what it drew is requested as
@@ -294,9 +265,7 @@ pub fn run_resident(
         }
         view.camera = camera(&path[i]);
         let source = ResidentSource::new(residency, scene.chunks().len());
-        let stats = renderer
-            .render(&mut view, scene, tree, &source, capture.frame_target())
-            .map_err(|e| format!("frame {i}: {e}"))?;
+        let stats = renderer.render(&mut view, scene, tree, &source, capture.frame_target())?;
         rendered.push(mode_frame(&stats, None));
         progress.inc(1);
         Ok(Drawn {
@@ -307,8 +276,7 @@ pub fn run_resident(
                 .collect(),
             pins: Vec::new(),
         })
-    })
-    .map_err(anyhow::Error::msg)?;
+    })?;
     progress.finish_and_clear();
     Ok(serde_json::json!({
         "adapter": adapter.name,

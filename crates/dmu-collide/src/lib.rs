@@ -52,7 +52,7 @@
 //! use dmu_tree::{Tree, TreeOptions};
 //!
 //! // Boxes of side 4 on a lattice of pitch 10.
-//! let mut scene = dmu_scene::samples::grid(2, 10.0, 4.0, 2048);
+//! let mut scene = dmu_samples::grid(2, 10.0, 4.0, 2048);
 //! let mut tree = Tree::build(&scene, TreeOptions::default());
 //! let mut checker = Checker::new(&scene);
 //! let mut report = Report::default();
@@ -83,7 +83,8 @@ pub use check::{
     AllowList, Checker, Clash, ClashKind, DEFAULT_CONTACT_TOLERANCE, Impact, Report, Settings,
 };
 pub use record::{
-    RecordError, RecordedMove, Step, StepOutcome, Summary, parse_record, read_record, replay,
+    RecordError, RecordLine, RecordedMove, Step, StepOutcome, Summary, parse_record, read_record,
+    record_part_name, replay, write_record,
 };
 pub use sweep::{MAX_ADVANCEMENT_STEPS, Motion};
 pub use triangle::{TriangleClash, triangle_clash, triangle_distance};

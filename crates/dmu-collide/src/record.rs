@@ -1,13 +1,15 @@
-//! Recorded manipulations (JSON Lines, see `docs/record-format.md`) and their
-//! replay: parts moved through the tree step by step, each step checked.
+//! Recorded manipulations (JSON Lines, see `docs/record-format.md`): their
+//! reader, their writer, and their replay: parts moved through the tree step by
+//! step, each step checked.
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use dmu_scene::{PartId, Scene, SceneError};
 use dmu_tree::Tree;
 use glam::{DAffine3, DQuat, DVec3};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use crate::check::{Checker, Report, Settings};
 use crate::sweep::Motion;
@@ -22,7 +24,7 @@ const UNIT_SLACK: f64 = 1e-3;
 #[non_exhaustive]
 pub enum RecordError {
     /// The file could not be read.
-    #[error("cannot read {}: {source}", path.display())]
+    #[error("cannot read {}", path.display())]
     Io {
         /// The path.
         path: PathBuf,
@@ -90,13 +92,61 @@ pub struct Step {
     pub moves: Vec<RecordedMove>,
 }
 
-#[derive(Deserialize)]
+/// One line of a record as it is written and read: a part's absolute world
+/// pose (rotation and translation; the part's scale stays the model's) from
+/// time `t` on.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct Line {
-    t: f64,
-    part: String,
-    translation: [f64; 3],
-    rotation: [f64; 4],
+pub struct RecordLine {
+    /// The time (seconds, or any unit: only the order matters).
+    pub t: f64,
+    /// The part, as [`Scene::find_part`] accepts it (see [`record_part_name`]).
+    pub part: String,
+    /// World translation.
+    pub translation: [f64; 3],
+    /// World rotation, a unit quaternion `[x, y, z, w]`.
+    pub rotation: [f64; 4],
+}
+
+impl RecordLine {
+    /// The line placing `part` (named as in the file) at `world` from `t` on.
+    pub fn new(t: f64, part: String, world: DAffine3) -> Self {
+        let (_, rotation, translation) = world.to_scale_rotation_translation();
+        Self {
+            t,
+            part,
+            translation: translation.to_array(),
+            rotation: rotation.normalize().to_array(),
+        }
+    }
+
+    /// Writes the line as one line of JSON (the writer of [`parse_record`]'s
+    /// format).
+    pub fn write(&self, out: &mut impl Write) -> std::io::Result<()> {
+        serde_json::to_writer(&mut *out, self)?;
+        out.write_all(b"\n")
+    }
+}
+
+/// How a record names `part`: its full assembly path when [`Scene::find_part`]
+/// finds exactly it by that path, else `#id`.
+pub fn record_part_name(scene: &Scene, part: PartId) -> String {
+    let path = scene.part_path(part);
+    match scene.find_part(&path) {
+        Ok(found) if found == part => path,
+        _ => format!("#{}", part.0),
+    }
+}
+
+/// Writes `steps` as a record (the inverse of [`parse_record`]): one line per
+/// move, in order, parts named by [`record_part_name`].
+pub fn write_record(out: &mut impl Write, scene: &Scene, steps: &[Step]) -> std::io::Result<()> {
+    for step in steps {
+        for m in &step.moves {
+            RecordLine::new(step.t, record_part_name(scene, m.part), m.world).write(out)?;
+        }
+    }
+    Ok(())
 }
 
 /// Reads and parses a record file (see [`parse_record`]).
@@ -113,13 +163,15 @@ pub fn read_record(path: &Path, scene: &Scene) -> Result<Vec<Step>, RecordError>
 /// one step. Parts are named as [`Scene::find_part`] accepts.
 pub fn parse_record(text: &str, scene: &Scene) -> Result<Vec<Step>, RecordError> {
     let mut steps: Vec<Step> = Vec::new();
+    // Editors on some systems start UTF-8 files with a byte-order mark.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     for (i, raw) in text.lines().enumerate() {
         let line = i + 1;
         if raw.trim().is_empty() {
             continue;
         }
         let malformed = |message: String| RecordError::Malformed { line, message };
-        let parsed: Line = serde_json::from_str(raw).map_err(|e| {
+        let parsed: RecordLine = serde_json::from_str(raw).map_err(|e| {
             // serde_json counts lines within the one line it was given.
             let mut message = e.to_string();
             if let Some(at) = message.rfind(" at line ") {
@@ -151,6 +203,12 @@ pub fn parse_record(text: &str, scene: &Scene) -> Result<Vec<Step>, RecordError>
             q.normalize(),
             DVec3::from_array(parsed.translation),
         );
+        if !scene.is_valid_world(part, &world) {
+            return Err(malformed(format!(
+                "the pose of {} is too large: its world box overflows f64",
+                parsed.part
+            )));
+        }
         let moved = RecordedMove { line, part, world };
         match steps.last_mut() {
             Some(step) if step.t == parsed.t => {

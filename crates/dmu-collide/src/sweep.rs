@@ -48,6 +48,44 @@ pub(crate) struct Path {
     angle: f64,
 }
 
+/// The rotation taking pose `from`'s linear part to `to`'s (`to · from⁻¹`).
+/// A part scaled to zero along some axis (glTF allows scale 0, e.g. to hide a
+/// node) has no inverse: its frames are completed from the columns it has, so
+/// the turn moves its (flat, thin or point-like) geometry exactly.
+fn turn_between(from: &DMat3, to: &DMat3) -> DMat3 {
+    let det = from.determinant();
+    if det.is_normal() {
+        return *to * from.inverse();
+    }
+    frame(to) * frame(from).transpose()
+}
+
+/// An orthonormal frame whose axes follow a linear map's non-zero columns, the
+/// others completed by cross products (for a map of rotation times scale: the
+/// rotation, wherever the scale is not zero).
+fn frame(m: &DMat3) -> DMat3 {
+    let cols = [m.x_axis, m.y_axis, m.z_axis].map(DVec3::try_normalize);
+    let (x, y, z) = match cols {
+        [Some(x), Some(y), _] => (x, y, x.cross(y)),
+        [Some(x), None, Some(z)] => (x, z.cross(x), z),
+        [None, Some(y), Some(z)] => (y.cross(z), y, z),
+        [Some(x), None, None] => {
+            let y = x.any_orthonormal_vector();
+            (x, y, x.cross(y))
+        }
+        [None, Some(y), None] => {
+            let z = y.any_orthonormal_vector();
+            (y.cross(z), y, z)
+        }
+        [None, None, Some(z)] => {
+            let x = z.any_orthonormal_vector();
+            (x, z.cross(x), z)
+        }
+        [None, None, None] => (DVec3::X, DVec3::Y, DVec3::Z),
+    };
+    DMat3::from_cols(x, y, z)
+}
+
 impl Path {
     pub(crate) fn new(scene: &Scene, motion: &Motion) -> Self {
         let pivot = scene.part_mesh(motion.part).bounds.center().as_dvec3();
@@ -56,7 +94,7 @@ impl Path {
         } else {
             DVec3::ZERO
         };
-        let turn: DMat3 = motion.to.matrix3 * motion.from.matrix3.inverse();
+        let turn = turn_between(&motion.from.matrix3, &motion.to.matrix3);
         let residual = (turn.transpose() * turn - DMat3::IDENTITY).to_cols_array();
         assert!(
             residual.iter().all(|r| r.abs() < 1e-9),
@@ -256,5 +294,45 @@ impl Checker {
         }
         // Out of steps: where advancement stopped (see MAX_ADVANCEMENT_STEPS).
         last
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{DMat3, DQuat, DVec3};
+
+    use super::turn_between;
+
+    /// The turn between two poses of a part scaled to zero along some axes (it
+    /// had no inverse, and the sweep panicked) is a rotation that takes every
+    /// point of the first pose to the second, like the inverse does for
+    /// regular poses.
+    #[test]
+    fn issue_20_turns_between_poses_with_zero_scales() {
+        let (a, b) = (
+            DQuat::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 0.7),
+            DQuat::from_axis_angle(DVec3::new(-2.0, 0.5, 1.0).normalize(), 2.1),
+        );
+        for scale in [
+            DVec3::new(2.0, 3.0, 0.5),
+            DVec3::new(0.0, 3.0, 0.5),
+            DVec3::new(2.0, 0.0, 0.5),
+            DVec3::new(2.0, 3.0, 0.0),
+            DVec3::new(0.0, 0.0, 0.5),
+            DVec3::new(2.0, 0.0, 0.0),
+            DVec3::new(0.0, 3.0, 0.0),
+            DVec3::ZERO,
+            DVec3::new(-2.0, 0.0, 0.5),
+        ] {
+            let from = DMat3::from_quat(a) * DMat3::from_diagonal(scale);
+            let to = DMat3::from_quat(b) * DMat3::from_diagonal(scale);
+            let turn = turn_between(&from, &to);
+            let residual = (turn.transpose() * turn - DMat3::IDENTITY).to_cols_array();
+            assert!(residual.iter().all(|r| r.abs() < 1e-12), "{scale}: {turn}");
+            for p in [DVec3::X, DVec3::Y, DVec3::Z, DVec3::new(0.3, -1.2, 2.5)] {
+                let moved = turn * (from * p);
+                assert!(moved.distance(to * p) < 1e-12, "{scale}, {p}");
+            }
+        }
     }
 }

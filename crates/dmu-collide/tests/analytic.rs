@@ -1,7 +1,7 @@
 //! Boxes and cylinders at known gaps, at the origin and 10^7 mm from it.
 
 use dmu_collide::{Checker, Clash, ClashKind, Report, Settings};
-use dmu_scene::samples::Rng;
+use dmu_samples::Rng;
 use dmu_scene::{PartId, Scene};
 use dmu_tree::{Tree, TreeOptions};
 use glam::{DAffine3, DQuat, DVec3, Vec3};

@@ -1,7 +1,7 @@
 //! Through the tree equals brute force over all part pairs, on random scenes.
 
 use dmu_collide::{Checker, Report, Settings};
-use dmu_scene::samples::Rng;
+use dmu_samples::Rng;
 use dmu_scene::{PartId, Scene};
 use dmu_tree::{Tree, TreeOptions};
 use glam::{DAffine3, DQuat, DVec3, Vec3};
@@ -125,7 +125,8 @@ proptest! {
             for &p in &moved {
                 tree.move_part(&mut scene, p, random_pose(&mut rng, origin, 12.0));
             }
-            tree.validate_against(&scene).map_err(TestCaseError::fail)?;
+            tree.validate_against(&scene)
+            .map_err(|e| TestCaseError::fail(e.to_string()))?;
             checker.check(&scene, &tree, &moved, &settings, &mut report);
             let want = oracle(&scene, &moved, &settings, &closed);
             compare(&report, &want, &settings).map_err(|e| TestCaseError::fail(format!("round {round}: {e}")))?;

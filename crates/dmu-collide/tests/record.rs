@@ -1,9 +1,14 @@
-//! Record parsing (errors name their line) and replay on the grid.
+//! Record parsing (errors name their line), writing (read back unchanged) and
+//! replay on the grid.
 
-use dmu_collide::{Checker, ClashKind, RecordError, Settings, parse_record, replay};
-use dmu_scene::samples::grid;
+use dmu_collide::{
+    Checker, ClashKind, RecordError, RecordedMove, Settings, Step, parse_record, replay,
+    write_record,
+};
+use dmu_samples::{Rng, grid};
+use dmu_scene::PartId;
 use dmu_tree::{Tree, TreeOptions};
-use glam::{DQuat, DVec3};
+use glam::{DAffine3, DQuat, DVec3};
 
 fn line(t: f64, part: &str, x: f64) -> String {
     format!(
@@ -111,4 +116,69 @@ fn replay_moves_through_the_tree_and_reports_each_step() {
     assert_eq!(seen[1].2, vec![(ClashKind::Soft, 3.0)]);
     assert_eq!(seen[2].2, vec![(ClashKind::Contact, 0.0)]);
     assert_eq!(seen[3].2, vec![(ClashKind::Hard, 0.0)]);
+}
+
+/// Whether `a` is `b` to within a few ulps: serde_json (without its
+/// `float_roundtrip` feature) may read a shortest-form number an ulp off.
+fn ulps_close(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 4.0 * f64::EPSILON * b.abs()
+}
+
+/// Random steps (increasing times, one to three distinct parts each, random
+/// poses) written and read back are the same steps, line numbers included
+/// (numbers to within a few ulps).
+#[test]
+fn written_steps_read_back_unchanged() {
+    let scene = grid(3, 10.0, 4.0, 2048);
+    let parts = scene.parts().len() as u64;
+    let mut rng = Rng::new(12);
+    let mut steps: Vec<Step> = Vec::new();
+    let mut line = 0;
+    let mut t = 0.0;
+    for _ in 0..50 {
+        t += rng.range(1e-6, 2.0);
+        let mut moves: Vec<RecordedMove> = Vec::new();
+        for _ in 0..1 + rng.below(3) {
+            let part = PartId(rng.below(parts) as u32);
+            if moves.iter().any(|m| m.part == part) {
+                continue;
+            }
+            let axis = DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 1.0).normalize();
+            let rotation = DQuat::from_axis_angle(axis, rng.range(-3.0, 3.0));
+            let translation = DVec3::new(rng.range(-1e6, 1e6), rng.range(-50.0, 50.0), 0.125);
+            line += 1;
+            moves.push(RecordedMove {
+                line,
+                part,
+                world: DAffine3::from_rotation_translation(rotation, translation),
+            });
+        }
+        steps.push(Step { t, moves });
+    }
+    let mut out = Vec::new();
+    write_record(&mut out, &scene, &steps).unwrap();
+    let text = String::from_utf8(out).unwrap();
+    assert_eq!(text.lines().count(), line);
+    let read = parse_record(&text, &scene).unwrap();
+    assert_eq!(read.len(), steps.len());
+    for (got, want) in read.iter().zip(&steps) {
+        assert!(ulps_close(got.t, want.t), "t {} read as {}", want.t, got.t);
+        assert_eq!(got.moves.len(), want.moves.len());
+        for (g, w) in got.moves.iter().zip(&want.moves) {
+            assert_eq!((g.line, g.part), (w.line, w.part));
+            let (gt, wt) = (g.world.translation, w.world.translation);
+            assert!(
+                (0..3).all(|i| ulps_close(gt[i], wt[i])),
+                "line {}: translation {wt} read back as {gt}",
+                w.line
+            );
+            assert!(
+                g.world.matrix3.abs_diff_eq(w.world.matrix3, 1e-12),
+                "line {}: {:?} read back as {:?}",
+                w.line,
+                w.world.matrix3,
+                g.world.matrix3
+            );
+        }
+    }
 }

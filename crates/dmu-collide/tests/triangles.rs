@@ -2,7 +2,7 @@
 //! origin, and its own invariants.
 
 use dmu_collide::{triangle_clash, triangle_distance};
-use dmu_scene::samples::Rng;
+use dmu_samples::Rng;
 use glam::DVec3;
 use parry3d::math::Pose;
 use parry3d::shape::Triangle;

@@ -386,3 +386,43 @@ fn box_far_from_origin() {
         None
     );
 }
+
+/// A direction too short or too long to square is scaled by an exact power of
+/// two (same direction, every bit kept); any other is left alone; zero and
+/// non-finite ones are refused.
+#[test]
+fn issue_20_ray_directions_are_made_safe_to_square() {
+    let o = DVec3::new(1.0, 2.0, 3.0);
+    for d in [
+        DVec3::new(0.6, -0.3, 0.1),
+        DVec3::new(1e-150, 0.0, 0.0),
+        DVec3::new(0.0, 3e150, -1.0),
+    ] {
+        assert_eq!(Ray3d::with_safe_dir(o, d).unwrap().dir, d, "{d}");
+    }
+    for d in [
+        DVec3::new(1e-300, -2e-301, 0.0),
+        DVec3::new(f64::from_bits(1), 0.0, 0.0),
+        DVec3::new(1e160, 1.0, -3e159),
+        DVec3::new(f64::MAX, f64::MAX, -f64::MAX),
+    ] {
+        let safe = Ray3d::with_safe_dir(o, d).unwrap().dir;
+        let largest = safe.abs().max_element();
+        assert!((1.0..2.0).contains(&largest), "{d} -> {safe}");
+        assert!(safe.length_squared().is_normal(), "{d} -> {safe}");
+        // An exact power of two, the same for every component (2^1074 for the
+        // smallest subnormal is not an f64: that one is checked by its bits).
+        let scale = safe.x / d.x;
+        if scale.is_finite() {
+            assert_eq!(scale.log2().fract(), 0.0, "{scale} is a power of two");
+            for (s, d) in safe.to_array().into_iter().zip(d.to_array()) {
+                assert_eq!(s, d * scale, "{d} -> {safe}");
+            }
+        } else {
+            assert_eq!(safe, DVec3::X);
+        }
+    }
+    assert!(Ray3d::with_safe_dir(o, DVec3::ZERO).is_none());
+    assert!(Ray3d::with_safe_dir(o, DVec3::new(f64::NAN, 1.0, 0.0)).is_none());
+    assert!(Ray3d::with_safe_dir(DVec3::INFINITY, DVec3::X).is_none());
+}

@@ -186,12 +186,18 @@ impl IdImage {
     }
 }
 
-/// Saves an image as PNG.
+/// Saves an image as PNG, through a temporary file renamed over `path`
+/// ([`dmu_scene::write_file_atomically`]): a full disk or a kill leaves the
+/// previous image whole.
 pub fn save_png(image: &image::RgbaImage, path: &Path) -> Result<(), RenderError> {
-    image.save(path).map_err(|source| RenderError::Image {
-        path: path.display().to_string(),
-        source,
-    })
+    let mut png = Vec::new();
+    image
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .and_then(|()| dmu_scene::write_file_atomically(path, &png).map_err(Into::into))
+        .map_err(|source| RenderError::Image {
+            path: path.display().to_string(),
+            source,
+        })
 }
 
 /// Copies one layer of a 4-byte-per-texel texture to tightly packed rows.

@@ -121,7 +121,7 @@ impl Cull {
 }
 
 /// The canonical draw order of every mode: cells front to back by box
-/// distance, then tree order. Modes that draw the same visible set draw it in
+/// distance, then by cell and entry. Modes that draw the same visible set draw it in
 /// the same order, so depth ties resolve alike and their images are equal.
 fn sort_draws(h: &Hierarchy, cell_distance: &[f64], draws: &mut [Draw]) {
     draws.sort_unstable_by(|a, b| {
@@ -131,7 +131,8 @@ fn sort_draws(h: &Hierarchy, cell_distance: &[f64], draws: &mut [Draw]) {
         );
         cell_distance[ca as usize]
             .total_cmp(&cell_distance[cb as usize])
-            .then(h.entry_node[a.entry as usize].cmp(&h.entry_node[b.entry as usize]))
+            .then(ca.cmp(&cb))
+            .then(a.entry.cmp(&b.entry))
     });
 }
 
@@ -320,7 +321,7 @@ impl Renderer {
                 return true;
             };
             let cell_node = self.hierarchy.cell_node[cell.0 as usize];
-            for &e in self.hierarchy.leaves(cell_node) {
+            for &e in self.hierarchy.children(cell_node) {
                 let entry = &tree.entries()[e as usize];
                 stats.nodes_visited += 1;
                 if !cull.frustum.intersects_aabb(&entry.bounds) {
@@ -366,17 +367,14 @@ impl Renderer {
     ) -> Result<(), RenderError> {
         let frame = view.frame;
         let h = std::mem::take(&mut self.hierarchy);
-        let nodes = h.nodes.len();
         // Last frame's visibility, pulled up: a node is visible when any
-        // chunk instance below was. Children follow parents in the mirror.
-        let mut was_visible = vec![false; nodes];
-        for n in (0..nodes).rev() {
-            was_visible[n] = match h.nodes[n].kind {
+        // chunk instance below was; children pulled before their parents.
+        let order = h.pre_order();
+        let mut was_visible = vec![false; h.nodes.len()];
+        for &n in order.iter().rev() {
+            was_visible[n as usize] = match h.nodes[n as usize].kind {
                 NodeKind::Entry(e) => view.entries[e.0 as usize].visible_frame + 1 == frame,
-                _ => h
-                    .children(n as u32)
-                    .iter()
-                    .any(|&c| was_visible[c as usize]),
+                _ => h.children(n).iter().any(|&c| was_visible[c as usize]),
             };
         }
         let interval = u64::from(view.options.requery_interval.max(1));
@@ -394,8 +392,8 @@ impl Renderer {
             queries: Vec::new(),
             in_frustum_entries: 0,
         };
-        if nodes > 0 {
-            let mut stack = vec![0u32];
+        if !order.is_empty() {
+            let mut stack = vec![h.root];
             while let Some(n) = stack.pop() {
                 let Some(kind) = walk.admit(n) else { continue };
                 let node = &h.nodes[n as usize];
@@ -421,6 +419,7 @@ impl Renderer {
         // or, in a multiview pass, which carries none, by their boxes after it.
         let mut checked: Vec<u32> = Vec::new();
         let mut bounds: Vec<Aabb3d> = Vec::new();
+        let mut leaves: Vec<u32> = Vec::new();
         for round in 0..max_rounds {
             let mut draws = std::mem::take(&mut walk.draws);
             let mut queries = std::mem::take(&mut walk.queries);
@@ -432,7 +431,7 @@ impl Renderer {
                 let chunk = tree.entries()[d.entry as usize].chunk;
                 let drawable = !d.query || self.pool.is_resident(chunk) || geometry.has(chunk);
                 if !drawable {
-                    queries.push(h.entry_node[d.entry as usize]);
+                    queries.push(d.entry); // an entry's node is its id
                 }
                 drawable
             });
@@ -445,11 +444,7 @@ impl Renderer {
                 for d in &mut draws {
                     d.query = false;
                 }
-                bounds.extend(
-                    checked
-                        .iter()
-                        .map(|&e| h.nodes[h.entry_node[e as usize] as usize].bounds),
-                );
+                bounds.extend(checked.iter().map(|&e| h.nodes[e as usize].bounds));
             }
             let boxes = cull.query_boxes(&bounds);
             let r = match self.run_round(
@@ -515,7 +510,9 @@ impl Renderer {
                         // Out of rounds: assume everything below visible next
                         // frame and check it then, rather than start over.
                         walk.count_below(n);
-                        for &e in h.leaves(n) {
+                        leaves.clear();
+                        h.leaves(n, &mut leaves);
+                        for &e in &leaves {
                             let state = &mut view.entries[e as usize];
                             state.visible_frame = frame;
                             state.requery_frame = frame + 1;

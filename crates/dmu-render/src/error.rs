@@ -34,7 +34,7 @@ pub enum RenderError {
         reason: String,
     },
     /// Writing an image failed.
-    #[error("writing {path}: {source}")]
+    #[error("writing {path}")]
     Image {
         /// The file.
         path: String,

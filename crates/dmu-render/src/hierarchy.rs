@@ -1,197 +1,269 @@
 //! The renderer's mirror of the cell tree, down to chunk instances.
 //!
-//! Occlusion culling keeps state per node and queries whole subtrees, so it
-//! needs the tree's structure, which `dmu-tree` exposes only as a parents-first
-//! traversal. A full binary tree is determined by its pre-order with leaves
-//! marked, so one traversal with an accept-everything frustum rebuilds it. The
-//! mirror adds one level: a cell's chunk instances are its leaves, so chunks
-//! hidden inside a visible cell are culled too.
+//! Occlusion culling keeps state per chunk instance and queries whole
+//! subtrees, so it walks the tree's structure with one more level: a cell's
+//! chunk instances are its leaves, so chunks hidden inside a visible cell are
+//! culled too. The mirror keeps the tree's node slots as they are (node `n` of
+//! the tree is mirror node `entries + n`; entry `e` is mirror node `e`), so a
+//! move updates it by re-reading only what the tree's change log names: a
+//! drag step costs the same on any model size. Per-view state is kept per
+//! entry, whose ids never change.
 
-use dmu_geom::{Aabb3d, Frustum, Plane};
-use dmu_tree::{CellId, EntryId, Tree, UpdateStats};
+use dmu_geom::Aabb3d;
+use dmu_tree::{CellId, Change, Changes, EntryId, NodeId, Revision, Tree};
+
+/// "No node": a free slot's children, a free cell's node.
+const NONE: u32 = u32::MAX;
 
 /// What a node is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum NodeKind {
-    /// An internal node of the tree; children are `children` in [`Hierarchy::links`].
+    /// An internal node of the tree with two children.
     Internal,
     /// A cell; children are its entries.
     Cell(CellId),
     /// A chunk instance, the unit of drawing.
     Entry(EntryId),
+    /// A free slot of the tree's nodes, in no subtree.
+    Free,
 }
 
 /// A node of the mirror.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Node {
     pub bounds: Aabb3d,
     pub kind: NodeKind,
-    /// Range of child node ids in [`Hierarchy::links`].
-    pub children: (u32, u32),
-    /// Range of entry leaves below, in [`Hierarchy::leaf_order`].
-    pub leaves: (u32, u32),
+    /// The children of an internal node.
+    children: [u32; 2],
 }
 
-/// The tree's structure as the renderer walks it.
-#[derive(Debug, Default)]
-pub(crate) struct Hierarchy {
-    pub nodes: Vec<Node>,
-    /// Child node ids, each node's a contiguous run.
-    pub links: Vec<u32>,
-    /// Entry ids in a depth-first order: every node's entries are a run.
-    pub leaf_order: Vec<u32>,
-    /// The node of each entry (by entry id).
-    pub entry_node: Vec<u32>,
+const FREE: Node = Node {
+    bounds: Aabb3d::EMPTY,
+    kind: NodeKind::Free,
+    children: [NONE; 2],
+};
+
+/// The tree's structure as the renderer walks it. A [`Renderer`](crate::Renderer)
+/// keeps one and brings it up to date with [`Hierarchy::sync`] each frame; it
+/// needs no GPU, so its update cost is measured alone (`dmu bench tree`).
+#[derive(Debug, Default, PartialEq)]
+pub struct Hierarchy {
+    /// The entries' nodes (by entry id), then the tree's node slots.
+    pub(crate) nodes: Vec<Node>,
+    pub(crate) root: u32,
+    /// Entry ids of each cell (by cell id; empty for dead cell ids).
+    cell_entries: Vec<Vec<u32>>,
     /// The cell node holding each entry (by entry id).
-    pub entry_cell: Vec<u32>,
-    /// The node of each cell (by cell id; `u32::MAX` for dead cell ids).
-    pub cell_node: Vec<u32>,
-    /// The tree state this mirror was built from.
-    stamp: Option<(UpdateStats, usize, usize)>,
+    pub(crate) entry_cell: Vec<u32>,
+    /// The node of each cell (by cell id; `NONE` for dead cell ids).
+    pub(crate) cell_node: Vec<u32>,
+    /// The tree revision this mirror shows.
+    revision: Option<Revision>,
 }
 
 impl Hierarchy {
-    /// Rebuilds the mirror when the tree changed since the last call (a move, a
-    /// split or merge changes its update counters).
+    /// Brings the mirror up to date with `tree`: re-reads what changed since
+    /// the last call (the whole tree the first time, after a rebuild, for
+    /// another tree, or when very far behind).
     pub fn sync(&mut self, tree: &Tree) {
-        let stamp = (tree.update_stats(), tree.cell_count(), tree.entries().len());
-        if self.stamp == Some(stamp) {
+        let revision = tree.revision();
+        if self.revision == Some(revision) {
             return;
         }
-        self.stamp = Some(stamp);
-        self.rebuild(tree);
+        match self
+            .revision
+            .map_or(Changes::Rebuild, |r| tree.changes_since(r))
+        {
+            Changes::Rebuild => self.rebuild(tree),
+            Changes::Touched(changes) => {
+                self.grow(tree);
+                for &change in changes {
+                    match change {
+                        Change::Node(n) => self.read_node(tree, n),
+                        Change::Cell(c) => self.read_cell(tree, c),
+                        Change::Entry(e) => {
+                            self.nodes[e.0 as usize].bounds = tree.entries()[e.0 as usize].bounds;
+                        }
+                    }
+                }
+                self.root = self.tree_node(tree.root());
+            }
+        }
+        self.revision = Some(revision);
         debug_assert_eq!(self.validate(tree), Ok(()));
     }
 
+    /// Re-reads the whole tree, reusing allocations.
     fn rebuild(&mut self, tree: &Tree) {
+        let entries = tree.entries();
         self.nodes.clear();
-        self.links.clear();
-        self.leaf_order.clear();
-        self.entry_node.clear();
-        self.entry_node.resize(tree.entries().len(), u32::MAX);
+        self.nodes
+            .extend(entries.iter().enumerate().map(|(e, entry)| Node {
+                bounds: entry.bounds,
+                kind: NodeKind::Entry(EntryId(e as u32)),
+                children: [NONE; 2],
+            }));
         self.entry_cell.clear();
-        self.entry_cell.resize(tree.entries().len(), u32::MAX);
+        self.entry_cell.resize(entries.len(), NONE);
         self.cell_node.clear();
-        // Binary structure first: children per tree node from the pre-order.
-        let mut binary: Vec<(Aabb3d, Option<CellId>, Vec<u32>)> = Vec::new();
-        let mut open: Vec<u32> = Vec::new();
-        let everything = Frustum {
-            planes: [Plane::ACCEPT_ALL; 6],
-        };
-        tree.visit_frustum(&everything, &mut |n| {
-            let id = binary.len() as u32;
-            binary.push((n.bounds, n.cell, Vec::new()));
-            if let Some(&parent) = open.last() {
-                let children = &mut binary[parent as usize].2;
-                children.push(id);
-                if children.len() == 2 {
-                    open.pop();
-                }
-            }
-            if n.cell.is_none() {
-                open.push(id);
-            }
-            true
-        });
-        assert!(
-            open.is_empty(),
-            "tree traversal was not a full binary pre-order"
-        );
-        if binary.is_empty() {
-            return;
+        self.cell_entries.truncate(tree.cell_slots());
+        self.grow(tree);
+        for n in 0..tree.node_slots() {
+            self.read_node(tree, NodeId(n as u32));
         }
-        // Lay nodes out depth-first with children runs, appending entry leaves.
-        self.nodes.reserve(binary.len() + tree.entries().len());
-        self.emit(tree, &binary, 0);
+        for c in 0..tree.cell_slots() {
+            self.read_cell(tree, CellId(c as u32));
+        }
+        self.root = self.tree_node(tree.root());
     }
 
-    /// Emits tree node `b` and its subtree; returns its mirror id.
-    fn emit(&mut self, tree: &Tree, binary: &[(Aabb3d, Option<CellId>, Vec<u32>)], b: u32) -> u32 {
-        let (bounds, cell, ref children) = binary[b as usize];
-        let id = self.nodes.len() as u32;
-        let leaf_start = self.leaf_order.len() as u32;
-        self.nodes.push(Node {
-            bounds,
-            kind: cell.map_or(NodeKind::Internal, NodeKind::Cell),
-            children: (0, 0),
-            leaves: (0, 0),
-        });
-        let mut child_ids = Vec::new();
-        match cell {
-            Some(cell) => {
-                let slot = cell.0 as usize;
-                if self.cell_node.len() <= slot {
-                    self.cell_node.resize(slot + 1, u32::MAX);
+    /// Makes room for the tree's node and cell slots (they only grow between rebuilds).
+    fn grow(&mut self, tree: &Tree) {
+        self.nodes
+            .resize(tree.entries().len() + tree.node_slots(), FREE);
+        self.cell_node.resize(tree.cell_slots(), NONE);
+        self.cell_entries.resize_with(tree.cell_slots(), Vec::new);
+    }
+
+    /// The mirror id of a tree node.
+    fn tree_node(&self, node: NodeId) -> u32 {
+        self.entry_cell.len() as u32 + node.0
+    }
+
+    fn read_node(&mut self, tree: &Tree, node: NodeId) {
+        let (kind, children) = match tree.node_kind(node) {
+            dmu_tree::NodeKind::Internal(c) => (NodeKind::Internal, c.map(|c| self.tree_node(c))),
+            dmu_tree::NodeKind::Cell(c) => (NodeKind::Cell(c), [NONE; 2]),
+            dmu_tree::NodeKind::Free => (NodeKind::Free, [NONE; 2]),
+        };
+        let id = self.tree_node(node);
+        self.nodes[id as usize] = Node {
+            bounds: tree.node_bounds(node),
+            kind,
+            children,
+        };
+    }
+
+    fn read_cell(&mut self, tree: &Tree, cell: CellId) {
+        let node = tree.cell_node(cell).map_or(NONE, |n| self.tree_node(n));
+        let slot = cell.0 as usize;
+        self.cell_node[slot] = node;
+        let entries = &mut self.cell_entries[slot];
+        entries.clear();
+        entries.extend_from_slice(tree.cell_entries(cell));
+        for &e in entries.iter() {
+            self.entry_cell[e as usize] = node;
+        }
+    }
+
+    /// Child ids of a node: an internal node's two, a cell's entries.
+    pub(crate) fn children(&self, node: u32) -> &[u32] {
+        let n = &self.nodes[node as usize];
+        match n.kind {
+            NodeKind::Internal => &n.children,
+            NodeKind::Cell(c) => &self.cell_entries[c.0 as usize],
+            NodeKind::Entry(_) | NodeKind::Free => &[],
+        }
+    }
+
+    /// The nodes under the root, parents before children (empty before the first sync).
+    pub(crate) fn pre_order(&self) -> Vec<u32> {
+        let mut order = Vec::with_capacity(self.nodes.len());
+        if self.nodes.is_empty() {
+            return order;
+        }
+        let mut stack = vec![self.root];
+        while let Some(n) = stack.pop() {
+            order.push(n);
+            stack.extend_from_slice(self.children(n));
+        }
+        order
+    }
+
+    /// Appends the entry ids below a node to `out`.
+    pub(crate) fn leaves(&self, node: u32, out: &mut Vec<u32>) {
+        let mut stack = vec![node];
+        while let Some(n) = stack.pop() {
+            match self.nodes[n as usize].kind {
+                NodeKind::Entry(e) => out.push(e.0),
+                _ => stack.extend_from_slice(self.children(n)),
+            }
+        }
+    }
+
+    /// Checks the mirror against the tree: the same root, children and boxes
+    /// for every live tree node, every entry below the root exactly once, in
+    /// the cell holding it, boxes nesting.
+    pub fn validate(&self, tree: &Tree) -> Result<(), String> {
+        if self.nodes.len() != tree.entries().len() + tree.node_slots() {
+            return Err(format!(
+                "{} nodes for {} entries and {} tree nodes",
+                self.nodes.len(),
+                tree.entries().len(),
+                tree.node_slots()
+            ));
+        }
+        if self.root != self.tree_node(tree.root()) {
+            return Err(format!(
+                "root {} for tree root {}",
+                self.root,
+                tree.root().0
+            ));
+        }
+        let mut seen = vec![false; tree.entries().len()];
+        for n in self.pre_order() {
+            let node = &self.nodes[n as usize];
+            match node.kind {
+                NodeKind::Entry(e) => {
+                    let entry = &tree.entries()[e.0 as usize];
+                    if std::mem::replace(&mut seen[e.0 as usize], true) {
+                        return Err(format!("entry {} reached twice", e.0));
+                    }
+                    if node.bounds != entry.bounds {
+                        return Err(format!(
+                            "entry {}: box {:?}, tree {:?}",
+                            e.0, node.bounds, entry.bounds
+                        ));
+                    }
+                    if self.entry_cell[e.0 as usize]
+                        != self.cell_node[tree.entry_cell(e).0 as usize]
+                    {
+                        return Err(format!("entry {} not in its cell", e.0));
+                    }
                 }
-                self.cell_node[slot] = id;
-                for (_, entries) in tree.cell_groups(cell) {
-                    for &e in entries {
-                        let leaf = self.nodes.len() as u32;
-                        self.nodes.push(Node {
-                            bounds: tree.entries()[e as usize].bounds,
-                            kind: NodeKind::Entry(EntryId(e)),
-                            children: (0, 0),
-                            leaves: (
-                                self.leaf_order.len() as u32,
-                                self.leaf_order.len() as u32 + 1,
-                            ),
-                        });
-                        self.leaf_order.push(e);
-                        self.entry_node[e as usize] = leaf;
-                        self.entry_cell[e as usize] = id;
-                        child_ids.push(leaf);
+                NodeKind::Free => return Err(format!("free node {n} in the tree")),
+                NodeKind::Internal | NodeKind::Cell(_) => {
+                    let t = NodeId(n - self.entry_cell.len() as u32);
+                    if node.bounds != tree.node_bounds(t) {
+                        return Err(format!(
+                            "node {n}: box {:?}, tree {:?}",
+                            node.bounds,
+                            tree.node_bounds(t)
+                        ));
+                    }
+                    let same = match (node.kind, tree.node_kind(t)) {
+                        (NodeKind::Internal, dmu_tree::NodeKind::Internal(c)) => {
+                            node.children == c.map(|c| self.tree_node(c))
+                        }
+                        (NodeKind::Cell(c), dmu_tree::NodeKind::Cell(tc)) => {
+                            c == tc && self.children(n) == tree.cell_entries(c)
+                        }
+                        _ => false,
+                    };
+                    if !same {
+                        return Err(format!("node {n} differs from the tree's"));
+                    }
+                    for &c in self.children(n) {
+                        if !node.bounds.contains(&self.nodes[c as usize].bounds) {
+                            return Err(format!("node {n}: child {c} pokes out"));
+                        }
                     }
                 }
             }
-            None => {
-                for &c in children {
-                    child_ids.push(self.emit(tree, binary, c));
-                }
-            }
         }
-        let start = self.links.len() as u32;
-        self.links.extend_from_slice(&child_ids);
-        let node = &mut self.nodes[id as usize];
-        node.children = (start, self.links.len() as u32);
-        node.leaves = (leaf_start, self.leaf_order.len() as u32);
-        id
-    }
-
-    /// Child ids of a node.
-    pub fn children(&self, node: u32) -> &[u32] {
-        let (a, b) = self.nodes[node as usize].children;
-        &self.links[a as usize..b as usize]
-    }
-
-    /// Entry ids below a node.
-    pub fn leaves(&self, node: u32) -> &[u32] {
-        let (a, b) = self.nodes[node as usize].leaves;
-        &self.leaf_order[a as usize..b as usize]
-    }
-
-    /// Checks the mirror against the tree: every entry exactly once, boxes nest.
-    pub fn validate(&self, tree: &Tree) -> Result<(), String> {
-        if self.leaf_order.len() != tree.entries().len() {
-            return Err(format!(
-                "{} leaves for {} entries",
-                self.leaf_order.len(),
-                tree.entries().len()
-            ));
+        match seen.iter().position(|s| !s) {
+            Some(e) => Err(format!("entry {e} unreachable")),
+            None => Ok(()),
         }
-        for (e, &n) in self.entry_node.iter().enumerate() {
-            if self.nodes.get(n as usize).map(|n| n.kind)
-                != Some(NodeKind::Entry(EntryId(e as u32)))
-            {
-                return Err(format!("entry {e} has no leaf"));
-            }
-        }
-        for (i, node) in self.nodes.iter().enumerate() {
-            for &c in self.children(i as u32) {
-                if !node.bounds.contains(&self.nodes[c as usize].bounds) {
-                    return Err(format!("node {i}: child {c} pokes out"));
-                }
-            }
-        }
-        Ok(())
     }
 }

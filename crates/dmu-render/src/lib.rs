@@ -54,7 +54,7 @@
 //! use dmu_render::{Camera, Capture, Culling, Renderer, View, headless_device};
 //! use dmu_geom::glam::DVec3;
 //!
-//! let scene = dmu_scene::samples::grid(4, 10.0, 4.0, 2048);
+//! let scene = dmu_samples::grid(4, 10.0, 4.0, 2048);
 //! let tree = dmu_tree::Tree::build(&scene, Default::default());
 //! let (device, queue, _) = headless_device()?;
 //! let mut renderer = Renderer::new(&device, &queue, &scene, &tree, Default::default());
@@ -90,6 +90,7 @@ pub use capture::{CAPTURE_FORMAT, Capture, DEPTH_FORMAT, ID_FORMAT, IdImage, sav
 pub use device::headless_device;
 pub use error::RenderError;
 pub use geometry::{ChunkGeometry, GeometryPool, GeometrySource};
+pub use hierarchy::Hierarchy;
 pub use renderer::{FrameTarget, Renderer, RendererOptions};
 pub use stereo::{StereoCamera, StereoMode, StereoTarget, StereoView};
 pub use view::{Camera, Culling, CullingOptions, FrameStats, OcclusionDecision, View};

@@ -4,8 +4,8 @@ use std::collections::BTreeSet;
 
 use dmu_geom::glam::DVec3;
 use dmu_render::{Camera, Culling, View};
+use dmu_samples::{PlantOptions, plant};
 use dmu_scene::Scene;
-use dmu_scene::samples::{PlantOptions, plant};
 use dmu_tree::{EntryId, Tree, TreeOptions};
 
 use crate::support::{Rig, camera, differing, image_path};

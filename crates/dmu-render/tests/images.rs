@@ -3,8 +3,8 @@
 use dmu_geom::Ray3d;
 use dmu_geom::glam::{DAffine3, DVec2, DVec3, DVec4};
 use dmu_render::{Camera, Culling, View};
+use dmu_samples::grid;
 use dmu_scene::Scene;
-use dmu_scene::samples::grid;
 use dmu_tree::{Tree, TreeOptions};
 
 use crate::support::{Rig, camera, differing, image_path};
@@ -119,7 +119,7 @@ fn grid_boxes_cover_their_projected_hulls() {
 /// The chunk-id oracle agrees with exact CPU picking through pixel centres.
 #[test]
 fn id_oracle_agrees_with_cpu_pick() {
-    let scene = dmu_scene::samples::plant(&dmu_scene::samples::PlantOptions {
+    let scene = dmu_samples::plant(&dmu_samples::PlantOptions {
         triangles: 200_000,
         ..Default::default()
     });

@@ -1,4 +1,5 @@
-//! Shared test helpers: the device (or a clear skip), cameras, image output.
+//! Shared test helpers: the device (or a clear skip, a failure under `CI=true`),
+//! cameras, image output.
 
 use std::path::PathBuf;
 
@@ -7,12 +8,24 @@ use dmu_render::{Camera, Capture, Culling, FrameStats, Renderer, RendererOptions
 use dmu_scene::Scene;
 use dmu_tree::Tree;
 
-/// The real driver's device, or `None` after printing why the test skips.
+/// Ends a test whose prerequisite is missing: under `CI=true` (where the test
+/// script installs lavapipe) it fails with `reason`; elsewhere it prints
+/// `SKIPPED <test>: <reason>` and the test returns.
+pub fn skip(reason: &str) {
+    let thread = std::thread::current();
+    let test = thread.name().unwrap_or("test");
+    if std::env::var("CI").as_deref() == Ok("true") {
+        panic!("{test}: {reason} (CI=true: a missing prerequisite is a failure)");
+    }
+    eprintln!("SKIPPED {test}: {reason}");
+}
+
+/// The real driver's device, or `None` after [`skip`] (a panic under `CI=true`).
 pub fn gpu() -> Option<(dmu_render::wgpu::Device, dmu_render::wgpu::Queue)> {
     match dmu_render::headless_device() {
         Ok((device, queue, _)) => Some((device, queue)),
         Err(e) => {
-            eprintln!("SKIPPED: no Vulkan adapter ({e})");
+            skip(&format!("no Vulkan adapter ({e})"));
             None
         }
     }

@@ -1,4 +1,5 @@
 mod culling;
+mod hierarchy;
 mod images;
 mod stereo;
 mod support;

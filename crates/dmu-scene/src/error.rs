@@ -35,7 +35,7 @@ pub enum SceneError {
 #[non_exhaustive]
 pub enum ImportError {
     /// The file (or an external buffer) could not be read.
-    #[error("cannot read {}: {source}", path.display())]
+    #[error("cannot read {}", path.display())]
     Io {
         /// The path.
         path: PathBuf,
@@ -60,6 +60,18 @@ pub enum ImportError {
     Invalid {
         /// What, where (JSON path style, e.g. `accessors[3].bufferView`).
         what: String,
+    },
+    /// A node's world transform (the product of the transforms from the root down
+    /// to it), or the world box of its part, is not finite: finite values whose
+    /// product overflows (e.g. 1e200 scales on a parent and a child).
+    #[error("node {node} ({path}): its {what} is not finite (the transforms down to it overflow)")]
+    NonFiniteWorld {
+        /// Node index in the file.
+        node: usize,
+        /// The node's path in the assembly (names joined by `/`).
+        path: String,
+        /// "world transform" or "world box".
+        what: &'static str,
     },
     /// A vertex position is NaN or infinite.
     #[error(
@@ -104,7 +116,7 @@ pub enum ImportError {
 #[non_exhaustive]
 pub enum ExportError {
     /// Writing or renaming failed; the previous file, if any, is untouched.
-    #[error("cannot write {}: {source}", path.display())]
+    #[error("cannot write {}", path.display())]
     Io {
         /// The path.
         path: PathBuf,

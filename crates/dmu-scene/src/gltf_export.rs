@@ -4,8 +4,7 @@
 //! transforms are written as f64 matrices local to the parent node, recomputed
 //! from the absolute world transforms dmu stores.
 
-use std::io::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use base64::Engine as _;
 use glam::{DAffine3, DMat4, Vec3};
@@ -50,28 +49,7 @@ pub fn export_gltf(scene: &Scene, path: &Path) -> Result<(), ExportError> {
         doc["buffers"] = json!([{ "byteLength": bin.len(), "uri": uri }]);
         serde_json::to_vec(&doc).map_err(|e| io(e.into()))?
     };
-    write_atomically(path, &bytes).map_err(io)
-}
-
-/// Writes to a sibling temporary file, syncs, then renames over `path`.
-fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let file_name = path
-        .file_name()
-        .ok_or_else(|| std::io::Error::other("path has no file name"))?;
-    let mut tmp_name = std::ffi::OsString::from(".");
-    tmp_name.push(file_name);
-    tmp_name.push(format!(".tmp{}", std::process::id()));
-    let tmp: PathBuf = path.with_file_name(tmp_name);
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    crate::atomic::write_file_atomically(path, &bytes).map_err(io)
 }
 
 fn glb(json: &[u8], bin: &[u8]) -> Vec<u8> {

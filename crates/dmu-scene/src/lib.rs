@@ -1,5 +1,6 @@
 //! The dmu scene: a product structure of named parts whose part-local geometry is
-//! split into chunks; glTF 2.0 import and export; procedural sample models.
+//! split into chunks; glTF 2.0 import and export. (The procedural sample models
+//! live in `dmu-samples`.)
 //!
 //! Design choices:
 //! - A part's world transform is f64 and its geometry f32 in the part's own frame:
@@ -16,21 +17,31 @@
 //! counter-clockwise front faces, linear RGBA colours.
 //!
 //! ```
-//! use dmu_scene::samples::grid;
-//! let scene = grid(2, 10.0, 4.0, dmu_scene::DEFAULT_CHUNK_TRIANGLES);
-//! assert_eq!(scene.parts().len(), 8);
-//! assert_eq!(scene.triangle_count(), 8 * 12);
+//! use dmu_scene::{DEFAULT_CHUNK_TRIANGLES, MeshData, SceneBuilder};
+//! use glam::{DAffine3, DVec3, Vec3};
+//!
+//! let mut b = SceneBuilder::new("one triangle", DEFAULT_CHUNK_TRIANGLES);
+//! let material = b.add_material("grey", [0.5, 0.5, 0.5, 1.0]);
+//! let mut mesh = MeshData::default();
+//! mesh.push_primitive(&[Vec3::ZERO, Vec3::X, Vec3::Y], &[Vec3::Z; 3], &[0, 1, 2], material);
+//! let mesh = b.add_mesh(&mesh);
+//! let far = DAffine3::from_translation(DVec3::new(1e6, 0.0, 0.0));
+//! let node = b.add_node(SceneBuilder::ROOT, "part", far);
+//! b.add_part(node, mesh);
+//! let scene = b.finish();
+//! assert_eq!(scene.triangle_count(), 1);
 //! scene.validate().unwrap();
 //! ```
 
+mod atomic;
 mod chunking;
 mod error;
 mod gltf_export;
 mod gltf_import;
 mod ids;
-pub mod samples;
 mod scene;
 
+pub use atomic::{AtomicFile, write_file_atomically};
 pub use chunking::{ChunkData, ChunkedMesh, MeshData, MeshGroup, chunk_mesh, compute_normals};
 pub use error::{ExportError, ImportError, SceneError};
 pub use gltf_export::export_gltf;

@@ -456,7 +456,26 @@ impl Scene {
         if next_chunk as usize != self.chunks.len() {
             return fail("chunks not owned by any mesh".into());
         }
+        if let Some(p) = self
+            .part_ids()
+            .find(|&p| !self.is_valid_world(p, &self.part_world(p)))
+        {
+            return fail(format!(
+                "part {p} ({}): world box not finite",
+                self.part_path(p)
+            ));
+        }
         Ok(())
+    }
+
+    /// Whether `world` is a valid world transform for a part: finite, and giving
+    /// the part a finite world box (finite coordinates times finite scales can
+    /// overflow). Every part of a valid scene has one; inputs that set one (a
+    /// typed move, a record's pose) are checked with this first.
+    pub fn is_valid_world(&self, id: PartId, world: &DAffine3) -> bool {
+        world.is_finite()
+            && (self.part_mesh(id).triangles == 0
+                || self.part_mesh(id).bounds.transformed(world).is_finite())
     }
 }
 
@@ -530,6 +549,17 @@ impl SceneBuilder {
     /// The world transform of a node added earlier.
     pub fn node_world(&self, id: NodeId) -> DAffine3 {
         self.scene.nodes[id.index()].world
+    }
+
+    /// The path of a node added earlier (see [`Scene::node_path`]).
+    pub fn node_path(&self, id: NodeId) -> String {
+        self.scene.node_path(id)
+    }
+
+    /// Whether a part added earlier has a valid world transform (see
+    /// [`Scene::is_valid_world`]).
+    pub fn part_world_is_valid(&self, id: PartId) -> bool {
+        self.scene.is_valid_world(id, &self.scene.part_world(id))
     }
 
     /// Chunks and adds a mesh (see [`chunk_mesh`]).

@@ -238,6 +238,8 @@ fn gltf_validator_suite() {
         return;
     };
     let (mut clean, mut with_errors, mut refused, mut no_data) = (0, 0, 0, 0);
+    let export_dir = tempfile::tempdir().unwrap();
+    let mut exported = 0;
     for file in walk(&data.join("gltf-validator")) {
         let report_path = file.with_file_name(format!(
             "{}.report.json",
@@ -247,6 +249,28 @@ fn gltf_validator_suite() {
             serde_json::from_slice(&std::fs::read(&report_path).unwrap()).unwrap();
         let errors = report["issues"]["numErrors"].as_u64().unwrap();
         let result = import(&file);
+        if let Ok(scene) = &result {
+            // Whatever imports exports a glTF that imports again, the same.
+            let out = export_dir.path().join("round.glb");
+            export_gltf(scene, &out)
+                .unwrap_or_else(|e| panic!("{}: export failed: {e:#}", file.display()));
+            let back = import(&out).unwrap_or_else(|e| {
+                panic!("{}: its export does not re-import: {e:#}", file.display())
+            });
+            assert_eq!(
+                back.triangle_count(),
+                scene.triangle_count(),
+                "{}",
+                file.display()
+            );
+            assert_eq!(
+                back.parts().len(),
+                scene.parts().len(),
+                "{}",
+                file.display()
+            );
+            exported += 1;
+        }
         if errors == 0 {
             clean += 1;
             match &result {
@@ -267,7 +291,7 @@ fn gltf_validator_suite() {
         }
     }
     eprintln!(
-        "validator suite: {clean} clean files ({no_data} of them without buffer data, refused); {refused} of {with_errors} files with errors refused"
+        "validator suite: {clean} clean files ({no_data} of them without buffer data, refused); {refused} of {with_errors} files with errors refused; {exported} exported and re-imported"
     );
     assert!(
         no_data <= 2,

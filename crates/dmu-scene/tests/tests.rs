@@ -3,6 +3,5 @@ mod fuzz_gltf_import;
 #[path = "../../../fuzz/replay.rs"]
 mod fuzz_replay;
 mod import;
-mod plant;
 mod real_models;
 mod support;

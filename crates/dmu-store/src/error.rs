@@ -9,7 +9,7 @@ use std::path::PathBuf;
 pub enum StoreError {
     /// Reading, writing, syncing or renaming failed; a store being written is
     /// left as it was before (writes go to a temporary file renamed at the end).
-    #[error("cannot access {}: {source}", path.display())]
+    #[error("cannot access {}", path.display())]
     Io {
         /// The path.
         path: PathBuf,
@@ -81,13 +81,31 @@ pub enum StoreError {
         what: String,
     },
     /// The glTF input of an import is unreadable.
-    #[error("importing {}: {source}", path.display())]
+    #[error("importing {}", path.display())]
     Import {
         /// The glTF file.
         path: PathBuf,
         /// The cause.
         #[source]
         source: dmu_scene::ImportError,
+    },
+    /// Writing glTF failed.
+    #[error("writing {}", path.display())]
+    Export {
+        /// The output file.
+        path: PathBuf,
+        /// The cause.
+        #[source]
+        source: dmu_scene::ExportError,
+    },
+    /// An output whose extension names no format dmu writes.
+    #[error(
+        "{}: unknown output format (the extension picks it: .dmu for a store, .glb or .gltf for glTF)",
+        path.display()
+    )]
+    UnknownOutputFormat {
+        /// The output file.
+        path: PathBuf,
     },
     /// Saving edits: the scene's structure differs from the store's (only
     /// transforms and visibility may change).
@@ -98,4 +116,42 @@ pub enum StoreError {
         /// The first difference found.
         what: String,
     },
+}
+
+/// A residency manager's accounting is off, found by
+/// [`Residency::validate`](crate::Residency::validate): a bug in the manager.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+#[error("{what}")]
+pub struct ResidencyError {
+    /// What disagrees, where (e.g. "chunk 7: state Loading disagrees with its geometry").
+    pub what: String,
+}
+
+/// Errors of a walk through a store ([`walk`](crate::walk),
+/// [`walk_with`](crate::walk_with)).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum WalkError {
+    /// A frame of the path is not a camera (eye on the target, up along the
+    /// view, a field of view out of range).
+    #[error("frame {frame} is not a camera: {camera}")]
+    NotACamera {
+        /// The frame's index.
+        frame: usize,
+        /// The frame as given (`Debug`).
+        camera: String,
+    },
+    /// The caller's `draw` failed on a frame.
+    #[error("frame {frame}: {source}")]
+    Draw {
+        /// The frame's index.
+        frame: usize,
+        /// What `draw` returned.
+        #[source]
+        source: crate::walk::DrawError,
+    },
+    /// The residency manager's accounting was off at the end of the walk.
+    #[error(transparent)]
+    Residency(#[from] ResidencyError),
 }

@@ -141,8 +141,11 @@ fn describe(bytes: &[u8]) -> String {
 
 /// Checks the header and the table of contents of `bytes` (a whole file) and
 /// returns the layout; every offset and length is validated before use.
-pub(crate) fn parse(bytes: &[u8], path: &Path) -> Result<Layout, StoreError> {
-    let len = bytes.len() as u64;
+pub(crate) fn parse(file: &impl ReadAt, path: &Path) -> Result<Layout, StoreError> {
+    let len = file.len().map_err(|source| io_error(path, source))?;
+    let bytes = &file
+        .read_at_most(0, HEADER_LEN)
+        .map_err(|source| io_error(path, source))?[..];
     let corrupt = |what: String| StoreError::Corrupt {
         path: path.to_owned(),
         what,
@@ -229,7 +232,9 @@ pub(crate) fn parse(bytes: &[u8], path: &Path) -> Result<Layout, StoreError> {
             header.toc_offset
         )));
     }
-    let toc_bytes = &bytes[header.toc_offset as usize..];
+    let toc_bytes = &file
+        .read_exact_at(header.toc_offset, toc_end - header.toc_offset)
+        .map_err(|source| read_error(path, source, "the table of contents", toc_end, len))?[..];
     let computed = xxh3_64(toc_bytes);
     if computed != header.toc_checksum {
         return Err(StoreError::Checksum {
@@ -299,29 +304,101 @@ fn validate_entries(entries: &[TocEntry], toc_offset: u64) -> Result<Layout, Str
     })
 }
 
-/// A segment's bytes (payload only) after checking its checksum.
-pub(crate) fn verified<'a>(
-    bytes: &'a [u8],
+/// A segment's bytes (payload only), read from the file and checked against
+/// its checksum. Read, not mapped: a file truncated or rewritten by another
+/// process gives an error here, never a `SIGBUS`.
+pub(crate) fn verified(
+    file: &impl ReadAt,
     entry: &TocEntry,
     name: impl FnOnce() -> String,
     path: &Path,
-) -> Result<&'a [u8], StoreError> {
-    // The layout was validated, so the ranges are inside the file.
-    let start = entry.offset as usize;
-    let padded = &bytes[start..start + entry.padded_len() as usize];
-    let computed = xxh3_64(padded);
+) -> Result<Vec<u8>, StoreError> {
+    let end = entry.offset + entry.padded_len();
+    let segment = name();
+    let mut padded = file
+        .read_exact_at(entry.offset, entry.padded_len())
+        .map_err(|source| {
+            let actual = file.len().unwrap_or(0);
+            read_error(path, source, &segment, end, actual)
+        })?;
+    let computed = xxh3_64(&padded);
     if computed != entry.checksum {
         return Err(StoreError::Checksum {
             path: path.to_owned(),
-            segment: name(),
+            segment,
             stored: entry.checksum,
             computed,
         });
     }
-    Ok(&padded[..entry.length as usize])
+    padded.truncate(entry.length as usize);
+    Ok(padded)
 }
 
-/// A segment's payload without checking (it was checked before).
-pub(crate) fn payload<'a>(bytes: &'a [u8], entry: &TocEntry) -> &'a [u8] {
-    &bytes[entry.offset as usize..(entry.offset + entry.length) as usize]
+/// Positioned reads of a file (`pread`), so concurrent readers share one handle.
+pub(crate) trait ReadAt {
+    /// The file's current length.
+    fn len(&self) -> std::io::Result<u64>;
+    /// Exactly `len` bytes at `offset`; `UnexpectedEof` when the file is shorter.
+    fn read_exact_at(&self, offset: u64, len: u64) -> std::io::Result<Vec<u8>>;
+    /// Up to `len` bytes at `offset` (fewer at the end of the file).
+    fn read_at_most(&self, offset: u64, len: u64) -> std::io::Result<Vec<u8>>;
+}
+
+impl ReadAt for std::fs::File {
+    fn len(&self) -> std::io::Result<u64> {
+        Ok(self.metadata()?.len())
+    }
+
+    fn read_exact_at(&self, offset: u64, len: u64) -> std::io::Result<Vec<u8>> {
+        let mut buf = vec![0; usize::try_from(len).map_err(std::io::Error::other)?];
+        std::os::unix::fs::FileExt::read_exact_at(self, &mut buf, offset)?;
+        Ok(buf)
+    }
+
+    fn read_at_most(&self, offset: u64, len: u64) -> std::io::Result<Vec<u8>> {
+        let mut buf = vec![0; usize::try_from(len).map_err(std::io::Error::other)?];
+        let mut filled = 0;
+        while filled < buf.len() {
+            match std::os::unix::fs::FileExt::read_at(
+                self,
+                &mut buf[filled..],
+                offset + filled as u64,
+            ) {
+                Ok(0) => break,
+                Ok(n) => filled += n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(e),
+            }
+        }
+        buf.truncate(filled);
+        Ok(buf)
+    }
+}
+
+fn io_error(path: &Path, source: std::io::Error) -> StoreError {
+    StoreError::Io {
+        path: path.to_owned(),
+        source,
+    }
+}
+
+/// A failed read of `what`, which ends at byte `end`: a file that became shorter
+/// than its table of contents says (truncated while open) is `Truncated`.
+fn read_error(
+    path: &Path,
+    source: std::io::Error,
+    what: &str,
+    end: u64,
+    actual: u64,
+) -> StoreError {
+    if source.kind() == std::io::ErrorKind::UnexpectedEof {
+        StoreError::Truncated {
+            path: path.to_owned(),
+            what: what.to_owned(),
+            expected: end,
+            actual,
+        }
+    } else {
+        io_error(path, source)
+    }
 }

@@ -34,7 +34,7 @@
 //!
 //! ```
 //! use std::sync::Arc;
-//! use dmu_scene::samples::grid;
+//! use dmu_samples::grid;
 //! use dmu_store::{Store, WriteOptions, write_scene};
 //!
 //! let dir = tempfile::tempdir().unwrap();
@@ -67,7 +67,7 @@ mod view;
 mod walk;
 mod write;
 
-pub use error::StoreError;
+pub use error::{ResidencyError, StoreError, WalkError};
 pub use format::FORMAT_VERSION;
 pub use geometry::ChunkGeometry;
 pub use import::{ImportOptions, ImportSummary, import_gltf};
@@ -75,7 +75,9 @@ pub use prefetch::{PrefetchOptions, Prefetcher};
 pub use priority::{Class, LoadOrder, Request};
 pub use read::{Store, StoreInfo};
 pub use residency::{Pacing, Residency, ResidencyOptions, ResidencyStats};
-pub use save::{prepare_save, save_edits};
+pub use save::{SavedFormat, prepare_save, save_edits, save_scene};
 pub use view::{CameraFrame, View, Viewport, Wanted, wanted};
-pub use walk::{Drawn, FrameReport, WalkOptions, WalkReport, WalkTotals, walk, walk_with};
+pub use walk::{
+    DrawError, Drawn, FrameReport, WalkOptions, WalkReport, WalkTotals, walk, walk_with,
+};
 pub use write::{PendingStore, StoreSummary, StoreWriter, WriteOptions, write_scene};

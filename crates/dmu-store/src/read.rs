@@ -1,13 +1,10 @@
-//! Reading a store: the file is memory-mapped; the header, the table of contents
-//! and the skeleton are checked at open, each chunk's geometry segment when
-//! first touched.
+//! Reading a store: the header, the table of contents and the skeleton are read
+//! and checked at open, each chunk's geometry segment whenever it is read.
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
 
 use dmu_scene::{ChunkId, Scene};
-use memmap2::Mmap;
 
 use crate::error::StoreError;
 use crate::format::{self, FORMAT_VERSION, Layout, TocEntry};
@@ -16,17 +13,21 @@ use crate::skeleton;
 
 /// An open store: the skeleton in memory, geometry on disk until asked for.
 ///
-/// The file is mapped, not read: geometry costs memory only while a chunk is
-/// decoded. Stores are never modified in place (writes go to a new file that is
-/// renamed over the old one), so the mapping stays valid; an open store keeps
+/// Geometry is read with positioned reads (`pread`) when a chunk is asked for,
+/// so it costs memory only while decoded. The file is not memory-mapped: a store
+/// truncated or rewritten by another process while open gives a `Truncated` or
+/// `Checksum` error naming the segment, where a mapping would end the process
+/// with `SIGBUS`. Every read is checked against its segment's checksum (xxh3,
+/// far faster than the decode that follows). Stores are never modified in place
+/// (writes go to a new file renamed over the old one), so an open store keeps
 /// reading the file it opened even after a save replaced it.
 #[derive(Debug)]
 pub struct Store {
     path: PathBuf,
-    map: Mmap,
+    file: File,
+    /// The file's length when opened (the layout tiles exactly this many bytes).
+    file_bytes: u64,
     layout: Layout,
-    /// Per chunk: its segment's checksum has been verified.
-    verified: Vec<AtomicBool>,
     skeleton: Scene,
 }
 
@@ -47,16 +48,6 @@ pub struct StoreInfo {
     pub skeleton_bytes: u64,
 }
 
-#[expect(
-    unsafe_code,
-    reason = "memmap2 cannot promise the file is not changed while mapped; stores \
-              are only ever replaced by rename, never written in place"
-)]
-fn map_file(file: &File) -> std::io::Result<Mmap> {
-    // SAFETY: see the reason above.
-    unsafe { Mmap::map(file) }
-}
-
 impl Store {
     /// Opens a store, checking its header, table of contents and skeleton.
     pub fn open(path: &Path) -> Result<Store, StoreError> {
@@ -65,14 +56,14 @@ impl Store {
             source,
         };
         let file = File::open(path).map_err(io)?;
-        let map = map_file(&file).map_err(io)?;
-        let layout = format::parse(&map, path)?;
-        let bytes = format::verified(&map, &layout.skeleton, || "the skeleton".into(), path)?;
+        let layout = format::parse(&file, path)?;
+        let file_bytes = format::ReadAt::len(&file).map_err(io)?;
+        let bytes = format::verified(&file, &layout.skeleton, || "the skeleton".into(), path)?;
         let corrupt = |what: String| StoreError::Corrupt {
             path: path.to_owned(),
             what,
         };
-        let skeleton = skeleton::decode(bytes).map_err(corrupt)?;
+        let skeleton = skeleton::decode(&bytes).map_err(corrupt)?;
         if skeleton.chunks().len() != layout.chunks.len() {
             return Err(corrupt(format!(
                 "the skeleton has {} chunks, the table of contents {}",
@@ -80,14 +71,11 @@ impl Store {
                 layout.chunks.len()
             )));
         }
-        let verified = (0..layout.chunks.len())
-            .map(|_| AtomicBool::new(false))
-            .collect();
         Ok(Store {
             path: path.to_owned(),
-            map,
+            file,
+            file_bytes,
             layout,
-            verified,
             skeleton,
         })
     }
@@ -108,7 +96,7 @@ impl Store {
         let chunks = &self.layout.chunks;
         StoreInfo {
             version: FORMAT_VERSION,
-            file_bytes: self.map.len() as u64,
+            file_bytes: self.file_bytes,
             chunks: chunks.len() as u64,
             geometry_file_bytes: chunks.iter().map(TocEntry::padded_len).sum(),
             geometry_resident_bytes: (0..chunks.len())
@@ -132,25 +120,15 @@ impl Store {
         )
     }
 
-    /// Reads and decodes a chunk's geometry, verifying its segment's checksum the
-    /// first time.
+    /// Reads and decodes a chunk's geometry, verifying its segment's checksum.
     ///
     /// # Panics
     /// When `chunk` is not a chunk of this store.
     pub fn chunk_geometry(&self, chunk: ChunkId) -> Result<ChunkGeometry, StoreError> {
-        let entry = &self.layout.chunks[chunk.index()];
-        let verified = &self.verified[chunk.index()];
-        let bytes = if verified.load(Ordering::Acquire) {
-            format::payload(&self.map, entry)
-        } else {
-            let bytes =
-                format::verified(&self.map, entry, || format!("chunk {chunk}"), &self.path)?;
-            verified.store(true, Ordering::Release);
-            bytes
-        };
+        let bytes = self.chunk_segment(chunk)?;
         let c = self.skeleton.chunk(chunk);
         geometry::decode(
-            bytes,
+            &bytes,
             c.vertices.end - c.vertices.start,
             c.triangle_count(),
             &c.bounds,
@@ -162,11 +140,9 @@ impl Store {
     }
 
     /// A chunk's encoded segment, verified (for copying into a new store).
-    pub(crate) fn chunk_segment(&self, chunk: ChunkId) -> Result<&[u8], StoreError> {
+    pub(crate) fn chunk_segment(&self, chunk: ChunkId) -> Result<Vec<u8>, StoreError> {
         let entry = &self.layout.chunks[chunk.index()];
-        let bytes = format::verified(&self.map, entry, || format!("chunk {chunk}"), &self.path)?;
-        self.verified[chunk.index()].store(true, Ordering::Release);
-        Ok(bytes)
+        format::verified(&self.file, entry, || format!("chunk {chunk}"), &self.path)
     }
 
     /// The whole scene with its geometry (every segment verified and decoded, in

@@ -22,6 +22,7 @@ use std::thread::JoinHandle;
 
 use dmu_scene::ChunkId;
 
+use crate::error::ResidencyError;
 use crate::geometry::ChunkGeometry;
 use crate::priority::{LoadOrder, Request};
 use crate::read::Store;
@@ -331,7 +332,13 @@ impl Residency {
 
     /// Checks the accounting: resident bytes and the LRU set match the resident
     /// chunks, and resident plus reserved bytes are within the budget.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), ResidencyError> {
+        self.check_accounting()
+            .map_err(|what| ResidencyError { what })
+    }
+
+    /// [`Residency::validate`]'s checks, failing with what is wrong.
+    fn check_accounting(&self) -> Result<(), String> {
         let st = lock(&self.shared.state);
         let store = &self.shared.store;
         let mut bytes = 0;

@@ -16,6 +16,7 @@ use std::time::{Duration, Instant};
 use dmu_scene::ChunkId;
 use dmu_tree::Tree;
 
+use crate::error::WalkError;
 use crate::geometry::ChunkGeometry;
 use crate::prefetch::{PrefetchOptions, Prefetcher};
 use crate::priority::{Class, LoadOrder, Request};
@@ -141,7 +142,7 @@ pub fn walk(
     tree: &Tree,
     path: &[CameraFrame],
     options: &WalkOptions,
-) -> Result<WalkReport, String> {
+) -> Result<WalkReport, WalkError> {
     walk_with(store, tree, path, options, &mut |_, set, residency| {
         // Nothing else holds copies of evicted geometry.
         residency.take_evicted();
@@ -157,6 +158,10 @@ pub fn walk(
     })
 }
 
+/// Why a frame could not be drawn, as [`walk_with`]'s `draw` reports it
+/// (any error type converts with `?`).
+pub type DrawError = Box<dyn std::error::Error + Send + Sync>;
+
 /// [`walk`] with another way of drawing a frame, e.g. a renderer whose
 /// occlusion culling decides what is drawn: `draw` gets the frame's index, the
 /// chunks frustum and coverage culling want, and the manager (whose
@@ -167,8 +172,8 @@ pub fn walk_with(
     tree: &Tree,
     path: &[CameraFrame],
     options: &WalkOptions,
-    draw: &mut dyn FnMut(usize, &Wanted, &Residency) -> Result<Drawn, String>,
-) -> Result<WalkReport, String> {
+    draw: &mut dyn FnMut(usize, &Wanted, &Residency) -> Result<Drawn, DrawError>,
+) -> Result<WalkReport, WalkError> {
     let start = Instant::now();
     let scene = store.skeleton();
     let residency = Residency::new(
@@ -196,8 +201,10 @@ pub fn walk_with(
     let mut loaded_before = 0;
     for (i, frame) in path.iter().enumerate() {
         let frame_start = Instant::now();
-        let view = View::new(frame, options.viewport)
-            .ok_or_else(|| format!("frame {i} is not a camera: {frame:?}"))?;
+        let view = View::new(frame, options.viewport).ok_or_else(|| WalkError::NotACamera {
+            frame: i,
+            camera: format!("{frame:?}"),
+        })?;
         wanted(tree, scene, &view, options.min_pixels, false, &mut set);
         requests.clear();
         requests.extend(set.drawn.iter().map(|&(chunk, area_px)| Request {
@@ -232,7 +239,8 @@ pub fn walk_with(
         residency.request(&requests);
 
         // Draw: what is resident is used (pinned) until the frame ends.
-        let drawn = draw(i, &set, &residency)?;
+        let drawn =
+            draw(i, &set, &residency).map_err(|source| WalkError::Draw { frame: i, source })?;
         let wanted_bytes = set
             .drawn
             .iter()

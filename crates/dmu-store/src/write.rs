@@ -2,14 +2,13 @@
 //! synced and only then renamed over it, so a crash at any point leaves the
 //! previous file (if any) whole and readable.
 
-use std::fs::{File, OpenOptions};
+use std::fs::File;
 use std::io::{BufWriter, Seek as _, SeekFrom, Write as _};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use dmu_geom::Aabb3f;
-use dmu_scene::{ChunkedMesh, Scene};
+use dmu_scene::{AtomicFile, ChunkedMesh, Scene};
 use glam::Vec3;
 use xxhash_rust::xxh3::Xxh3;
 
@@ -52,28 +51,12 @@ struct MeshArrays<'a> {
     indices: &'a [u32],
 }
 
-/// A temporary file that is removed when dropped, unless renamed into place.
-#[derive(Debug)]
-struct TempFile {
-    path: PathBuf,
-    keep: bool,
-}
-
-impl Drop for TempFile {
-    fn drop(&mut self) {
-        if !self.keep {
-            // Best effort: the file is a leftover either way.
-            let _ = std::fs::remove_file(&self.path);
-        }
-    }
-}
-
 /// Writes a store segment by segment: chunk geometry as it is produced (and can
 /// be dropped), then the skeleton and the table of contents.
 #[derive(Debug)]
 pub struct StoreWriter {
     target: PathBuf,
-    temp: TempFile,
+    temp: AtomicFile,
     file: BufWriter<File>,
     offset: u64,
     toc: Vec<TocEntry>,
@@ -87,41 +70,19 @@ pub struct StoreWriter {
 /// renames it into place; dropping it removes it, leaving the target as it was.
 #[derive(Debug)]
 pub struct PendingStore {
-    target: PathBuf,
-    temp: TempFile,
+    temp: AtomicFile,
     summary: StoreSummary,
 }
 
 impl StoreWriter {
     /// Starts a store that will replace `path` when committed.
     pub fn create(path: &Path, options: WriteOptions) -> Result<Self, StoreError> {
-        static COUNTER: AtomicU64 = AtomicU64::new(0);
-        let name = path.file_name().ok_or_else(|| StoreError::Io {
-            path: path.to_owned(),
-            source: std::io::Error::other("the path has no file name"),
-        })?;
-        let mut temp_name = std::ffi::OsString::from(".");
-        temp_name.push(name);
-        temp_name.push(format!(
-            ".tmp{}-{}",
-            std::process::id(),
-            COUNTER.fetch_add(1, Ordering::Relaxed)
-        ));
-        let temp_path = path.with_file_name(temp_name);
-        remove_stale_temps(path);
         let io = |source| StoreError::Io {
-            path: temp_path.clone(),
+            path: path.to_owned(),
             source,
         };
-        let file = OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .open(&temp_path)
-            .map_err(io)?;
-        let temp = TempFile {
-            path: temp_path.clone(),
-            keep: false,
-        };
+        let mut temp = AtomicFile::create(path).map_err(io)?;
+        let file = temp.file().try_clone().map_err(io)?;
         let mut file = BufWriter::with_capacity(1 << 20, file);
         // The header is written last, when the table's place is known.
         file.write_all(&[0; HEADER_LEN as usize]).map_err(io)?;
@@ -139,7 +100,7 @@ impl StoreWriter {
 
     fn io(&self, source: std::io::Error) -> StoreError {
         StoreError::Io {
-            path: self.temp.path.clone(),
+            path: self.temp.temp_path().to_owned(),
             source,
         }
     }
@@ -265,7 +226,6 @@ impl StoreWriter {
         self.summary.path = self.target.clone();
         self.summary.file_bytes = toc_offset + std::mem::size_of_val(toc.as_slice()) as u64;
         Ok(PendingStore {
-            target: self.target,
             temp: self.temp,
             summary: self.summary,
         })
@@ -275,61 +235,18 @@ impl StoreWriter {
 impl PendingStore {
     /// The temporary file holding the finished store.
     pub fn temp_path(&self) -> &Path {
-        &self.temp.path
+        self.temp.temp_path()
     }
 
     /// Renames the store into place (atomic on one file system) and syncs the
     /// directory so the rename survives a power cut.
-    pub fn commit(mut self) -> Result<StoreSummary, StoreError> {
-        let io = |source| StoreError::Io {
-            path: self.target.clone(),
+    pub fn commit(self) -> Result<StoreSummary, StoreError> {
+        let target = self.temp.target().to_owned();
+        self.temp.commit().map_err(|source| StoreError::Io {
+            path: target,
             source,
-        };
-        std::fs::rename(&self.temp.path, &self.target).map_err(io)?;
-        self.temp.keep = true;
-        let dir = match self.target.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        // Directories cannot be opened for syncing everywhere; the rename itself
-        // has happened, so a failure here only weakens durability.
-        if let Ok(d) = File::open(dir) {
-            let _ = d.sync_all();
-        }
+        })?;
         Ok(self.summary)
-    }
-}
-
-/// Removes temporary files left beside `path` by writers that died mid-write
-/// (`.NAME.tmpPID-N` of a process that no longer runs), so killed saves do not
-/// pile up copies of a large store. Only where `/proc` tells which processes
-/// run; elsewhere nothing is removed.
-fn remove_stale_temps(path: &Path) {
-    let (Some(name), true) = (path.file_name(), Path::new("/proc/self").exists()) else {
-        return;
-    };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let prefix = format!(".{}.tmp", name.to_string_lossy());
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return;
-    };
-    for entry in entries.flatten() {
-        let file_name = entry.file_name();
-        let pid = file_name
-            .to_string_lossy()
-            .strip_prefix(&prefix)
-            .and_then(|rest| rest.split_once('-'))
-            .and_then(|(pid, _)| pid.parse::<u32>().ok());
-        if let Some(pid) = pid
-            && pid != std::process::id()
-            && !Path::new(&format!("/proc/{pid}")).exists()
-        {
-            // Best effort: a file that cannot be removed stays a leftover.
-            let _ = std::fs::remove_file(entry.path());
-        }
     }
 }
 

@@ -18,7 +18,7 @@ fn read_all(path: &Path) -> Result<(), StoreError> {
 }
 
 fn small_store() -> (tempfile::TempDir, std::path::PathBuf, Vec<u8>) {
-    let scene = dmu_scene::samples::grid(3, 10.0, 4.0, 8);
+    let scene = dmu_samples::grid(3, 10.0, 4.0, 8);
     let (dir, path) = stored(&scene, WriteOptions::default());
     let bytes = std::fs::read(&path).unwrap();
     (dir, path, bytes)
@@ -97,7 +97,7 @@ fn other_versions_and_other_files_are_named() {
     ));
     // A glTF file given as a store.
     let glb = dir.path().join("grid.glb");
-    dmu_scene::export_gltf(&dmu_scene::samples::grid(2, 10.0, 4.0, 8), &glb).unwrap();
+    dmu_scene::export_gltf(&dmu_samples::grid(2, 10.0, 4.0, 8), &glb).unwrap();
     let msg = Store::open(&glb).unwrap_err().to_string();
     assert!(
         msg.contains("not a dmu store") && msg.contains("dmu import"),
@@ -214,4 +214,42 @@ fn killing_a_save_leaves_a_readable_file() {
         .map(|e| e.unwrap().file_name())
         .collect();
     assert_eq!(names, ["model.dmu"], "leftovers after a save");
+}
+
+/// Another process truncating or rewriting a store in place while it is open
+/// (the store was memory-mapped, and this ended the reader with `SIGBUS`): every
+/// read after it is an error naming the file and the segment, or the same
+/// geometry, never a signal.
+#[test]
+fn issue_20_a_store_changed_while_open_gives_errors_not_signals() {
+    let (_dir, path, bytes) = small_store();
+    let store = Store::open(&path).unwrap();
+    let whole = store.load_scene().unwrap();
+    let chunks = whole.chunks().len();
+    // Truncated in place (the same inode, as `truncate -s` does) into the first
+    // geometry segment: the segments follow the 64-byte header.
+    let file = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+    file.set_len(80).unwrap();
+    let mut truncated = 0;
+    for c in 0..chunks {
+        let id = dmu_scene::ChunkId::from_index(c);
+        match store.chunk_geometry(id) {
+            Ok(g) => assert_eq!(g.positions.len(), whole.chunk(id).vertices.len()),
+            Err(e @ StoreError::Truncated { .. }) => {
+                let msg = e.to_string();
+                assert!(msg.contains("model.dmu") && msg.contains("chunk"), "{msg}");
+                truncated += 1;
+            }
+            Err(e) => panic!("chunk {c}: {e}"),
+        }
+    }
+    assert_eq!(truncated, chunks, "every segment is past the end now");
+    // Rewritten in place with other bytes: checksums catch it.
+    let mut flipped = bytes.clone();
+    for b in &mut flipped[64..bytes.len() - 64] {
+        *b ^= 0x5a;
+    }
+    std::fs::write(&path, &flipped).unwrap();
+    let err = store.load_scene().expect_err("every segment changed");
+    assert!(matches!(err, StoreError::Checksum { .. }), "{err}");
 }

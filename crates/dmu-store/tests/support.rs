@@ -3,8 +3,8 @@
 
 use std::path::PathBuf;
 
+use dmu_samples::{PlantOptions, plant};
 use dmu_scene::Scene;
-use dmu_scene::samples::{PlantOptions, plant};
 use dmu_store::{WriteOptions, write_scene};
 
 /// A small plant (about `triangles`), far from the origin as real plants are.
@@ -46,16 +46,27 @@ pub fn assert_same_scene(a: &Scene, b: &Scene) {
     assert_eq!(a.meshes(), b.meshes(), "geometry");
 }
 
-/// `../shared/data` from the workspace root, or `None` (and a note) when absent,
-/// as in a user's clone.
+/// `../shared/data` from the workspace root, or `None` after [`skip`] when
+/// absent, as in a user's clone.
 pub fn shared_data(test: &str) -> Option<PathBuf> {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
     if dir.is_dir() {
         Some(dir)
     } else {
-        eprintln!(
-            "SKIPPED {test}: ../shared/data is absent (it exists beside the project checkout in CI)"
+        skip(
+            test,
+            "../shared/data is absent (it exists beside the project checkout in CI)",
         );
         None
     }
+}
+
+/// Ends a test whose prerequisite is missing: under `CI=true` (where the
+/// prerequisites are installed) it fails with `reason`; elsewhere it prints
+/// `SKIPPED <test>: <reason>` and the test returns.
+pub fn skip(test: &str, reason: &str) {
+    if std::env::var("CI").as_deref() == Ok("true") {
+        panic!("{test}: {reason} (CI=true: a missing prerequisite is a failure)");
+    }
+    eprintln!("SKIPPED {test}: {reason}");
 }

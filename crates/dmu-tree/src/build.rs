@@ -51,10 +51,12 @@ impl Tree {
             bvhs: ChunkBvhCache::new(scene.chunks().len()),
             stats: UpdateStats::default(),
             search_scratch: Vec::new(),
+            log: crate::changes::ChangeLog::new(),
         };
         let mut ids: Vec<u32> = (0..tree.entries.len() as u32).collect();
         let built = build_range(&tree.entries, &mut ids, &options);
         tree.root = tree.flatten(built, NONE);
+        tree.log.restart();
         tree
     }
 
@@ -68,6 +70,7 @@ impl Tree {
         self.cells.clear();
         self.free_cells.clear();
         self.root = self.flatten(built, NONE);
+        self.log.restart();
     }
 
     fn flatten(&mut self, built: Built, parent: u32) -> u32 {
@@ -94,7 +97,7 @@ impl Tree {
             parent,
             kind,
         };
-        match self.free_nodes.pop() {
+        let id = match self.free_nodes.pop() {
             Some(i) => {
                 self.nodes[i as usize] = node;
                 i
@@ -103,7 +106,9 @@ impl Tree {
                 self.nodes.push(node);
                 self.nodes.len() as u32 - 1
             }
-        }
+        };
+        self.touch_node(id);
+        id
     }
 
     pub(crate) fn free_node(&mut self, node: u32) {
@@ -113,6 +118,7 @@ impl Tree {
             kind: Kind::Free,
         };
         self.free_nodes.push(node);
+        self.touch_node(node);
     }
 
     /// A new cell at `node` holding `ids` (sorted here by part and chunk).
@@ -137,6 +143,7 @@ impl Tree {
             entries: ids,
             triangles,
         };
+        self.touch_cell(cell);
         cell
     }
 
@@ -147,6 +154,7 @@ impl Tree {
             triangles: 0,
         };
         self.free_cells.push(cell);
+        self.touch_cell(cell);
     }
 }
 

@@ -7,6 +7,9 @@
 //!   3.1.6), bounded by a triangle budget (Interviews3D: 1k-8k), so any triangle
 //!   found maps back to its part. Triangles are never split; child boxes may overlap.
 //! - Built top-down with binned SAH (areas weighted by triangles), in parallel.
+//! - Every move advances the tree's [`Revision`] and logs the nodes, cells
+//!   and entries it changed ([`Tree::changes_since`]), so a mirror of the tree
+//!   (the renderer's) updates in time proportional to the move.
 //! - `move_part` touches only the part's chunks: "better to update than to
 //!   rebuild" (Interviews3D). Chunks that leave their cell are re-inserted by
 //!   branch and bound on the SAH cost increase; cells split and merge to stay in
@@ -24,7 +27,7 @@
 //! use dmu_geom::{Ray3d, glam::{DAffine3, DVec3}};
 //! use dmu_tree::{Tree, TreeOptions};
 //!
-//! let mut scene = dmu_scene::samples::grid(3, 10.0, 4.0, 2048);
+//! let mut scene = dmu_samples::grid(3, 10.0, 4.0, 2048);
 //! let mut tree = Tree::build(&scene, TreeOptions::default());
 //! let ray = Ray3d::new(DVec3::new(0.0, 0.0, -100.0), DVec3::Z);
 //! let hit = tree.pick(&scene, &ray).unwrap();
@@ -39,6 +42,7 @@
 //! ```
 
 mod build;
+mod changes;
 mod chunk_bvh;
 mod overlap;
 mod query;
@@ -46,5 +50,7 @@ mod tree;
 mod update;
 mod validate;
 
+pub use changes::{Change, Changes, NodeId, NodeKind, Revision};
 pub use query::{FrustumNode, Hit, chunk_touches_box, triangle_box_overlap};
 pub use tree::{CellId, Entry, EntryId, Tree, TreeOptions, UpdateStats};
+pub use validate::InvariantError;

@@ -125,6 +125,8 @@ pub struct Tree {
     pub(crate) stats: UpdateStats,
     /// Reused by the insertion search, so a move allocates nothing for it.
     pub(crate) search_scratch: Vec<crate::update::Candidate>,
+    /// What moves changed, for mirrors of the tree.
+    pub(crate) log: crate::changes::ChangeLog,
 }
 
 impl Tree {

@@ -12,7 +12,8 @@ use dmu_scene::{PartId, Scene};
 use glam::DAffine3;
 
 use crate::build::{sah_partition, sort_key};
-use crate::tree::{Kind, NONE, Tree};
+use crate::changes::Change;
+use crate::tree::{EntryId, Kind, NONE, Tree};
 
 impl Tree {
     /// Sets a part's absolute world transform in the scene and updates the tree
@@ -32,6 +33,7 @@ impl Tree {
             let entry = &mut self.entries[e as usize];
             entry.bounds = scene.chunk(entry.chunk).bounds.transformed(&world);
             let (cell, bounds) = (entry.cell, entry.bounds);
+            self.log.push(Change::Entry(EntryId(e)));
             if self.nodes[self.cells[cell as usize].node as usize]
                 .bounds
                 .contains(&bounds)
@@ -41,6 +43,7 @@ impl Tree {
                 let c = &mut self.cells[cell as usize];
                 c.entries.retain(|&x| x != e);
                 c.triangles -= self.entries[e as usize].triangles;
+                self.touch_cell(cell);
                 reinsert.push((e, cell));
             }
             touched.push(cell);
@@ -63,6 +66,7 @@ impl Tree {
             paths.push(self.insert_entry(e, (node != NONE).then_some(node)));
         }
         self.rotate_paths(&paths);
+        self.log.commit();
         debug_assert_eq!(self.validate(), Ok(()));
     }
 
@@ -107,6 +111,7 @@ impl Tree {
         self.free_node(sibling);
         let merged = self.alloc_cell(parent, ids);
         self.nodes[parent as usize].kind = Kind::Leaf(merged);
+        self.touch_node(parent);
         self.refit_cell(merged);
         self.refit_up(self.nodes[parent as usize].parent);
         Some(parent)
@@ -144,6 +149,7 @@ impl Tree {
                 *slot = new;
             }
         }
+        self.touch_node(parent);
     }
 
     /// Inserts entry `e` into the cell where it raises the SAH cost least, splitting
@@ -162,6 +168,8 @@ impl Tree {
         c.entries.insert(at, e);
         c.triangles += entries[e as usize].triangles;
         self.entries[e as usize].cell = cell;
+        self.touch_cell(cell);
+        self.touch_node(leaf);
         let b = self.nodes[leaf as usize]
             .bounds
             .union(self.entries[e as usize].bounds);
@@ -280,6 +288,7 @@ impl Tree {
             *slot = child;
         }
         self.nodes[node as usize].kind = Kind::Internal(children);
+        self.touch_node(node);
         for child in children {
             if let Kind::Leaf(c) = self.nodes[child as usize].kind {
                 self.split_if_over(c);
@@ -293,7 +302,9 @@ impl Tree {
         let b = c.entries.iter().fold(Aabb3d::EMPTY, |b, &e| {
             b.union(self.entries[e as usize].bounds)
         });
-        self.nodes[c.node as usize].bounds = b;
+        let node = c.node;
+        self.nodes[node as usize].bounds = b;
+        self.touch_node(node);
     }
 
     /// Recomputes boxes from `node` up to the root, stopping where nothing changes.
@@ -309,6 +320,7 @@ impl Tree {
                 return;
             }
             self.nodes[node as usize].bounds = bounds;
+            self.touch_node(node);
             node = self.nodes[node as usize].parent;
         }
     }

@@ -7,11 +7,28 @@ use dmu_scene::Scene;
 use crate::build::sort_key;
 use crate::tree::{Kind, NONE, Tree};
 
+/// A broken invariant of a [`Tree`], found by [`Tree::validate`] or
+/// [`Tree::validate_against`]: a bug in the tree or a caller that moved a part
+/// without telling the tree.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+#[error("{what}")]
+pub struct InvariantError {
+    /// Which invariant, where (e.g. "entry 12 (part #3, chunk #40) is stale").
+    pub what: String,
+}
+
 impl Tree {
     /// Every entry in exactly one live cell that knows it; cells sorted by part and
     /// chunk with the right triangle counts; every node's box the exact union of
     /// its children or entries; parent links consistent; no free node reachable.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvariantError> {
+        self.check_structure()
+            .map_err(|what| InvariantError { what })
+    }
+
+    /// [`Tree::validate`]'s checks, failing with what is wrong.
+    fn check_structure(&self) -> Result<(), String> {
         let mut seen_entry = vec![false; self.entries.len()];
         let mut seen_cell = vec![false; self.cells.len()];
         let mut reached = 0usize;
@@ -112,14 +129,13 @@ impl Tree {
 
     /// Checks that every entry's box is its chunk's box under the part's current
     /// transform in `scene` (the tree is up to date with the scene).
-    pub fn validate_against(&self, scene: &Scene) -> Result<(), String> {
+    pub fn validate_against(&self, scene: &Scene) -> Result<(), InvariantError> {
         self.validate()?;
         for (i, e) in self.entries.iter().enumerate() {
             if e.bounds != scene.chunk_world_bounds(e.part, e.chunk) {
-                return Err(format!(
-                    "entry {i} (part {}, chunk {}) is stale",
-                    e.part, e.chunk
-                ));
+                return Err(InvariantError {
+                    what: format!("entry {i} (part {}, chunk {}) is stale", e.part, e.chunk),
+                });
             }
         }
         Ok(())

@@ -2,7 +2,7 @@
 //! vertices, axis-parallel, from inside; flat parts; far offsets; long sessions.
 
 use dmu_geom::{Aabb3d, Ray3d};
-use dmu_scene::samples::{Rng, grid};
+use dmu_samples::{Rng, grid};
 use dmu_scene::{MeshData, PartId, Scene, SceneBuilder};
 use dmu_tree::{Tree, TreeOptions};
 use glam::{DAffine3, DVec3, Vec3};

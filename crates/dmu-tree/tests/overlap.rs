@@ -2,7 +2,7 @@
 //! before and after random moves (which reshape the tree).
 
 use dmu_geom::Aabb3d;
-use dmu_scene::samples::Rng;
+use dmu_samples::Rng;
 use dmu_tree::{EntryId, Tree, TreeOptions};
 use glam::DVec3;
 use proptest::prelude::*;
@@ -35,7 +35,8 @@ proptest! {
             let world = random_transform(&mut rng, DVec3::new(1e7, -3e6, 0.0), 30.0);
             tree.move_part(&mut scene, part, world);
         }
-        tree.validate_against(&scene).map_err(TestCaseError::fail)?;
+        tree.validate_against(&scene)
+            .map_err(|e| TestCaseError::fail(e.to_string()))?;
         let bounds = scene.world_bounds();
         let mut out = Vec::new();
         for _ in 0..20 {
@@ -53,7 +54,7 @@ proptest! {
 
 #[test]
 fn touching_boxes_count_and_the_buffer_accumulates() {
-    let scene = dmu_scene::samples::grid(3, 10.0, 4.0, 2048);
+    let scene = dmu_samples::grid(3, 10.0, 4.0, 2048);
     let tree = Tree::build(&scene, TreeOptions::default());
     // The face x = 2 of box (0,0,0) touches this box; nothing else is near.
     let touching = Aabb3d::new(DVec3::new(2.0, -1.0, -1.0), DVec3::new(3.0, 1.0, 1.0));

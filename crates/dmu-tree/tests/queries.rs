@@ -1,8 +1,8 @@
 //! Queries against brute force on random scenes, before and after random moves.
 
 use dmu_geom::Aabb3d;
+use dmu_samples::Rng;
 use dmu_scene::Scene;
-use dmu_scene::samples::Rng;
 use dmu_tree::{Tree, TreeOptions};
 use glam::DVec3;
 use proptest::prelude::*;
@@ -88,7 +88,8 @@ proptest! {
     fn pick_and_box_equal_brute_force(seed in any::<u64>(), parts in 1usize..40) {
         let scene = random_scene(seed, parts, DVec3::ZERO);
         let tree = Tree::build(&scene, options());
-        tree.validate_against(&scene).map_err(TestCaseError::fail)?;
+        tree.validate_against(&scene)
+            .map_err(|e| TestCaseError::fail(e.to_string()))?;
         check_queries(&tree, &scene, &mut Rng::new(seed ^ 1), 40)?;
     }
 
@@ -101,7 +102,8 @@ proptest! {
             let part = dmu_scene::PartId(rng.below(parts as u64) as u32);
             let world = random_transform(&mut rng, DVec3::ZERO, 25.0);
             tree.move_part(&mut scene, part, world);
-            tree.validate_against(&scene).map_err(TestCaseError::fail)?;
+            tree.validate_against(&scene)
+            .map_err(|e| TestCaseError::fail(e.to_string()))?;
         }
         if rng.chance(0.5) {
             scene.set_part_hidden(dmu_scene::PartId(0), true);

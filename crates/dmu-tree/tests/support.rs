@@ -1,7 +1,7 @@
 //! Random scenes and brute-force oracles independent of the tree's own tests.
 
 use dmu_geom::{Aabb3d, Ray3d};
-use dmu_scene::samples::Rng;
+use dmu_samples::Rng;
 use dmu_scene::{MeshData, PartId, Scene, SceneBuilder};
 use glam::{DAffine3, DQuat, DVec3, Vec3};
 

@@ -1,3 +1,4 @@
+mod changes;
 mod hard_cases;
 mod overlap;
 mod queries;

@@ -2,7 +2,7 @@
 //! compressed with EXT_meshopt_compression.
 
 use std::borrow::Cow;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use base64::Engine as _;
 use gltf::json;
@@ -75,30 +75,110 @@ pub(super) fn load_buffers<'a>(
             let data: Cow<'a, [u8]> = match buffer.uri.as_deref() {
                 None if i == 0 && blob.is_some() => Cow::Borrowed(blob.unwrap_or_default()),
                 None if is_meshopt_fallback(buffer) => return Ok(Cow::Borrowed(&[][..])),
-                None => return Err(format!("buffers[{i}] has no data (no uri, and no GLB BIN chunk)")),
-                Some(uri) if uri.starts_with("data:") => {
-                    let (_, payload) = uri
-                        .split_once(";base64,")
-                        .ok_or_else(|| format!("buffers[{i}].uri is a data URI without base64"))?;
-                    Cow::Owned(
-                        base64::engine::general_purpose::STANDARD
-                            .decode(payload)
-                            .map_err(|e| format!("buffers[{i}].uri: bad base64: {e}"))?,
-                    )
+                None => {
+                    return Err(format!(
+                        "buffers[{i}] has no data (no uri, and no GLB BIN chunk)"
+                    ));
                 }
+                Some(uri) if uri.starts_with("data:") => Cow::Owned(decode_data_uri(i, uri)?),
                 Some(uri) => {
-                    let dir = base_dir
-                        .ok_or_else(|| format!("buffers[{i}] refers to file {uri:?} but the glTF was not read from a file"))?;
-                    let path = dir.join(percent_decode(uri));
-                    Cow::Owned(std::fs::read(&path).map_err(|e| format!("buffers[{i}]: cannot read {}: {e}", path.display()))?)
+                    let path = buffer_file(i, uri, base_dir, declared)?;
+                    Cow::Owned(read_prefix(&path, declared).map_err(|e| {
+                        format!("buffers[{i}]: cannot read {}: {e}", path.display())
+                    })?)
                 }
             };
             if data.len() < declared {
-                return Err(format!("buffers[{i}] declares {declared} bytes but holds {}", data.len()));
+                return Err(format!(
+                    "buffers[{i}] declares {declared} bytes but holds {}",
+                    data.len()
+                ));
             }
             Ok(data)
         })
         .collect()
+}
+
+/// A base64 data URI's bytes.
+pub(super) fn decode_data_uri(i: usize, uri: &str) -> Result<Vec<u8>, String> {
+    let (_, payload) = uri
+        .split_once(";base64,")
+        .ok_or_else(|| format!("buffers[{i}].uri is a data URI without base64"))?;
+    base64::engine::general_purpose::STANDARD
+        .decode(payload)
+        .map_err(|e| format!("buffers[{i}].uri: bad base64: {e}"))
+}
+
+/// The file a buffer's URI names, checked before anything is opened: a relative
+/// path that stays inside the model's folder (after `..` and symbolic links are
+/// resolved), naming a regular file (never a device, pipe or directory) of at
+/// least the `byteLength` the buffer declares. A glTF file must not make dmu
+/// read, or embed in what it writes, anything outside its own folder.
+pub(super) fn buffer_file(
+    i: usize,
+    uri: &str,
+    base_dir: Option<&Path>,
+    declared: usize,
+) -> Result<PathBuf, String> {
+    let dir = base_dir.ok_or_else(|| {
+        format!("buffers[{i}] refers to file {uri:?} but the glTF was not read from a file")
+    })?;
+    let decoded = percent_decode(uri);
+    let relative = Path::new(&decoded);
+    let outside = || {
+        format!(
+            "buffers[{i}].uri {uri:?} is outside the model's folder {} (dmu reads only files inside it)",
+            dir.display()
+        )
+    };
+    // A first segment with a colon is a scheme (`file:`, `http:`), not a file name
+    // (RFC 3986 4.2): dmu reads data URIs and relative file names only.
+    let scheme = uri
+        .split('/')
+        .next()
+        .is_some_and(|first| first.contains(':'));
+    if scheme || relative.is_absolute() {
+        return Err(outside());
+    }
+    let joined = dir.join(relative);
+    let folder = dir.canonicalize().map_err(|e| {
+        format!(
+            "buffers[{i}]: cannot resolve the folder {}: {e}",
+            dir.display()
+        )
+    })?;
+    let path = joined
+        .canonicalize()
+        .map_err(|e| format!("buffers[{i}]: cannot read {}: {e}", joined.display()))?;
+    if !path.starts_with(&folder) {
+        return Err(outside());
+    }
+    let meta = std::fs::metadata(&path)
+        .map_err(|e| format!("buffers[{i}]: cannot read {}: {e}", path.display()))?;
+    if !meta.is_file() {
+        return Err(format!(
+            "buffers[{i}].uri {uri:?} names {}, which is not a regular file",
+            path.display()
+        ));
+    }
+    if (meta.len() as usize) < declared {
+        return Err(format!(
+            "buffers[{i}] declares {declared} bytes but holds {}",
+            meta.len()
+        ));
+    }
+    Ok(path)
+}
+
+/// The first `len` bytes of a file: a buffer's declared length bounds what is
+/// read, however large the file is.
+fn read_prefix(path: &Path, len: usize) -> std::io::Result<Vec<u8>> {
+    use std::io::Read as _;
+    let mut bytes = Vec::with_capacity(len);
+    std::fs::File::open(path)?
+        .take(len as u64)
+        .read_to_end(&mut bytes)?;
+    Ok(bytes)
 }
 
 pub(super) fn is_meshopt_fallback(buffer: &json::Buffer) -> bool {
@@ -111,7 +191,7 @@ pub(super) fn is_meshopt_fallback(buffer: &json::Buffer) -> bool {
         .unwrap_or(false)
 }
 
-pub(super) fn percent_decode(uri: &str) -> String {
+fn percent_decode(uri: &str) -> String {
     let bytes = uri.as_bytes();
     let mut out = Vec::with_capacity(bytes.len());
     let mut i = 0;

@@ -454,8 +454,19 @@ fn add_nodes(
         });
         let id = builder.add_node(parent_id, name, world);
         ids[n] = Some(id);
+        let non_finite = |builder: &SceneBuilder, what| ImportError::NonFiniteWorld {
+            node: n,
+            path: builder.node_path(id),
+            what,
+        };
+        if !world.is_finite() {
+            return Err(non_finite(builder, "world transform"));
+        }
         if let Some(mesh) = mesh_index.and_then(|m| mesh_ids[m]) {
-            builder.add_part(id, mesh);
+            let part = builder.add_part(id, mesh);
+            if !builder.part_world_is_valid(part) {
+                return Err(non_finite(builder, "world box"));
+            }
         }
         Ok(())
     })

@@ -11,13 +11,12 @@ use std::fs::File;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-use base64::Engine as _;
 use gltf::json::{self, mesh::Mode, mesh::Semantic, validation::Checked};
 use memmap2::Mmap;
 use rayon::prelude::*;
 
 use super::accessor::Data;
-use super::buffers::{Bytes, is_meshopt_fallback, percent_decode, resolve_views};
+use super::buffers::{Bytes, buffer_file, decode_data_uri, is_meshopt_fallback, resolve_views};
 use super::{Document, ImportReport, decode_mesh};
 use crate::chunking::ChunkedMesh;
 use crate::error::ImportError;
@@ -147,8 +146,9 @@ fn map_file(file: &File) -> std::io::Result<Mmap> {
 enum Source {
     /// A byte range of the GLB file itself (its BIN chunk).
     Blob(Range<usize>),
-    /// A file next to the glTF, mapped per batch.
-    File(PathBuf),
+    /// A file next to the glTF, mapped per batch, and the length the buffer
+    /// declares (what is read of it).
+    File(PathBuf, usize),
     /// A data URI, decoded once.
     Owned(Vec<u8>),
     /// No bytes (an EXT_meshopt_compression fallback buffer).
@@ -186,37 +186,15 @@ fn buffer_sources(
                 None => Source::Missing(format!(
                     "buffers[{i}] has no data (no uri, and no GLB BIN chunk)"
                 )),
-                Some(uri) if uri.starts_with("data:") => {
-                    let decoded = uri
-                        .split_once(";base64,")
-                        .ok_or_else(|| format!("buffers[{i}].uri is a data URI without base64"))
-                        .and_then(|(_, payload)| {
-                            base64::engine::general_purpose::STANDARD
-                                .decode(payload)
-                                .map_err(|e| format!("buffers[{i}].uri: bad base64: {e}"))
-                        });
-                    match decoded {
-                        Ok(bytes) if bytes.len() < declared => short(bytes.len()),
-                        Ok(bytes) => Source::Owned(bytes),
-                        Err(e) => Source::Missing(e),
-                    }
-                }
-                Some(uri) => {
-                    let Some(dir) = base_dir else {
-                        return Source::Missing(format!(
-                            "buffers[{i}] refers to file {uri:?} but the glTF was not read from a file"
-                        ));
-                    };
-                    let path = dir.join(percent_decode(uri));
-                    match std::fs::metadata(&path) {
-                        Ok(m) if (m.len() as usize) < declared => short(m.len() as usize),
-                        Ok(_) => Source::File(path),
-                        Err(e) => Source::Missing(format!(
-                            "buffers[{i}]: cannot read {}: {e}",
-                            path.display()
-                        )),
-                    }
-                }
+                Some(uri) if uri.starts_with("data:") => match decode_data_uri(i, uri) {
+                    Ok(bytes) if bytes.len() < declared => short(bytes.len()),
+                    Ok(bytes) => Source::Owned(bytes),
+                    Err(e) => Source::Missing(e),
+                },
+                Some(uri) => match buffer_file(i, uri, base_dir, declared) {
+                    Ok(path) => Source::File(path, declared),
+                    Err(e) => Source::Missing(e),
+                },
             }
         })
         .collect()
@@ -229,7 +207,7 @@ fn map_sources(file: &File, sources: &[Source]) -> std::io::Result<Vec<Option<Mm
         .iter()
         .map(|s| match s {
             Source::Blob(_) => map_file(file).map(Some),
-            Source::File(path) => map_file(&File::open(path)?).map(Some),
+            Source::File(path, _) => map_file(&File::open(path)?).map(Some),
             _ => Ok(None),
         })
         .collect()
@@ -244,7 +222,10 @@ fn batch_buffers<'a>(sources: &'a [Source], maps: &'a [Option<Mmap>]) -> Vec<Byt
                 .get(range.clone())
                 .map(Cow::Borrowed)
                 .ok_or_else(|| "the GLB file changed while being imported".to_owned()),
-            (Source::File(_), Some(map)) => Ok(Cow::Borrowed(&map[..])),
+            (Source::File(_, declared), Some(map)) => map
+                .get(..*declared)
+                .map(Cow::Borrowed)
+                .ok_or_else(|| "a buffer file changed while being imported".to_owned()),
             (Source::Owned(bytes), _) => Ok(Cow::Borrowed(&bytes[..])),
             (Source::Missing(e), _) => Err(e.clone()),
             _ => Ok(Cow::Borrowed(&[][..])),

@@ -3,7 +3,7 @@
 
 use std::collections::HashSet;
 
-use dmu_scene::samples::{PlantOptions, plant};
+use dmu_samples::{PlantOptions, plant};
 use dmu_scene::{PartId, Scene};
 use glam::{DVec3, Vec3};
 

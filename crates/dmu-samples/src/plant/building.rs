@@ -17,7 +17,7 @@ use super::catalog::{
     pump_top, vessel_top,
 };
 use super::unit::{ALONG_Y, End, Route, System, UPRIGHT, UnitPlan, at, basis, place};
-use crate::samples::Rng;
+use crate::Rng;
 
 /// Distance from the plot's front (rack side) to the building's front wall.
 const FRONT: f64 = 14_000.0;

@@ -1,6 +1,8 @@
-//! What the dmu applications share: opening a model (a glTF file, a store or the
-//! built-in plant) from the same command-line arguments, parsing the numbers
-//! people type, and reporting pick hits.
+//! What the dmu applications (the `dmu` command line and the `dmu-viewer`
+//! window) share: opening a model (a glTF file, a store or the built-in plant)
+//! from the same command-line arguments, parsing the numbers people type,
+//! reporting pick hits and progress, and streaming a store's chunks into the
+//! renderer ([`resident::ResidentSource`]).
 //!
 //! Design choices:
 //! - The `dmu` command line and the `dmu-viewer` window open models through one
@@ -17,14 +19,16 @@
 //! #[derive(Parser)]
 //! struct Cli {
 //!     #[command(flatten)]
-//!     model: dmu::load::ModelArgs,
+//!     model: dmu_app::load::ModelArgs,
 //! }
 //! let cli = Cli::parse_from(["app", "--plant-triangles", "200k"]);
-//! let loaded = dmu::load::load(&cli.model)?;
+//! let loaded = dmu_app::load::load(&cli.model)?;
 //! assert!(loaded.scene.triangle_count() <= 200_000);
 //! # Ok::<(), anyhow::Error>(())
 //! ```
 
 pub mod hits;
 pub mod load;
+pub mod progress;
+pub mod resident;
 pub mod units;

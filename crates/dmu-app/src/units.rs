@@ -50,13 +50,46 @@ pub fn parse_bytes(s: &str) -> anyhow::Result<u64> {
     Ok(v.round() as u64)
 }
 
-/// The process's peak resident set size in bytes (Linux `VmHWM`), or `None`
-/// where the kernel does not report it.
-pub fn peak_rss_bytes() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024)
+/// The most triangles a generated or benchmarked model may have.
+pub const MAX_TRIANGLES: u64 = 1_000_000_000;
+/// The most steps, rays, moves or frames one command may run.
+pub const MAX_STEPS: u64 = 100_000_000;
+/// The most triangles per chunk.
+pub const MAX_CHUNK_TRIANGLES: u32 = 1 << 20;
+/// The largest distance, length or offset a flag takes, model units (1e12 mm
+/// is a million kilometres: past it f64 keeps less than a micrometre).
+pub const MAX_LENGTH: f64 = 1e12;
+
+/// A clap value parser for a count ([`parse_count`]: `10M`, `2.5k`) in
+/// `min..=max`, saying the range when refused.
+pub fn count_in(
+    min: u64,
+    max: u64,
+) -> impl Fn(&str) -> anyhow::Result<u64> + Clone + Send + Sync + 'static {
+    move |s| {
+        let v = parse_count(s)?;
+        if !(min..=max).contains(&v) {
+            bail!("{s:?} is out of range: give {min} to {max}");
+        }
+        Ok(v)
+    }
+}
+
+/// A clap value parser for a finite number in `min..=max`.
+pub fn number_in(
+    min: f64,
+    max: f64,
+) -> impl Fn(&str) -> anyhow::Result<f64> + Clone + Send + Sync + 'static {
+    move |s| {
+        let v: f64 = s
+            .trim()
+            .parse()
+            .with_context(|| format!("{s:?} is not a number"))?;
+        if !(v.is_finite() && (min..=max).contains(&v)) {
+            bail!("{s:?} is out of range: give a number from {min} to {max}");
+        }
+        Ok(v)
+    }
 }
 
 /// `x,y,z` as f64.
@@ -85,6 +118,39 @@ mod tests {
         assert!(parse_count("ten").is_err());
         assert!(parse_count("-5").is_err());
         assert!(parse_count("1e300").is_err());
+    }
+
+    proptest::proptest! {
+        /// Whatever is typed, the parsers answer (never panic), and what they
+        /// accept is within the range they were given.
+        #[test]
+        fn typed_values_are_parsed_or_refused_never_out_of_range(s in "\\PC{0,24}", n in proptest::num::f64::ANY) {
+            if let Ok(v) = count_in(3, 5_000)(&s) {
+                proptest::prop_assert!((3..=5_000).contains(&v));
+            }
+            if let Ok(v) = number_in(-1.0, 1e3)(&s) {
+                proptest::prop_assert!(v.is_finite() && (-1.0..=1e3).contains(&v));
+            }
+            let typed = format!("{n}");
+            match number_in(-1.0, 1e3)(&typed) {
+                Ok(v) => proptest::prop_assert_eq!(v, n),
+                Err(_) => proptest::prop_assert!(!(n.is_finite() && (-1.0..=1e3).contains(&n))),
+            }
+            let _ = (parse_count(&s), parse_bytes(&s), parse_dvec3(&s));
+        }
+    }
+
+    #[test]
+    fn bounded_counts_and_numbers() {
+        let count = count_in(1, 1000);
+        assert_eq!(count("1k").unwrap(), 1000);
+        assert!(count("0").is_err());
+        assert!(count("1001").is_err());
+        let number = number_in(1e-6, 10.0);
+        assert_eq!(number("2.5").unwrap(), 2.5);
+        for bad in ["0", "-1", "10.5", "nan", "inf", "x"] {
+            assert!(number(bad).is_err(), "{bad}");
+        }
     }
 
     #[test]

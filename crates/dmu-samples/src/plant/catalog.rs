@@ -11,9 +11,9 @@ use std::f32::consts::{FRAC_1_SQRT_2, FRAC_PI_2, PI, TAU};
 
 use glam::{Affine3A, Mat3, Vec3};
 
-use crate::chunking::MeshData;
-use crate::ids::MaterialId;
-use crate::samples::shapes::{Tess, along, c_section, frame, i_section};
+use crate::shapes::{Tess, along, c_section, frame, i_section};
+use dmu_scene::MaterialId;
+use dmu_scene::MeshData;
 
 /// Materials, in the order the plant adds them (so `Mat as u32` is the id).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -561,8 +561,7 @@ fn nozzle(t: &mut Tess, d: &Detail, at: Vec3, dir: Vec3, inset: f32, dn: u8, bli
 }
 
 fn vessel(t: &mut Tess, d: &Detail, dia: u32, h: u32, dn: u8, seed: u16) {
-    let mut rng =
-        crate::samples::Rng::new(u64::from(seed) ^ (u64::from(dia) << 20) ^ (u64::from(h) << 40));
+    let mut rng = crate::Rng::new(u64::from(seed) ^ (u64::from(dia) << 20) ^ (u64::from(h) << 40));
     let r = dia as f32 * 0.5;
     let (skirt, h) = (vessel_skirt(dia) as f32, h as f32);
     let seg = d.seg(r);
@@ -617,8 +616,7 @@ fn vessel(t: &mut Tess, d: &Detail, dia: u32, h: u32, dn: u8, seed: u16) {
 }
 
 fn drum(t: &mut Tess, d: &Detail, dia: u32, l: u32, dn: u8, seed: u16, exchanger: bool) {
-    let mut rng =
-        crate::samples::Rng::new(u64::from(seed) ^ (u64::from(dia) << 20) ^ (u64::from(l) << 40));
+    let mut rng = crate::Rng::new(u64::from(seed) ^ (u64::from(dia) << 20) ^ (u64::from(l) << 40));
     let r = dia as f32 * 0.5;
     let axis = drum_axis(dia) as f32;
     let half = l as f32 * 0.5;

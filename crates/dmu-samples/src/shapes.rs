@@ -12,8 +12,8 @@ use std::f32::consts::TAU;
 
 use glam::{Affine3A, Mat3, Vec2, Vec3};
 
-use crate::chunking::MeshData;
-use crate::ids::MaterialId;
+use dmu_scene::MaterialId;
+use dmu_scene::MeshData;
 
 /// Writes solids into a mesh; holds the current placement and material.
 #[derive(Debug)]

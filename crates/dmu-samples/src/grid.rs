@@ -2,12 +2,17 @@
 
 use glam::{DAffine3, DVec3, Vec3};
 
-use crate::chunking::MeshData;
-use crate::scene::{Scene, SceneBuilder};
+use dmu_scene::MeshData;
+use dmu_scene::{Scene, SceneBuilder};
 
 /// The 24 vertices and 12 triangles of a box from `min` to `max`, with flat
 /// outward normals and counter-clockwise outward faces.
-pub(crate) fn box_mesh(name: &str, min: Vec3, max: Vec3, material: crate::MaterialId) -> MeshData {
+pub(crate) fn box_mesh(
+    name: &str,
+    min: Vec3,
+    max: Vec3,
+    material: dmu_scene::MaterialId,
+) -> MeshData {
     let mut mesh = MeshData {
         name: name.into(),
         ..MeshData::default()

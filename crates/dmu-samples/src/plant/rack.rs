@@ -10,7 +10,7 @@ use super::catalog::{
     DNS, Mat, SEC_COLUMN, SEC_JOIST, SEC_RACK, SERVICES, SHOE_H, Spec, flange_pair_len,
 };
 use super::unit::{ALONG_Y, System, UPRIGHT, UnitPlan, at, basis, place};
-use crate::samples::Rng;
+use crate::Rng;
 
 /// Distance from the plot's front to the rack's first column line.
 const FRONT: f64 = 2_000.0;

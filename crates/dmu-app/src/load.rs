@@ -5,7 +5,9 @@ use std::time::Instant;
 
 use anyhow::{Context as _, bail};
 use dmu_scene::{ImportOptions, ImportReport, Scene};
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressBar;
+
+use crate::progress::style_mesh_bar;
 
 /// A loaded model and how it was obtained.
 #[derive(Debug)]
@@ -24,10 +26,10 @@ pub struct ModelArgs {
     /// Model file (.glb, .gltf, or a .dmu store); the built-in plant when omitted.
     pub file: Option<PathBuf>,
     /// Maximum triangles per chunk (the unit of loading, drawing and picking).
-    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..=crate::units::MAX_CHUNK_TRIANGLES as i64))]
     pub chunk_triangles: u32,
-    /// Size of the built-in plant used when no file is given.
-    #[arg(long = "plant-triangles", default_value = "2M", value_parser = crate::units::parse_count)]
+    /// Size of the built-in plant used when no file is given (10k to 1G).
+    #[arg(long = "plant-triangles", default_value = "2M", value_parser = crate::units::count_in(10_000, crate::units::MAX_TRIANGLES))]
     pub plant_triangles: u64,
 }
 
@@ -37,12 +39,12 @@ pub fn load(args: &ModelArgs) -> anyhow::Result<Loaded> {
     let (scene, report) = match &args.file {
         Some(path) => import(path, args.chunk_triangles)?,
         None => {
-            let options = dmu_scene::samples::PlantOptions {
+            let options = dmu_samples::PlantOptions {
                 triangles: args.plant_triangles,
                 chunk_triangles: args.chunk_triangles,
                 ..Default::default()
             };
-            (dmu_scene::samples::plant(&options), ImportReport::default())
+            (dmu_samples::plant(&options), ImportReport::default())
         }
     };
     Ok(Loaded {
@@ -57,7 +59,7 @@ fn import(path: &Path, chunk_triangles: u32) -> anyhow::Result<(Scene, ImportRep
     let ext = path
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase());
-    if ext.as_deref() == Some("dmu") {
+    if ext.as_deref() == Some("dmu") || is_store(path) {
         // A store is chunked already: its own chunks are kept.
         let store = dmu_store::Store::open(path)?;
         let scene = store
@@ -96,11 +98,11 @@ fn import(path: &Path, chunk_triangles: u32) -> anyhow::Result<(Scene, ImportRep
     result
 }
 
-/// Styles the progress bar of an import's meshes (`pos` meshes of `len`).
-pub fn style_mesh_bar(bar: &ProgressBar) {
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} importing meshes {pos}/{len} [{bar:30}] {elapsed}")
-            .expect("static template")
-            .progress_chars("=> "),
-    );
+/// Whether the file starts with a store's magic, whatever its name says (a store
+/// renamed `.glb` is read as the store it is, not reported as malformed JSON).
+fn is_store(path: &Path) -> bool {
+    use std::io::Read as _;
+    let mut magic = [0; 8];
+    std::fs::File::open(path).is_ok_and(|mut f| f.read_exact(&mut magic).is_ok())
+        && &magic == b"DMUSTORE"
 }

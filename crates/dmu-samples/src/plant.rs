@@ -38,11 +38,11 @@ use std::collections::HashMap;
 use glam::{DAffine3, DVec3};
 use rayon::prelude::*;
 
-use crate::chunking::{MeshData, chunk_mesh};
-use crate::ids::{MeshId, NodeId};
-use crate::samples::Rng;
-use crate::scene::{DEFAULT_CHUNK_TRIANGLES, Scene, SceneBuilder};
+use crate::Rng;
 use catalog::{Detail, MATERIALS, Spec};
+use dmu_scene::{DEFAULT_CHUNK_TRIANGLES, Scene, SceneBuilder};
+use dmu_scene::{MeshData, chunk_mesh};
+use dmu_scene::{MeshId, NodeId};
 use unit::{System, UnitPlan};
 
 /// Options of [`plant`].

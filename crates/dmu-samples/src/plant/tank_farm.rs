@@ -6,7 +6,7 @@ use glam::DVec3;
 
 use super::catalog::{DNS, Mat, SERVICES, Spec};
 use super::unit::{End, Route, System, UnitPlan, at};
-use crate::samples::Rng;
+use crate::Rng;
 
 /// Distance from the plot's front to the farm's origin (the bund's front side
 /// is 500 mm behind it).
