@@ -30,12 +30,9 @@
 
 mod app;
 mod gfx;
-mod nav;
 mod panes;
 mod record;
 mod review;
-mod script;
-mod settings;
 mod ui;
 
 use std::path::PathBuf;
@@ -44,6 +41,7 @@ use std::time::Instant;
 
 use anyhow::Context as _;
 use clap::Parser;
+use dmu_viewer::{nav, script, settings};
 use serde_json::json;
 
 /// dmu-viewer: walk, pick, move with live collision, save the review.

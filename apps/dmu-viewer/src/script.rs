@@ -174,7 +174,7 @@ impl Action {
     pub fn frames(&self) -> u32 {
         match self {
             Self::Drag(d) => d.steps.max(1),
-            Self::MouseDrag(d) => d.steps.max(1) + 1,
+            Self::MouseDrag(d) => d.steps.max(1).saturating_add(1),
             Self::Frames(n) => (*n).max(1),
             _ => 1,
         }
@@ -322,5 +322,16 @@ mod tests {
         assert!(parse(r#"[{"view": "bottom"}]"#).is_err());
         assert!(parse(r#"[{"occlusion": "sometimes"}]"#).is_err());
         assert!(parse(r#"{"pick": [1, 2]}"#).is_err());
+    }
+
+    #[test]
+    fn the_largest_step_counts_do_not_overflow() {
+        let script = parse(
+            r#"[{"mouse_drag": {"axis": "x", "from": [0, 0], "to": [1, 1], "steps": 4294967295}},
+                {"drag": {"by": [0, 0, 1], "steps": 4294967295}}, {"frames": 4294967295}]"#,
+        )
+        .unwrap();
+        let frames: Vec<u32> = script.iter().map(Action::frames).collect();
+        assert_eq!(frames, [u32::MAX; 3]);
     }
 }

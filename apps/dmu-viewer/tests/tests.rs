@@ -1,5 +1,9 @@
 //! The real `dmu-viewer` binary, run under Xvfb on lavapipe.
 
+#[path = "../../../fuzz/replay.rs"]
+mod fuzz_replay;
+#[path = "../../../fuzz/bodies/script_parse.rs"]
+mod fuzz_script_parse;
 mod session;
 mod support;
 mod xvfb;

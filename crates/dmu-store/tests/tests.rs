@@ -1,4 +1,8 @@
 mod files;
+#[path = "../../../fuzz/replay.rs"]
+mod fuzz_replay;
+#[path = "../../../fuzz/bodies/store_open.rs"]
+mod fuzz_store_open;
 mod residency;
 mod round_trip;
 mod support;
