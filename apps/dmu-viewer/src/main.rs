@@ -136,7 +136,10 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
     Ok(())
 }
 
+#[expect(unsafe_code, reason = "quiet_device_select runs before any thread")]
 fn main() -> ExitCode {
+    // SAFETY: first in main, while the process has one thread.
+    unsafe { dmu_app::quiet_device_select() };
     let cli = Cli::parse();
     match run(&cli) {
         Ok(()) => ExitCode::SUCCESS,

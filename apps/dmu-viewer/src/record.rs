@@ -36,9 +36,19 @@ pub struct Recorder {
 }
 
 impl Recorder {
-    /// Starts a recording into `path` (created or truncated).
+    /// Starts a recording into a new file `path`; an existing file is refused
+    /// (a recording never overwrites a record, a store or anything else).
     pub fn create(path: &Path) -> anyhow::Result<Self> {
-        let file = File::create(path).with_context(|| format!("creating {}", path.display()))?;
+        let file = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(path)
+            .with_context(|| {
+                format!(
+                    "creating the recording {} (it must be a new file)",
+                    path.display()
+                )
+            })?;
         Ok(Self {
             path: path.to_owned(),
             out: BufWriter::new(file),
@@ -85,6 +95,17 @@ impl Recorder {
 mod tests {
     use super::*;
     use glam::{DQuat, DVec3};
+
+    /// A recording never overwrites a file (it truncated one before).
+    #[test]
+    fn issue_20_an_existing_file_is_not_overwritten() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("keep.jsonl");
+        std::fs::write(&path, b"PRECIOUS\n").unwrap();
+        let err = Recorder::create(&path).unwrap_err();
+        assert!(format!("{err:#}").contains("must be a new file"), "{err:#}");
+        assert_eq!(std::fs::read(&path).unwrap(), b"PRECIOUS\n");
+    }
 
     /// Recorded poses parse back with dmu-collide's reader to the same
     /// transforms, one step per line, in time order.

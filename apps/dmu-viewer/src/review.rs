@@ -165,7 +165,7 @@ impl Review {
 
     /// Moves the selection by a world translation, as one undoable edit.
     /// Returns false when nothing is selected, an error (and moves nothing) when
-    /// the result would leave f64's range.
+    /// the result would leave the world (±1e15 model units).
     pub fn translate_selection(&mut self, delta: DVec3) -> anyhow::Result<bool> {
         let Some(part) = self.selected else {
             return Ok(false);
@@ -185,7 +185,7 @@ impl Review {
     /// Turns the selection by `degrees` about a world `axis` through the
     /// centre of its world bounds, as one undoable edit. Returns false when
     /// nothing is selected, an error (and moves nothing) when the result would
-    /// leave f64's range. Panics on a zero or non-finite axis.
+    /// leave the world (±1e15 model units). Panics on a zero or non-finite axis.
     pub fn rotate_selection(&mut self, axis: DVec3, degrees: f64) -> anyhow::Result<bool> {
         assert!(
             axis.is_finite() && axis.length_squared() > 0.0,
@@ -214,8 +214,9 @@ impl Review {
     fn apply(&mut self, edit: Edit) -> anyhow::Result<()> {
         anyhow::ensure!(
             self.scene.is_valid_world(edit.part, &edit.after),
-            "{}: the move would take the part beyond f64's range; not moved",
-            self.scene.part_name(edit.part)
+            "{}: the move would take the part beyond ±{:e} model units; not moved",
+            self.scene.part_name(edit.part),
+            dmu_scene::MAX_WORLD_COORDINATE
         );
         self.place(edit.part, edit.after);
         if edit.before != edit.after {
@@ -246,7 +247,7 @@ impl Review {
         };
         let mut world = drag.start;
         world.translation += offset;
-        // A step past f64's range is not taken: the part stays where it was.
+        // A step out of the world is not taken: the part stays where it was.
         if self.scene.is_valid_world(drag.part, &world) {
             self.place(drag.part, world);
         }
@@ -403,23 +404,24 @@ mod tests {
         assert!(r.clashing_parts().is_empty());
     }
 
-    /// A move past f64's range is refused and changes nothing (it panicked in
-    /// the scene's transform check); a drag step past it is not taken.
+    /// A move out of the world (past f64's range it panicked in the scene's
+    /// transform check) is refused and changes nothing; a drag step out of it
+    /// is not taken.
     #[test]
-    fn issue_20_moves_past_f64_are_refused() {
+    fn issue_20_moves_out_of_the_world_are_refused() {
         let mut r = review();
         let part = r.scene.find_part("box_0_0_0").unwrap();
         r.select(Some(part));
-        assert!(r.translate_selection(DVec3::new(1e308, 0.0, 0.0)).unwrap());
+        assert!(r.translate_selection(DVec3::new(1e14, 0.0, 0.0)).unwrap());
         let far = r.scene.part_world(part);
         let err = r
-            .translate_selection(DVec3::new(1e308, 0.0, 0.0))
+            .translate_selection(DVec3::new(1e15, 0.0, 0.0))
             .unwrap_err();
-        assert!(err.to_string().contains("beyond f64"), "{err}");
+        assert!(err.to_string().contains("beyond"), "{err}");
         assert_eq!(r.scene.part_world(part), far);
         assert_eq!(r.history(), (1, 0));
         r.begin_drag();
-        r.drag_to(DVec3::new(1e308, 0.0, 0.0));
+        r.drag_to(DVec3::new(1e300, 0.0, 0.0));
         assert_eq!(r.scene.part_world(part), far);
         r.end_drag();
         r.tree.validate_against(&r.scene).unwrap();

@@ -237,10 +237,17 @@ pub fn parse(text: &str) -> anyhow::Result<Vec<Action>> {
             _ => true,
         };
         anyhow::ensure!(finite, "action {i} ({}): numbers must be finite", a.name());
-        if let Action::Frames(n) = a {
+        let frames = match a {
+            Action::Frames(n) => Some(*n),
+            Action::Drag(d) => Some(d.steps),
+            Action::MouseDrag(d) => Some(d.steps),
+            _ => None,
+        };
+        if let Some(n) = frames {
             anyhow::ensure!(
-                *n <= MAX_FRAMES,
-                "action {i} (frames): {n} frames is more than the limit of {MAX_FRAMES}"
+                n <= MAX_FRAMES,
+                "action {i} ({}): {n} frames is more than the limit of {MAX_FRAMES}",
+                a.name()
             );
         }
     }
@@ -259,8 +266,10 @@ pub fn culling_from_name(name: &str) -> anyhow::Result<Culling> {
 
 /// Reads and parses a script file.
 pub fn read(path: &Path) -> anyhow::Result<Vec<Action>> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let bytes = dmu_scene::read_regular_file(path)
+        .with_context(|| format!("reading {}", path.display()))?;
+    let text = String::from_utf8(bytes)
+        .with_context(|| format!("reading {}: not UTF-8 text", path.display()))?;
     parse(&text).with_context(|| format!("parsing script {}", path.display()))
 }
 
@@ -276,6 +285,9 @@ mod tests {
         assert!(err.contains("empty list"), "{err}");
         assert_eq!(parse("\u{feff}[{\"frames\": 2}]").unwrap().len(), 1);
         let err = parse("[{\"frames\": 4000000000}]").unwrap_err().to_string();
+        assert!(err.contains("limit"), "{err}");
+        let drag = "[{\"drag\": {\"by\": [0, 0, 10], \"steps\": 4294967295}}]";
+        let err = parse(drag).unwrap_err().to_string();
         assert!(err.contains("limit"), "{err}");
     }
 

@@ -92,8 +92,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let after = delta * before;
     if !scene.is_valid_world(part, &after) {
         bail!(
-            "{}: the moved transform is not finite (translation or rotation too large for f64)",
-            args.part
+            "{}: the moved part would not be finite or would reach beyond ±{:e} model units",
+            args.part,
+            dmu_scene::MAX_WORLD_COORDINATE
         );
     }
     let start = std::time::Instant::now();

@@ -79,7 +79,11 @@ fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
     let (w, h) = s
         .split_once('x')
         .with_context(|| format!("--size {s:?}: expected WIDTHxHEIGHT"))?;
-    let (w, h): (u32, u32) = (w.parse()?, h.parse()?);
+    let side = |v: &str| {
+        v.parse::<u32>()
+            .with_context(|| format!("--size {s:?}: {v:?} is not a whole number of pixels"))
+    };
+    let (w, h) = (side(w)?, side(h)?);
     if w == 0 || h == 0 || w > 16384 || h > 16384 {
         bail!("--size {s:?}: each side must be 1 to 16384 pixels");
     }
@@ -184,6 +188,10 @@ fn stats_json(s: &FrameStats) -> serde_json::Value {
 pub fn run(args: &Args) -> anyhow::Result<()> {
     let eye = parse_dvec3(&args.eye).context("--eye")?;
     let target = parse_dvec3(&args.target).context("--target")?;
+    let limit = dmu_scene::MAX_WORLD_COORDINATE;
+    if eye.abs().max_element() > limit || target.abs().max_element() > limit {
+        bail!("--eye and --target must lie within ±{limit:e} model units");
+    }
     let size = parse_size(&args.size)?;
     if eye == target {
         bail!("--eye and --target must differ");

@@ -58,23 +58,10 @@ fn die_on_closed_pipe() {
     }
 }
 
-/// Turns off Mesa's device-select Vulkan layer unless the user set it up: the
-/// command chooses its adapter itself, and the layer, only to order GPUs, opens
-/// a Wayland connection that prints `error: XDG_RUNTIME_DIR is invalid or not
-/// set` twice on every headless machine although nothing is wrong.
-#[expect(
-    unsafe_code,
-    reason = "setting an environment variable is sound before any thread starts"
-)]
-fn quiet_headless_vulkan() {
-    if std::env::var_os("NODEVICE_SELECT").is_none() {
-        // SAFETY: called first in main, while the process has one thread.
-        unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
-    }
-}
-
+#[expect(unsafe_code, reason = "quiet_device_select runs before any thread")]
 fn main() -> ExitCode {
-    quiet_headless_vulkan();
+    // SAFETY: first in main, while the process has one thread.
+    unsafe { dmu_app::quiet_device_select() };
     #[cfg(unix)]
     die_on_closed_pipe();
     let cli = Cli::parse();

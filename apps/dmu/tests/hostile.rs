@@ -3,6 +3,7 @@
 //! unclear errors — gives a clear error with exit code 2, or the right answer.
 //! Included from `tests.rs` as `mod hostile;`.
 
+use std::os::unix::fs::FileTypeExt as _;
 use std::path::Path;
 use std::process::Output;
 
@@ -240,13 +241,13 @@ fn transforms_that_overflow_are_import_errors() {
         "--part",
         "box_0_0_0",
         "--translate",
-        "1e308,0,0",
+        "6e14,0,0",
         "-o",
         &grid,
     ];
     json(&dmu(&[&far[..], &["--json"]].concat()));
     let before = std::fs::read(&grid).unwrap();
-    refused(&dmu(&far), "not finite");
+    refused(&dmu(&far), "beyond");
     assert_eq!(std::fs::read(&grid).unwrap(), before);
 }
 
@@ -386,5 +387,92 @@ fn a_headless_render_says_only_what_it_means() {
         std::fs::read_dir(dir.path()).unwrap().count(),
         1,
         "no temporary file left"
+    );
+}
+
+/// Second sweep: no input or output that is not a regular file (a pipe would
+/// block, a device never ends or is replaced); a bare file name's buffers are
+/// found in the current folder; a meshopt view cannot ask for more than its
+/// byteLength; an eye beyond the world is refused.
+#[test]
+fn pipes_devices_bare_names_meshopt_counts_and_far_eyes() {
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("pipe.dmu");
+    assert!(
+        std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    let pipe = fifo.to_str().unwrap();
+    // Each would block forever on the pipe (the test would hang, not fail).
+    refused(&dmu(&["info", pipe]), "not a regular file");
+    let grid = path(dir.path(), "g.glb");
+    json(&dmu(&[
+        "generate", "grid", "--n", "2", "-o", &grid, "--json",
+    ]));
+    refused(
+        &dmu(&["collide", &grid, "--record", pipe]),
+        "not a regular file",
+    );
+    refused(
+        &dmu(&["generate", "grid", "--n", "2", "-o", pipe]),
+        "not a regular file",
+    );
+    let png_pipe = dir.path().join("pipe.png");
+    std::process::Command::new("mkfifo")
+        .arg(&png_pipe)
+        .status()
+        .unwrap();
+    refused(
+        &dmu(&[
+            "render",
+            "--plant-triangles",
+            "20k",
+            "--eye",
+            "0,0,0",
+            "--target",
+            "1,0,0",
+            "-o",
+            png_pipe.to_str().unwrap(),
+        ]),
+        "not a regular file",
+    );
+    assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
+
+    // `dmu info model.gltf` from the model's folder.
+    std::fs::write(dir.path().join("tri.bin"), triangle_bytes()).unwrap();
+    write_gltf(dir.path(), "m.gltf", &gltf("tri.bin", &[named("root")]));
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_dmu"))
+        .current_dir(dir.path())
+        .args(["info", "m.gltf", "--json"])
+        .output()
+        .unwrap();
+    assert_eq!(json(&out)["triangles"], 1);
+
+    // A meshopt view whose count x byteStride is not its byteLength (it asked
+    // for 51 GB and the allocation aborted the process).
+    let mut doc = gltf("tri.bin", &[named("root")]);
+    doc["extensionsUsed"] = json!(["EXT_meshopt_compression"]);
+    doc["extensionsRequired"] = json!(["EXT_meshopt_compression"]);
+    doc["bufferViews"][0]["extensions"] = json!({"EXT_meshopt_compression": {
+        "buffer": 0, "byteOffset": 0, "byteLength": 36, "byteStride": 12,
+        "count": 4294967295u64, "mode": "ATTRIBUTES"}});
+    let file = write_gltf(dir.path(), "meshopt.gltf", &doc);
+    refused(&dmu(&["info", &file]), "is not the view's byteLength");
+
+    refused(
+        &dmu(&[
+            "render",
+            &grid,
+            "--eye",
+            "1e160,0,0",
+            "--target",
+            "0,0,0",
+            "-o",
+            &path(dir.path(), "r.png"),
+        ]),
+        "within",
     );
 }

@@ -32,3 +32,22 @@ pub mod load;
 pub mod progress;
 pub mod resident;
 pub mod units;
+
+/// Turns off Mesa's device-select Vulkan layer unless the user set it up: the
+/// applications choose their adapter themselves, and the layer, only to order
+/// GPUs, opens a Wayland connection that prints `error: XDG_RUNTIME_DIR is invalid or not
+/// set` twice on every machine without Wayland although nothing is wrong.
+///
+/// # Safety
+/// It sets an environment variable: call it first in `main`, while the process
+/// has one thread (as [`std::env::set_var`] requires).
+#[expect(
+    unsafe_code,
+    reason = "setting an environment variable is sound before any thread starts"
+)]
+pub unsafe fn quiet_device_select() {
+    if std::env::var_os("NODEVICE_SELECT").is_none() {
+        // SAFETY: the caller guarantees the process has one thread.
+        unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
+    }
+}

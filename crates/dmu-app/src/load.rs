@@ -103,6 +103,6 @@ fn import(path: &Path, chunk_triangles: u32) -> anyhow::Result<(Scene, ImportRep
 fn is_store(path: &Path) -> bool {
     use std::io::Read as _;
     let mut magic = [0; 8];
-    std::fs::File::open(path).is_ok_and(|mut f| f.read_exact(&mut magic).is_ok())
+    dmu_scene::open_regular_file(path).is_ok_and(|mut f| f.read_exact(&mut magic).is_ok())
         && &magic == b"DMUSTORE"
 }

@@ -151,10 +151,13 @@ pub fn write_record(out: &mut impl Write, scene: &Scene, steps: &[Step]) -> std:
 
 /// Reads and parses a record file (see [`parse_record`]).
 pub fn read_record(path: &Path, scene: &Scene) -> Result<Vec<Step>, RecordError> {
-    let text = std::fs::read_to_string(path).map_err(|source| RecordError::Io {
+    let io = |source| RecordError::Io {
         path: path.to_owned(),
         source,
-    })?;
+    };
+    let bytes = dmu_scene::read_regular_file(path).map_err(io)?;
+    let text = String::from_utf8(bytes)
+        .map_err(|e| io(std::io::Error::new(std::io::ErrorKind::InvalidData, e)))?;
     parse_record(&text, scene)
 }
 
@@ -205,8 +208,9 @@ pub fn parse_record(text: &str, scene: &Scene) -> Result<Vec<Step>, RecordError>
         );
         if !scene.is_valid_world(part, &world) {
             return Err(malformed(format!(
-                "the pose of {} is too large: its world box overflows f64",
-                parsed.part
+                "the pose of {} puts it beyond ±{:e} model units",
+                parsed.part,
+                dmu_scene::MAX_WORLD_COORDINATE
             )));
         }
         let moved = RecordedMove { line, part, world };

@@ -189,7 +189,18 @@ impl IdImage {
 /// Saves an image as PNG, through a temporary file renamed over `path`
 /// ([`dmu_scene::write_file_atomically`]): a full disk or a kill leaves the
 /// previous image whole.
+/// A name that does not end in `.png` is refused: an image never replaces a
+/// model or a store.
 pub fn save_png(image: &image::RgbaImage, path: &Path) -> Result<(), RenderError> {
+    if !path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+    {
+        return Err(RenderError::Image {
+            path: path.display().to_string(),
+            source: std::io::Error::other("a PNG is written only to a name ending in .png").into(),
+        });
+    }
     let mut png = Vec::new();
     image
         .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)

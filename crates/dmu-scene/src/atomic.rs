@@ -22,8 +22,18 @@ pub struct AtomicFile {
 impl AtomicFile {
     /// Starts a file that will replace `path` when committed. Temporary files
     /// left beside `path` by writers that died are removed first.
+    /// A target that exists and is not a regular file (a device such as
+    /// `/dev/null`, a pipe, a folder) is refused: renaming over it would
+    /// replace it.
     pub fn create(path: &Path) -> std::io::Result<AtomicFile> {
         static COUNTER: AtomicU64 = AtomicU64::new(0);
+        if let Ok(meta) = std::fs::metadata(path)
+            && !meta.is_file()
+        {
+            return Err(std::io::Error::other(
+                "it exists and is not a regular file (a device, pipe or folder): dmu writes only files",
+            ));
+        }
         let name = path
             .file_name()
             .ok_or_else(|| std::io::Error::other("the path has no file name"))?;
@@ -95,6 +105,28 @@ impl Drop for AtomicFile {
             let _ = std::fs::remove_file(&self.temp);
         }
     }
+}
+
+/// Opens a file for reading, refusing anything that is not a regular file
+/// before opening it: a pipe would block the reader forever, a device such as
+/// `/dev/zero` never ends, a folder is no model. Every input file dmu reads
+/// goes through here.
+pub fn open_regular_file(path: &Path) -> std::io::Result<File> {
+    let meta = std::fs::metadata(path)?;
+    if !meta.is_file() {
+        return Err(std::io::Error::other(
+            "not a regular file (a device, pipe or folder): dmu reads only files",
+        ));
+    }
+    File::open(path)
+}
+
+/// The whole of a regular file (see [`open_regular_file`]).
+pub fn read_regular_file(path: &Path) -> std::io::Result<Vec<u8>> {
+    use std::io::Read as _;
+    let mut bytes = Vec::new();
+    open_regular_file(path)?.read_to_end(&mut bytes)?;
+    Ok(bytes)
 }
 
 /// Writes `bytes` to `path` through an [`AtomicFile`].

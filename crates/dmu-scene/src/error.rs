@@ -64,7 +64,9 @@ pub enum ImportError {
     /// A node's world transform (the product of the transforms from the root down
     /// to it), or the world box of its part, is not finite: finite values whose
     /// product overflows (e.g. 1e200 scales on a parent and a child).
-    #[error("node {node} ({path}): its {what} is not finite (the transforms down to it overflow)")]
+    #[error(
+        "node {node} ({path}): its {what} is not finite or beyond ±1e15 model units (the transforms down to it overflow)"
+    )]
     NonFiniteWorld {
         /// Node index in the file.
         node: usize,

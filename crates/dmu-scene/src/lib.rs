@@ -41,7 +41,7 @@ mod gltf_import;
 mod ids;
 mod scene;
 
-pub use atomic::{AtomicFile, write_file_atomically};
+pub use atomic::{AtomicFile, open_regular_file, read_regular_file, write_file_atomically};
 pub use chunking::{ChunkData, ChunkedMesh, MeshData, MeshGroup, chunk_mesh, compute_normals};
 pub use error::{ExportError, ImportError, SceneError};
 pub use gltf_export::export_gltf;
@@ -51,6 +51,6 @@ pub use gltf_import::{
 pub use gltf_import::{StreamOptions, import_gltf_streaming};
 pub use ids::{ChunkId, MaterialId, MeshId, NodeId, PartId};
 pub use scene::{
-    AssemblyNode, Chunk, ChunkGeometry, DEFAULT_CHUNK_TRIANGLES, Material, Mesh, Part, Scene,
-    SceneBuilder,
+    AssemblyNode, Chunk, ChunkGeometry, DEFAULT_CHUNK_TRIANGLES, MAX_WORLD_COORDINATE, Material,
+    Mesh, Part, Scene, SceneBuilder,
 };

@@ -423,6 +423,9 @@ impl Scene {
         if self.nodes.first().is_none_or(|r| r.parent.is_some()) {
             return fail("node 0 must be the root".into());
         }
+        // Each node listed once among its parent's children: linear, where a
+        // search of the parent's list was quadratic for wide assemblies.
+        let mut listed = vec![false; self.nodes.len()];
         for (i, node) in self.nodes.iter().enumerate() {
             if i > 0 && node.parent.is_none_or(|p| p.index() >= i) {
                 return fail(format!("node {i} must have a parent stored before it"));
@@ -431,10 +434,13 @@ impl Scene {
                 if self.nodes.get(c.index()).and_then(|c| c.parent) != Some(NodeId(i as u32)) {
                     return fail(format!("node {i}: child {c} does not name it as parent"));
                 }
+                if std::mem::replace(&mut listed[c.index()], true) {
+                    return fail(format!("node {c} listed twice among its parent's children"));
+                }
             }
-            if let Some(p) = node.parent
-                && !self.nodes[p.index()].children.contains(&NodeId(i as u32))
-            {
+        }
+        for (i, node) in self.nodes.iter().enumerate() {
+            if node.parent.is_some() && !listed[i] {
                 return fail(format!("node {i} missing from its parent's children"));
             }
             if !node.world.is_finite() {
@@ -519,7 +525,7 @@ impl Scene {
             .find(|&p| !self.is_valid_world(p, &self.part_world(p)))
         {
             return fail(format!(
-                "part {p} ({}): world box not finite",
+                "part {p} ({}): world box not finite or beyond ±{MAX_WORLD_COORDINATE:e}",
                 self.part_path(p)
             ));
         }
@@ -527,15 +533,26 @@ impl Scene {
     }
 
     /// Whether `world` is a valid world transform for a part: finite, and giving
-    /// the part a finite world box (finite coordinates times finite scales can
-    /// overflow). Every part of a valid scene has one; inputs that set one (a
-    /// typed move, a record's pose) are checked with this first.
+    /// the part a world box within ±[`MAX_WORLD_COORDINATE`] (finite coordinates
+    /// times finite scales can overflow, and squared distances between points
+    /// far beyond it do). Every part of a valid scene has one; inputs that set
+    /// one (an import, a typed move, a record's pose) are checked with this first.
     pub fn is_valid_world(&self, id: PartId, world: &DAffine3) -> bool {
+        let inside = |v: glam::DVec3| v.abs().max_element() <= MAX_WORLD_COORDINATE;
+        let mesh = self.part_mesh(id);
         world.is_finite()
-            && (self.part_mesh(id).triangles == 0
-                || self.part_mesh(id).bounds.transformed(world).is_finite())
+            && inside(world.translation)
+            && (mesh.triangles == 0 || {
+                let b = mesh.bounds.transformed(world);
+                inside(b.min) && inside(b.max)
+            })
     }
 }
+
+/// The largest world coordinate a part may reach, in model units: 1e15 mm is a
+/// billion kilometres, and f64 still resolves 0.125 mm there. Beyond about
+/// 1e154 squared distances overflow; this keeps every computation far from it.
+pub const MAX_WORLD_COORDINATE: f64 = 1e15;
 
 /// Builds a [`Scene`]: materials, nodes (parents before children), meshes, parts.
 #[derive(Debug)]

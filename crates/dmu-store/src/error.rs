@@ -135,11 +135,13 @@ pub struct ResidencyError {
 pub enum WalkError {
     /// A frame of the path is not a camera (eye on the target, up along the
     /// view, a field of view out of range).
-    #[error("frame {frame} is not a camera: {camera}")]
+    #[error(
+        "frame {frame} is not a camera ({camera}): the eye must differ from the target, up must not lie along the view, the field of view must be between 0 and 180 degrees, and every number finite"
+    )]
     NotACamera {
         /// The frame's index.
         frame: usize,
-        /// The frame as given (`Debug`).
+        /// The frame as given: eye, target, up and field of view.
         camera: String,
     },
     /// The caller's `draw` failed on a frame.

@@ -55,7 +55,7 @@ impl Store {
             path: path.to_owned(),
             source,
         };
-        let file = File::open(path).map_err(io)?;
+        let file = dmu_scene::open_regular_file(path).map_err(io)?;
         let layout = format::parse(&file, path)?;
         let file_bytes = format::ReadAt::len(&file).map_err(io)?;
         let bytes = format::verified(&file, &layout.skeleton, || "the skeleton".into(), path)?;

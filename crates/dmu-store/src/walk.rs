@@ -203,7 +203,13 @@ pub fn walk_with(
         let frame_start = Instant::now();
         let view = View::new(frame, options.viewport).ok_or_else(|| WalkError::NotACamera {
             frame: i,
-            camera: format!("{frame:?}"),
+            camera: format!(
+                "eye {:?}, target {:?}, up {:?}, fov {}°",
+                frame.eye.to_array(),
+                frame.target.to_array(),
+                frame.up.to_array(),
+                frame.fov_y_deg
+            ),
         })?;
         wanted(tree, scene, &view, options.min_pixels, false, &mut set);
         requests.clear();

@@ -123,6 +123,12 @@ pub(super) fn buffer_file(
     let dir = base_dir.ok_or_else(|| {
         format!("buffers[{i}] refers to file {uri:?} but the glTF was not read from a file")
     })?;
+    // `model.gltf` has the parent "": the current folder.
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
     let decoded = percent_decode(uri);
     let relative = Path::new(&decoded);
     let outside = || {
@@ -232,7 +238,8 @@ pub(super) fn resolve_views<'a>(
                 .as_ref()
                 .and_then(|e| e.others.get("EXT_meshopt_compression"));
             if let Some(ext) = meshopt {
-                return decode_meshopt(i, ext, buffers).map(Cow::Owned);
+                return decode_meshopt(i, ext, buffers, view.byte_length.0 as usize)
+                    .map(Cow::Owned);
             }
             let offset = view.byte_offset.map_or(0, |o| o.0 as usize);
             slice(
@@ -275,6 +282,7 @@ fn decode_meshopt(
     view: usize,
     ext: &serde_json::Value,
     buffers: &[Bytes<'_>],
+    view_length: usize,
 ) -> Result<Vec<u8>, String> {
     let bad = |m: &str| format!("bufferViews[{view}].extensions.EXT_meshopt_compression: {m}");
     let field = |k: &str| {
@@ -287,6 +295,13 @@ fn decode_meshopt(
     let length = field("byteLength").ok_or_else(|| bad("missing byteLength"))?;
     let stride = field("byteStride").ok_or_else(|| bad("missing byteStride"))?;
     let count = field("count").ok_or_else(|| bad("missing count"))?;
+    // The decoded view is `count` elements of `byteStride` bytes, which the spec
+    // says is the view's own byteLength: it bounds what decoding allocates.
+    if count.checked_mul(stride) != Some(view_length) {
+        return Err(bad(&format!(
+            "count {count} x byteStride {stride} is not the view's byteLength {view_length}"
+        )));
+    }
     let mode = ext
         .get("mode")
         .and_then(serde_json::Value::as_str)

@@ -96,7 +96,7 @@ pub fn import_gltf(
     path: &Path,
     options: &ImportOptions<'_>,
 ) -> Result<(Scene, ImportReport), ImportError> {
-    let bytes = std::fs::read(path).map_err(|source| ImportError::Io {
+    let bytes = crate::atomic::read_regular_file(path).map_err(|source| ImportError::Io {
         path: path.to_owned(),
         source,
     })?;

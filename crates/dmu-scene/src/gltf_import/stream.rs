@@ -64,7 +64,7 @@ pub fn import_gltf_streaming<E: From<ImportError>>(
         path: path.to_owned(),
         source,
     };
-    let file = File::open(path).map_err(io)?;
+    let file = crate::atomic::open_regular_file(path).map_err(io)?;
     let (doc, blob) = {
         let map = map_file(&file).map_err(io)?;
         let (json_bytes, blob) = super::buffers::split_container(&map)?;
