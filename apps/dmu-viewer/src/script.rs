@@ -226,7 +226,13 @@ pub fn parse(text: &str) -> anyhow::Result<Vec<Action>> {
         let finite = match a {
             Action::Pick(p) | Action::Hover(p) => p.iter().all(|v| v.is_finite()),
             Action::Rotate(r) => r.degrees.is_finite(),
-            Action::Clearance(c) => c.is_finite() && *c >= 0.0,
+            Action::Clearance(c) => {
+                anyhow::ensure!(
+                    c.is_finite() && *c >= 0.0,
+                    "action {i} (clearance): {c} must be finite and not negative"
+                );
+                true
+            }
             Action::Move(d) => d.iter().all(|v| v.is_finite()),
             Action::Drag(d) => d.by.iter().all(|v| v.is_finite()),
             Action::MouseDrag(d) => d.from.iter().chain(&d.to).all(|v| v.is_finite()),

@@ -117,7 +117,11 @@ fn parse_range(s: &str) -> anyhow::Result<(usize, usize)> {
             .parse::<usize>()
             .with_context(|| format!("{s:?}: {v:?} is not a frame number"))
     };
-    Ok((parse(a)?, parse(b)?))
+    let (start, end) = (parse(a)?, parse(b)?);
+    if start >= end {
+        bail!("{s:?}: the range is empty (START must be below END)");
+    }
+    Ok((start, end))
 }
 
 fn parse_budget(s: &str) -> anyhow::Result<Budget> {
@@ -166,9 +170,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     };
     let path = match args.range {
         Some((start, end)) => {
-            if start >= end || end > path.len() {
+            if end > path.len() {
                 bail!(
-                    "--range {start}..{end}: the path has frames 0..{}",
+                    "--range {start}..{end}: past the end of the path, which has frames 0..{}",
                     path.len()
                 );
             }

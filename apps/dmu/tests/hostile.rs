@@ -266,6 +266,7 @@ fn sizes_out_of_range_are_refused() {
             "render", "--eye", "0,0,0", "--target", "1,0,0", "--fov", "180", "-o", &png,
         ],
         vec!["walk", "--fps", "0"],
+        vec!["walk", "--range", "5..5"],
         vec!["walk", "--width", "0"],
         vec!["bench", "tree", "--triangles", "0"],
         vec!["bench", "tree", "--rays", "0"],
@@ -343,6 +344,9 @@ fn misnamed_files_and_marks_read_and_errors_say_things_once() {
         String::from_utf8_lossy(&out.stderr)
     );
 
+    let not_gltf = path(dir.path(), "list.gltf");
+    std::fs::write(&not_gltf, "[]").unwrap();
+    refused(&dmu(&["info", &not_gltf]), "not a glTF document");
     let err = refused(
         &dmu(&["info", &path(dir.path(), "missing.glb")]),
         "missing.glb",

@@ -181,6 +181,11 @@ impl Document {
             message: format!("JSON: {e}"),
         };
         let mut value: serde_json::Value = serde_json::from_slice(json_bytes).map_err(malformed)?;
+        if !value.is_object() {
+            return Err(ImportError::Malformed {
+                message: "the JSON is not a glTF document (an object with \"asset\")".into(),
+            });
+        }
         // Node transforms first, as f64 from the untouched numbers.
         let transforms = RawTransforms::deserialize(&value).map_err(malformed)?;
         integral_floats_to_integers(&mut value);
