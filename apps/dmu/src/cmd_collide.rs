@@ -61,7 +61,11 @@ fn allow_list(scene: &Scene, pairs: &[String]) -> anyhow::Result<AllowList> {
                 .find_part(key.trim())
                 .with_context(|| format!("--allow {pair:?}"))
         };
-        list.allow(find(a)?, find(b)?);
+        let (a, b) = (find(a)?, find(b)?);
+        if a == b {
+            bail!("--allow {pair:?}: names one part twice (a part never clashes with itself)");
+        }
+        list.allow(a, b);
     }
     Ok(list)
 }

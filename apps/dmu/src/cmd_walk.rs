@@ -136,7 +136,10 @@ fn parse_budget(s: &str) -> anyhow::Result<Budget> {
             }
             Ok(Budget::Percent(p))
         }
-        None => Ok(Budget::Bytes(parse_bytes(s)?)),
+        None => match parse_bytes(s)? {
+            0 => bail!("{s:?}: a memory budget must be more than 0 bytes"),
+            b => Ok(Budget::Bytes(b)),
+        },
     }
 }
 

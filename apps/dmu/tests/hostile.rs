@@ -480,3 +480,45 @@ fn pipes_devices_bare_names_meshopt_counts_and_far_eyes() {
         "within",
     );
 }
+
+/// Second sweep, lenient inputs now refused: a node matrix that is not affine,
+/// a record line that is an array, an allow pair of one part, a zero memory
+/// budget.
+#[test]
+fn lenient_inputs_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("tri.bin"), triangle_bytes()).unwrap();
+    let projective =
+        json!({"name": "p", "matrix": [1, 0, 0, 10, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 2]});
+    let file = write_gltf(dir.path(), "m.gltf", &gltf("tri.bin", &[projective]));
+    refused(&dmu(&["info", &file]), "not [0, 0, 0, 1]");
+    let grid = path(dir.path(), "g.glb");
+    json(&dmu(&[
+        "generate", "grid", "--n", "2", "-o", &grid, "--json",
+    ]));
+    let record = path(dir.path(), "r.jsonl");
+    std::fs::write(&record, "[0, \"box_0_0_0\", [0, 0, 9], [0, 0, 0, 1]]\n").unwrap();
+    refused(
+        &dmu(&["collide", &grid, "--record", &record]),
+        "one JSON object",
+    );
+    std::fs::write(
+        &record,
+        "{\"t\": 0, \"part\": \"box_0_0_0\", \"translation\": [0, 0, 9], \"rotation\": [0, 0, 0, 1]}\n",
+    )
+    .unwrap();
+    refused(
+        &dmu(&[
+            "collide",
+            &grid,
+            "--record",
+            &record,
+            "--allow",
+            "box_0_0_0,#0",
+        ]),
+        "names one part twice",
+    );
+    let out = dmu(&["walk", "--memory-budget", "0"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("more than 0 bytes"));
+}

@@ -174,6 +174,11 @@ pub fn parse_record(text: &str, scene: &Scene) -> Result<Vec<Step>, RecordError>
             continue;
         }
         let malformed = |message: String| RecordError::Malformed { line, message };
+        if !raw.trim_start().starts_with('{') {
+            return Err(malformed(
+                "a line must be one JSON object {\"t\": …, \"part\": …, …}".into(),
+            ));
+        }
         let parsed: RecordLine = serde_json::from_str(raw).map_err(|e| {
             // serde_json counts lines within the one line it was given.
             let mut message = e.to_string();

@@ -94,7 +94,15 @@ pub(super) fn load_buffers<'a>(
                     data.len()
                 ));
             }
-            Ok(data)
+            // What views may read is the declared length, whatever the source
+            // holds beyond it (a GLB chunk's padding, a longer data URI).
+            Ok(match data {
+                Cow::Borrowed(b) => Cow::Borrowed(&b[..declared]),
+                Cow::Owned(mut v) => {
+                    v.truncate(declared);
+                    Cow::Owned(v)
+                }
+            })
         })
         .collect()
 }

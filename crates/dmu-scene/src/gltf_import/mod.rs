@@ -346,6 +346,13 @@ struct RawNode {
 impl RawNode {
     fn local(&self, index: usize) -> Result<DAffine3, ImportError> {
         let m = if let Some(m) = self.matrix {
+            // Column-major: the last row is m[3], m[7], m[11], m[15].
+            if [m[3], m[7], m[11], m[15]] != [0.0, 0.0, 0.0, 1.0] {
+                return Err(invalid(format!(
+                    "nodes[{index}].matrix: the last row is {:?}, not [0, 0, 0, 1] (glTF node matrices are affine)",
+                    [m[3], m[7], m[11], m[15]]
+                )));
+            }
             DAffine3::from_mat4(DMat4::from_cols_array(&m))
         } else {
             let t = self.translation.map_or(DVec3::ZERO, DVec3::from_array);

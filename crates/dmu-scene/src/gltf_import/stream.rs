@@ -179,7 +179,8 @@ fn buffer_sources(
                     if range.len() < declared {
                         short(range.len())
                     } else {
-                        Source::Blob(range)
+                        // Views read at most the declared length (not the padding).
+                        Source::Blob(range.start..range.start + declared)
                     }
                 }
                 None if is_meshopt_fallback(buffer) => Source::Empty,
@@ -188,7 +189,10 @@ fn buffer_sources(
                 )),
                 Some(uri) if uri.starts_with("data:") => match decode_data_uri(i, uri) {
                     Ok(bytes) if bytes.len() < declared => short(bytes.len()),
-                    Ok(bytes) => Source::Owned(bytes),
+                    Ok(mut bytes) => {
+                        bytes.truncate(declared);
+                        Source::Owned(bytes)
+                    }
                     Err(e) => Source::Missing(e),
                 },
                 Some(uri) => match buffer_file(i, uri, base_dir, declared) {
