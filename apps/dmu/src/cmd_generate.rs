@@ -23,7 +23,8 @@ pub struct Args {
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// World offset of the plant in millimetres (real plants sit far from 0).
+    /// World offset of the plant in millimetres (real plants sit far from 0),
+    /// within ±1e14.
     #[arg(long, value_parser = parse_dvec3)]
     origin: Option<glam::DVec3>,
     /// Boxes per side for `grid` (1 to 400: 64M boxes, 768M triangles).
@@ -63,6 +64,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 ..Default::default()
             };
             if let Some(origin) = args.origin {
+                // The plant (kilometres) must fit inside the ±1e15 world.
+                let limit = dmu_scene::MAX_WORLD_COORDINATE / 10.0;
+                if origin.abs().max_element() > limit {
+                    anyhow::bail!("--origin must lie within ±{limit:e} mm");
+                }
                 options.origin = origin;
             }
             plant(&options)

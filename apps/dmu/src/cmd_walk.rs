@@ -153,8 +153,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let tree = Tree::build(store.skeleton(), TreeOptions::default());
     let path = match &args.path {
         Some(p) => {
-            let text =
-                std::fs::read(p).with_context(|| format!("reading the path {}", p.display()))?;
+            let text = dmu_scene::read_regular_file(p)
+                .with_context(|| format!("reading the path {}", p.display()))?;
             let frames: Vec<CameraFrame> = serde_json::from_slice(&text)
                 .with_context(|| format!("{}: not a JSON list of camera frames", p.display()))?;
             frames

@@ -412,6 +412,16 @@ fn pipes_devices_bare_names_meshopt_counts_and_far_eyes() {
     let pipe = fifo.to_str().unwrap();
     // Each would block forever on the pipe (the test would hang, not fail).
     refused(&dmu(&["info", pipe]), "not a regular file");
+    let pipe_glb = dir.path().join("pipe.glb");
+    std::process::Command::new("mkfifo")
+        .arg(&pipe_glb)
+        .status()
+        .unwrap();
+    let store = path(dir.path(), "x.dmu");
+    refused(
+        &dmu(&["import", pipe_glb.to_str().unwrap(), "-o", &store]),
+        "not a regular file",
+    );
     let grid = path(dir.path(), "g.glb");
     json(&dmu(&[
         "generate", "grid", "--n", "2", "-o", &grid, "--json",
@@ -479,6 +489,25 @@ fn pipes_devices_bare_names_meshopt_counts_and_far_eyes() {
         ]),
         "within",
     );
+}
+
+/// A generated plant placed at the edge of the world is refused, not a panic.
+#[test]
+fn a_plant_beyond_the_world_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = path(dir.path(), "p.dmu");
+    let args = [
+        "generate",
+        "plant",
+        "--triangles",
+        "10k",
+        "--origin",
+        "1e15,0,0",
+        "-o",
+        &out,
+    ];
+    refused(&dmu(&args), "--origin must lie within");
+    assert!(!dir.path().join("p.dmu").exists());
 }
 
 /// Second sweep, lenient inputs now refused: a node matrix that is not affine,

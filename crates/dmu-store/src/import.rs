@@ -121,7 +121,7 @@ impl From<dmu_scene::ImportError> for Wrapped {
 fn json_size(path: &Path) -> std::io::Result<u64> {
     use std::io::Read as _;
     let mut head = [0u8; 20];
-    let mut file = std::fs::File::open(path)?;
+    let mut file = dmu_scene::open_regular_file(path)?;
     let len = file.metadata()?.len();
     let n = file.read(&mut head)?;
     Ok(if n == 20 && head.starts_with(b"glTF") {
