@@ -96,6 +96,19 @@ mod tests {
     use super::*;
     use glam::{DQuat, DVec3};
 
+    /// Saving the model onto the file being recorded is refused (the save
+    /// replaced the recording).
+    #[test]
+    fn issue_20_a_save_never_replaces_the_recording() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("session.dmu");
+        let mut review = crate::review::Review::new(dmu_samples::grid(2, 10.0, 4.0, 2048), None);
+        review.recorder = Some(Recorder::create(&path).unwrap());
+        let err = review.save(&path).unwrap_err();
+        assert!(format!("{err:#}").contains("recording"), "{err:#}");
+        assert!(review.save(&dir.path().join("model.dmu")).is_ok());
+    }
+
     /// A recording never overwrites a file (it truncated one before).
     #[test]
     fn issue_20_an_existing_file_is_not_overwritten() {

@@ -308,6 +308,14 @@ impl Review {
     /// temporary file and renamed over `path`.
     pub fn save(&mut self, path: &Path) -> anyhow::Result<Saved> {
         self.end_drag();
+        if let Some(rec) = &self.recorder
+            && rec.path().canonicalize().ok() == path.canonicalize().ok()
+        {
+            anyhow::bail!(
+                "{}: this is the session's recording; save the model under another name",
+                path.display()
+            );
+        }
         let format = dmu_store::save_scene(&self.scene, self.source.as_deref(), path)?;
         Ok(Saved {
             path: path.to_owned(),

@@ -37,7 +37,7 @@ pub struct Args {
     #[arg(long, default_value = "1280x720")]
     size: String,
     /// Near plane distance, world units, more than 0 (default: 1/10 000 of the
-    /// model's diagonal).
+    /// model's diagonal, at most half the distance to the nearest part).
     #[arg(long, value_parser = number_in(1e-9, MAX_LENGTH))]
     near: Option<f64>,
     /// Culling: none, frustum (with coverage) or chc (plus occlusion queries).
@@ -210,9 +210,20 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let loaded = load(&args.model)?;
     let scene = &loaded.scene;
     let tree = Tree::build(scene, TreeOptions::default());
-    let near = args
-        .near
-        .unwrap_or_else(|| (tree.bounds().extent().length() * 1e-4).max(1e-6));
+    // The default near plane: 1/10,000 of the model's size, but never beyond
+    // half the distance to the nearest chunk, so one far-away part (a huge
+    // diagonal) cannot clip away what stands near the eye.
+    let near = args.near.unwrap_or_else(|| {
+        let nearest = tree
+            .entries()
+            .iter()
+            .map(|e| (eye.clamp(e.bounds.min, e.bounds.max) - eye).length())
+            .filter(|&d| d > 0.0)
+            .fold(f64::INFINITY, f64::min);
+        (tree.bounds().extent().length() * 1e-4)
+            .min(nearest * 0.5)
+            .max(1e-6)
+    });
     // Looking straight up or down: any up that is not the view direction will do.
     let forward = (target - eye).normalize();
     let up = if forward.cross(DVec3::Z).length() < 1e-6 {
