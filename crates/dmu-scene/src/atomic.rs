@@ -25,8 +25,20 @@ impl AtomicFile {
     /// A target that exists and is not a regular file (a device such as
     /// `/dev/null`, a pipe, a folder) is refused: renaming over it would
     /// replace it.
+    /// A symbolic link is followed: the file it names is replaced, the link
+    /// kept; a link to nothing is refused.
     pub fn create(path: &Path) -> std::io::Result<AtomicFile> {
         static COUNTER: AtomicU64 = AtomicU64::new(0);
+        let linked;
+        let path = match std::fs::symlink_metadata(path) {
+            Ok(meta) if meta.file_type().is_symlink() => {
+                linked = path.canonicalize().map_err(|_| {
+                    std::io::Error::other("a symbolic link to nothing (or a loop of links)")
+                })?;
+                linked.as_path()
+            }
+            _ => path,
+        };
         if let Ok(meta) = std::fs::metadata(path)
             && !meta.is_file()
         {
@@ -189,5 +201,21 @@ mod tests {
         write_file_atomically(&path, b"new").unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), b"new");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        // Through a link the linked file is replaced and the link kept; a
+        // dangling link is refused.
+        let link = dir.path().join("link.txt");
+        std::os::unix::fs::symlink(&path, &link).unwrap();
+        write_file_atomically(&link, b"via link").unwrap();
+        assert!(
+            std::fs::symlink_metadata(&link)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
+        assert_eq!(std::fs::read(&path).unwrap(), b"via link");
+        let dangling = dir.path().join("dangling.txt");
+        std::os::unix::fs::symlink(dir.path().join("nowhere/x"), &dangling).unwrap();
+        assert!(write_file_atomically(&dangling, b"x").is_err());
+        assert!(!dir.path().join("nowhere").exists());
     }
 }
