@@ -10,7 +10,7 @@
 //! entry, whose ids never change.
 
 use dmu_geom::Aabb3d;
-use dmu_tree::{CellId, Change, Changes, EntryId, NodeId, Revision, Tree};
+use dmu_tree::{CellId, Change, Changes, EntryId, InvariantError, NodeId, Revision, Tree};
 
 /// "No node": a free slot's children, a free cell's node.
 const NONE: u32 = u32::MAX;
@@ -194,7 +194,11 @@ impl Hierarchy {
     /// Checks the mirror against the tree: the same root, children and boxes
     /// for every live tree node, every entry below the root exactly once, in
     /// the cell holding it, boxes nesting.
-    pub fn validate(&self, tree: &Tree) -> Result<(), String> {
+    pub fn validate(&self, tree: &Tree) -> Result<(), InvariantError> {
+        self.check(tree).map_err(InvariantError::new)
+    }
+
+    fn check(&self, tree: &Tree) -> Result<(), String> {
         if self.nodes.len() != tree.entries().len() + tree.node_slots() {
             return Err(format!(
                 "{} nodes for {} entries and {} tree nodes",

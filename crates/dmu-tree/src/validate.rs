@@ -18,6 +18,14 @@ pub struct InvariantError {
     pub what: String,
 }
 
+impl InvariantError {
+    /// A broken invariant described by `what` (for structures that mirror the
+    /// tree, such as the renderer's).
+    pub fn new(what: impl Into<String>) -> Self {
+        Self { what: what.into() }
+    }
+}
+
 impl Tree {
     /// Every entry in exactly one live cell that knows it; cells sorted by part and
     /// chunk with the right triangle counts; every node's box the exact union of
