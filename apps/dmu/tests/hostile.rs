@@ -57,6 +57,21 @@ fn write_gltf(dir: &Path, name: &str, doc: &Value) -> String {
     file
 }
 
+/// A grid of n×n×n boxes generated into `dir` as `name`.
+fn grid(dir: &Path, n: u32, name: &str) -> String {
+    let file = path(dir, name);
+    json(&dmu(&[
+        "generate",
+        "grid",
+        "--n",
+        &n.to_string(),
+        "-o",
+        &file,
+        "--json",
+    ]));
+    file
+}
+
 fn named(name: &str) -> Value {
     json!({ "name": name })
 }
@@ -66,10 +81,7 @@ fn named(name: &str) -> Value {
 #[test]
 fn move_writes_the_format_its_output_names() {
     let dir = tempfile::tempdir().unwrap();
-    let store = path(dir.path(), "g.dmu");
-    json(&dmu(&[
-        "generate", "grid", "--n", "2", "-o", &store, "--json",
-    ]));
+    let store = grid(dir.path(), 2, "g.dmu");
     let moved = json(&dmu(&[
         "move",
         &store,
@@ -231,10 +243,7 @@ fn transforms_that_overflow_are_import_errors() {
     let file = write_gltf(dir.path(), "far.gltf", &gltf("tri.bin", &[far]));
     refused(&dmu(&["info", &file]), "world box is not finite");
     // A typed move past f64's range is refused, the file untouched.
-    let grid = path(dir.path(), "g.glb");
-    json(&dmu(&[
-        "generate", "grid", "--n", "2", "-o", &grid, "--json",
-    ]));
+    let grid = grid(dir.path(), 2, "g.glb");
     let far = [
         "move",
         &grid,
@@ -292,10 +301,7 @@ fn sizes_out_of_range_are_refused() {
 #[test]
 fn pick_directions_of_any_length_agree() {
     let dir = tempfile::tempdir().unwrap();
-    let grid = path(dir.path(), "g.glb");
-    json(&dmu(&[
-        "generate", "grid", "--n", "2", "-o", &grid, "--json",
-    ]));
+    let grid = grid(dir.path(), 2, "g.glb");
     let pick = |d: &str| {
         json(&dmu(&[
             "pick",
@@ -322,10 +328,7 @@ fn pick_directions_of_any_length_agree() {
 #[test]
 fn misnamed_files_and_marks_read_and_errors_say_things_once() {
     let dir = tempfile::tempdir().unwrap();
-    let store = path(dir.path(), "g.dmu");
-    json(&dmu(&[
-        "generate", "grid", "--n", "2", "-o", &store, "--json",
-    ]));
+    let store = grid(dir.path(), 2, "g.dmu");
     let misnamed = path(dir.path(), "g.glb");
     std::fs::copy(&store, &misnamed).unwrap();
     assert_eq!(json(&dmu(&["info", &misnamed, "--json"]))["parts"], 8);
@@ -422,10 +425,7 @@ fn pipes_devices_bare_names_meshopt_counts_and_far_eyes() {
         &dmu(&["import", pipe_glb.to_str().unwrap(), "-o", &store]),
         "not a regular file",
     );
-    let grid = path(dir.path(), "g.glb");
-    json(&dmu(&[
-        "generate", "grid", "--n", "2", "-o", &grid, "--json",
-    ]));
+    let grid = grid(dir.path(), 2, "g.glb");
     refused(
         &dmu(&["collide", &grid, "--record", pipe]),
         "not a regular file",
@@ -521,10 +521,7 @@ fn lenient_inputs_are_refused() {
         json!({"name": "p", "matrix": [1, 0, 0, 10, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 2]});
     let file = write_gltf(dir.path(), "m.gltf", &gltf("tri.bin", &[projective]));
     refused(&dmu(&["info", &file]), "not [0, 0, 0, 1]");
-    let grid = path(dir.path(), "g.glb");
-    json(&dmu(&[
-        "generate", "grid", "--n", "2", "-o", &grid, "--json",
-    ]));
+    let grid = grid(dir.path(), 2, "g.glb");
     let record = path(dir.path(), "r.jsonl");
     std::fs::write(&record, "[0, \"box_0_0_0\", [0, 0, 9], [0, 0, 0, 1]]\n").unwrap();
     refused(
@@ -558,10 +555,7 @@ fn lenient_inputs_are_refused() {
 #[test]
 fn a_far_part_does_not_clip_what_is_near() {
     let dir = tempfile::tempdir().unwrap();
-    let grid = path(dir.path(), "g.dmu");
-    json(&dmu(&[
-        "generate", "grid", "--n", "3", "-o", &grid, "--json",
-    ]));
+    let grid = grid(dir.path(), 3, "g.dmu");
     let far = path(dir.path(), "far.dmu");
     let args = [
         "move",
