@@ -358,6 +358,29 @@ fn misnamed_files_and_marks_read_and_errors_say_things_once() {
     assert_eq!(err.lines().count(), 1, "{err}");
 }
 
+/// `dmu render ARGS` as on a user's machine (without the `NODEVICE_SELECT` that
+/// the test script sets for in-process GPU tests), or `None` after printing
+/// SKIPPED when there is no Vulkan adapter outside CI (under `CI=true` that fails).
+fn render(test: &str, args: &[&str]) -> Option<Output> {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_dmu"))
+        .env_remove("NODEVICE_SELECT")
+        .arg("render")
+        .args(args)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    if !out.status.success() && err.contains("adapter") {
+        assert_ne!(
+            std::env::var("CI").as_deref(),
+            Ok("true"),
+            "{test}: lavapipe is missing under CI: {err}"
+        );
+        eprintln!("SKIPPED {test}: no Vulkan adapter ({err})");
+        return None;
+    }
+    Some(out)
+}
+
 /// A headless render prints nothing on stderr (Mesa's device-select layer used
 /// to print `XDG_RUNTIME_DIR is invalid` twice), and its PNG replaces the old
 /// one whole.
@@ -365,8 +388,7 @@ fn misnamed_files_and_marks_read_and_errors_say_things_once() {
 fn a_headless_render_says_only_what_it_means() {
     let dir = tempfile::tempdir().unwrap();
     let png = path(dir.path(), "r.png");
-    let out = dmu(&[
-        "render",
+    let args = [
         "--plant-triangles",
         "20k",
         "--eye",
@@ -375,17 +397,11 @@ fn a_headless_render_says_only_what_it_means() {
         "1,0,0",
         "-o",
         &png,
-    ]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    if !out.status.success() && err.contains("adapter") {
-        assert_ne!(
-            std::env::var("CI").as_deref(),
-            Ok("true"),
-            "lavapipe is missing under CI: {err}"
-        );
-        eprintln!("SKIPPED a_headless_render_says_only_what_it_means: no Vulkan adapter ({err})");
+    ];
+    let Some(out) = render("a_headless_render_says_only_what_it_means", &args) else {
         return;
-    }
+    };
+    let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     assert_eq!(err, "", "a headless render prints no warnings");
     let image = std::fs::read(&png).unwrap();
@@ -570,19 +586,12 @@ fn a_far_part_does_not_clip_what_is_near() {
     ];
     json(&dmu(&args));
     let png = path(dir.path(), "r.png");
-    let out = dmu(&[
-        "render", &far, "--eye", "50,50,50", "--target", "0,0,0", "--size", "64x64", "-o", &png,
-        "--json",
-    ]);
-    if !out.status.success() && String::from_utf8_lossy(&out.stderr).contains("adapter") {
-        assert_ne!(
-            std::env::var("CI").as_deref(),
-            Ok("true"),
-            "lavapipe is missing under CI"
-        );
-        eprintln!("SKIPPED a_far_part_does_not_clip_what_is_near: no Vulkan adapter");
+    let args = [
+        &far, "--eye", "50,50,50", "--target", "0,0,0", "--size", "64x64", "-o", &png, "--json",
+    ];
+    let Some(out) = render("a_far_part_does_not_clip_what_is_near", &args) else {
         return;
-    }
+    };
     let frames = json(&out)["frames"].clone();
     let drawn = frames[0]["triangles_drawn"].as_u64().unwrap();
     assert!(drawn > 100, "{drawn} triangles drawn near the eye");
