@@ -1,5 +1,6 @@
 //! The discrete check: moved parts at their current poses against everything.
 
+use std::cell::RefCell;
 use std::fmt;
 
 use dmu_geom::Aabb3d;
@@ -8,8 +9,10 @@ use dmu_tree::{EntryId, Tree};
 use glam::DVec3;
 
 use crate::contain::{Closedness, point_inside};
+use crate::enclose::Enclosers;
 use crate::narrow::{
-    ChunkShapes, PairSearch, Placement, box_gap_squared, chunk_pair, pair_tolerance, part_tolerance,
+    ChunkIndex, PairScratch, PairSearch, Placement, TrianglePair, box_gap_squared, chunk_pair,
+    pair_tolerance, part_tolerance, seed,
 };
 use crate::sweep::Path;
 
@@ -213,7 +216,11 @@ pub(crate) fn run_end(pairs: &[ChunkPair], start: usize) -> usize {
 /// once warm, except for what a report grows to).
 #[derive(Debug)]
 pub struct Checker {
-    pub(crate) shapes: ChunkShapes,
+    /// The chunks' BVHs and flat nodes, built on first use.
+    pub(crate) chunks: ChunkIndex,
+    /// The narrow phase's scratch (behind a cell: the sweep's search reads the
+    /// checker while it advances).
+    scratch: RefCell<PairScratch>,
     closed: Closedness,
     /// The largest part scale in the scene, for the broad phase's margin: no
     /// pair's contact tolerance exceeds the relative tolerance times it.
@@ -221,6 +228,16 @@ pub struct Checker {
     pub(crate) moved: Vec<PartId>,
     pub(crate) found: Vec<EntryId>,
     pub(crate) pairs: Vec<ChunkPair>,
+    /// Part pairs (moved, other) where one part's box holds the other's: the
+    /// candidates for containment, whether or not any of their chunks are near.
+    nested: Vec<(PartId, PartId)>,
+    /// Parts whose boxes hold a moved part's box, kept current with the tree.
+    enclosers: Enclosers,
+    near_parts: Vec<PartId>,
+    /// Per part pair of the last check, sorted: its nearest triangle pair, tried
+    /// first at the next check (consecutive poses differ by millimetres).
+    seeds: Vec<((PartId, PartId), TrianglePair)>,
+    next_seeds: Vec<((PartId, PartId), TrianglePair)>,
     hits: Vec<f64>,
     /// Moving parts of a sweep, sorted, with their paths.
     pub(crate) paths: Vec<(PartId, Path)>,
@@ -236,12 +253,18 @@ impl Checker {
             .map(|p| part_tolerance(scene, p, 1.0))
             .fold(0.0, f64::max);
         Self {
-            shapes: ChunkShapes::new(scene.chunks().len()),
+            chunks: ChunkIndex::new(scene.chunks().len()),
+            scratch: RefCell::default(),
             closed: Closedness::new(scene.meshes().len()),
             max_scale,
             moved: Vec::new(),
             found: Vec::new(),
             pairs: Vec::new(),
+            nested: Vec::new(),
+            enclosers: Enclosers::default(),
+            near_parts: Vec::new(),
+            seeds: Vec::new(),
+            next_seeds: Vec::new(),
             hits: Vec::new(),
             paths: Vec::new(),
             swept: Vec::new(),
@@ -250,7 +273,7 @@ impl Checker {
 
     /// Chunks whose triangle mesh has been built so far.
     pub fn chunk_meshes_built(&self) -> usize {
-        self.shapes.built()
+        self.chunks.bvhs.built()
     }
 
     /// Clashes of the `moved` parts, at their current poses, with every other
@@ -258,6 +281,11 @@ impl Checker {
     /// the clearance, gathers the chunks near it. Only pairs involving a moved
     /// part are tested, a pair of two moved parts once; hidden parts and allowed
     /// pairs are skipped. `tree` must be up to date with `scene`.
+    ///
+    /// Containment is found whatever the chunk layout: the closed parts whose
+    /// boxes hold a moved part's box come from an index over whole-part boxes
+    /// (kept current through the tree's change log), and a closed moved part
+    /// is tested against every part whose box lies inside its own.
     pub fn check(
         &mut self,
         scene: &Scene,
@@ -269,6 +297,8 @@ impl Checker {
         report.clear();
         self.set_moved(moved);
         self.pairs.clear();
+        self.nested.clear();
+        self.enclosers.sync(scene, tree);
         let margin = self.margin(settings);
         let entries = tree.entries();
         for i in 0..self.moved.len() {
@@ -276,6 +306,21 @@ impl Checker {
             if scene.part(a).hidden {
                 continue;
             }
+            let box_a = scene.part_world_bounds(a);
+            self.near_parts.clear();
+            self.enclosers
+                .containing(scene, &box_a, &mut self.near_parts);
+            if self.closed.is_closed(scene, scene.part(a).mesh) {
+                self.found.clear();
+                tree.entries_in_box(&box_a, &mut self.found);
+                self.near_parts.extend(
+                    self.found
+                        .iter()
+                        .map(|e| entries[e.0 as usize].part)
+                        .filter(|&b| box_a.contains(&scene.part_world_bounds(b))),
+                );
+            }
+            self.keep_nested(scene, settings, a);
             for ea in tree.part_entries(a) {
                 let query = entries[ea.0 as usize].bounds.inflated(margin);
                 self.found.clear();
@@ -309,13 +354,21 @@ impl Checker {
         report.clear();
         self.set_moved(moved);
         self.pairs.clear();
+        self.nested.clear();
         let margin = self.margin(settings);
         for i in 0..self.moved.len() {
             let a = self.moved[i];
             if scene.part(a).hidden {
                 continue;
             }
-            let near = scene.part_world_bounds(a).inflated(margin);
+            let box_a = scene.part_world_bounds(a);
+            self.near_parts.clear();
+            self.near_parts.extend(scene.part_ids().filter(|&b| {
+                let box_b = scene.part_world_bounds(b);
+                box_b.contains(&box_a) || box_a.contains(&box_b)
+            }));
+            self.keep_nested(scene, settings, a);
+            let near = box_a.inflated(margin);
             for b in scene.part_ids() {
                 if !self.wanted(scene, settings, a, b)
                     || !scene.part_world_bounds(b).overlaps(&near)
@@ -344,6 +397,17 @@ impl Checker {
         self.moved.extend_from_slice(moved);
         self.moved.sort_unstable();
         self.moved.dedup();
+    }
+
+    /// Keeps the wanted pairs of moved part `a` with `self.near_parts` as
+    /// containment candidates.
+    fn keep_nested(&mut self, scene: &Scene, settings: &Settings, a: PartId) {
+        for i in 0..self.near_parts.len() {
+            let b = self.near_parts[i];
+            if self.wanted(scene, settings, a, b) {
+                self.nested.push((a, b));
+            }
+        }
     }
 
     pub(crate) fn margin(&self, settings: &Settings) -> f64 {
@@ -378,15 +442,23 @@ impl Checker {
                 continue;
             }
             report.chunk_pairs_tested += 1;
-            let mesh_a = self.shapes.get(scene, pair.ca);
-            let mesh_b = self.shapes.get(scene, pair.cb);
-            chunk_pair(mesh_a, place_a, mesh_b, place_b, search);
+            chunk_pair(
+                scene,
+                &self.chunks,
+                (pair.ca, place_a),
+                (pair.cb, place_b),
+                search,
+                &mut self.scratch.borrow_mut(),
+            );
         }
     }
 
-    /// The narrow phase over the candidate chunk pairs, one clash per part pair.
+    /// The narrow phase over the candidate chunk pairs, one clash per part pair,
+    /// then containment for the nested pairs that have no chunk pair.
     fn narrow(&mut self, scene: &Scene, settings: &Settings, report: &mut Report) {
         self.pairs.sort_unstable();
+        self.nested.sort_unstable();
+        self.nested.dedup();
         let mut start = 0;
         while start < self.pairs.len() {
             let (a, b) = (self.pairs[start].a, self.pairs[start].b);
@@ -398,6 +470,9 @@ impl Checker {
             let place_b = Placement::new(&scene.part_world(b), origin);
             let tolerance = pair_tolerance(scene, a, b, settings.contact_tolerance);
             let mut search = PairSearch::new(tolerance, settings.clearance);
+            if let Ok(k) = self.seeds.binary_search_by_key(&(a, b), |s| s.0) {
+                seed(scene, self.seeds[k].1, (&place_a, &place_b), &mut search);
+            }
             self.search_chunk_pairs(
                 scene,
                 &self.pairs[start..end],
@@ -408,7 +483,30 @@ impl Checker {
             if let Some(clash) = self.classify(scene, settings, a, b, origin, &search) {
                 report.clashes.push(clash);
             }
+            if let Some(at) = search.best_at {
+                self.next_seeds.push(((a, b), at));
+            }
             start = end;
+        }
+        std::mem::swap(&mut self.seeds, &mut self.next_seeds);
+        self.next_seeds.clear();
+        let mut unordered = false;
+        for i in 0..self.nested.len() {
+            let (a, b) = self.nested[i];
+            let at = self.pairs.partition_point(|p| (p.a, p.b) < (a, b));
+            if self.pairs.get(at).is_some_and(|p| (p.a, p.b) == (a, b)) {
+                continue; // classified above
+            }
+            report.part_pairs_tested += 1;
+            let nothing_near = PairSearch::new(0.0, 0.0);
+            let origin = scene.part_world(a).translation;
+            if let Some(clash) = self.classify(scene, settings, a, b, origin, &nothing_near) {
+                report.clashes.push(clash);
+                unordered = true;
+            }
+        }
+        if unordered {
+            report.clashes.sort_by_key(|c| (c.a, c.b));
         }
     }
 
@@ -463,7 +561,7 @@ impl Checker {
                     }
                     let first = *scene.part_mesh(inner).positions.first()?;
                     let p = scene.part_world(inner).transform_point3(first.as_dvec3());
-                    point_inside(scene, &self.shapes, outer, p, &mut self.hits).then_some(p)
+                    point_inside(scene, &self.chunks.bvhs, outer, p, &mut self.hits).then_some(p)
                 },
             )
     }

@@ -3,12 +3,10 @@
 
 use std::sync::OnceLock;
 
-use dmu_geom::{Ray3d, RayBoxTest3d, RayTriTest3d};
+use dmu_geom::Ray3d;
 use dmu_scene::{MeshId, PartId, Scene};
+use dmu_tree::ChunkBvhCache;
 use glam::DVec3;
-use parry3d::partitioning::TraversalAction;
-
-use crate::narrow::ChunkShapes;
 
 /// Three fixed directions with no simple ratio between components, so a ray
 /// from a modelled point rarely runs through an edge or a vertex; the majority
@@ -68,7 +66,7 @@ fn mesh_is_closed(scene: &Scene, mesh: MeshId) -> bool {
 /// same distance (a ray through a shared edge) count once.
 pub(crate) fn point_inside(
     scene: &Scene,
-    shapes: &ChunkShapes,
+    bvhs: &ChunkBvhCache,
     outer: PartId,
     p: DVec3,
     hits: &mut Vec<f64>,
@@ -79,23 +77,10 @@ pub(crate) fn point_inside(
         .filter(|&&dir| {
             let local = Ray3d::new(p, dir).to_local(&world);
             hits.clear();
-            let box_test = RayBoxTest3d::new(&local);
-            let tri_test = RayTriTest3d::new(&local);
             for chunk in scene.part_mesh(outer).chunk_ids() {
-                let mesh = shapes.get(scene, chunk);
-                mesh.bvh().traverse(|node| {
-                    let b = dmu_geom::Aabb3f::new(node.mins(), node.maxs()).as_dvec();
-                    if box_test.hit(&b, f64::INFINITY).is_none() {
-                        return TraversalAction::Prune;
-                    }
-                    if let Some(i) = node.leaf_data() {
-                        let t = mesh.triangle(i);
-                        let [a, b, c] = [t.a, t.b, t.c].map(|v| v.as_dvec3());
-                        if let Some(hit) = tri_test.hit(a, b, c, 0.0, f64::INFINITY) {
-                            hits.push(hit.t);
-                        }
-                    }
-                    TraversalAction::Continue
+                bvhs.for_each_hit(scene, chunk, &local, f64::INFINITY, &mut |hit| {
+                    hits.push(hit.t);
+                    f64::INFINITY
                 });
             }
             hits.sort_by(f64::total_cmp);

@@ -1,52 +1,16 @@
-//! The narrow phase: a parry3d `TriMesh` per chunk (built on first use, shared
-//! by every instance of the chunk), two of them traversed together, their
-//! triangle pairs compared in f64 in a frame centred on the first part.
+//! The narrow phase: the chunks' BVHs (dmu-tree's, built on first use and
+//! shared by every instance of a chunk) traversed together, their node boxes
+//! and triangles carried into a frame centred on the first part in f64 once per
+//! chunk pair and reused as the traversal revisits them, their triangle pairs
+//! compared in f64.
 
-use std::sync::OnceLock;
-
-use dmu_geom::{Aabb3d, Aabb3f};
+use dmu_geom::Aabb3d;
 use dmu_scene::{ChunkId, PartId, Scene};
+use dmu_tree::{BvhNode, ChunkBvhCache};
 use glam::{DAffine3, DVec3, Vec3};
-use parry3d::partitioning::BvhNode;
-use parry3d::shape::TriMesh;
 
-use crate::triangle::{TriangleClash, triangle_clash};
-
-/// The lazily built triangle meshes of a scene's chunks.
-#[derive(Debug)]
-pub(crate) struct ChunkShapes {
-    slots: Vec<OnceLock<TriMesh>>,
-}
-
-impl ChunkShapes {
-    pub fn new(chunks: usize) -> Self {
-        Self {
-            slots: (0..chunks).map(|_| OnceLock::new()).collect(),
-        }
-    }
-
-    /// Chunks whose mesh has been built so far.
-    pub fn built(&self) -> usize {
-        self.slots.iter().filter(|s| s.get().is_some()).count()
-    }
-
-    /// The chunk's mesh in part-local f32 coordinates, triangle `i` being the
-    /// chunk's `i`-th triangle.
-    pub fn get(&self, scene: &Scene, chunk: ChunkId) -> &TriMesh {
-        self.slots[chunk.index()].get_or_init(|| {
-            let g = scene
-                .chunk_geometry(chunk)
-                .expect("collision needs the geometry loaded");
-            let vertices = g.positions.to_vec();
-            let indices = g
-                .indices
-                .chunks_exact(3)
-                .map(|t| [t[0], t[1], t[2]])
-                .collect();
-            TriMesh::new(vertices, indices).expect("a chunk has at least one triangle")
-        })
-    }
-}
+use crate::flat::{ChunkPlanes, NodePlane, flat_on_each_other};
+use crate::triangle::{Placed, TriangleClash, placed_clash, triangle_penetration};
 
 /// Where a part sits in the frame of a pair: world axes, origin at the first
 /// part's world translation. Offsets between parts are formed in f64 before any
@@ -58,6 +22,9 @@ pub(crate) struct Placement {
     /// The transform mirrors: triangle windings flip, so they are reordered to
     /// keep outward normals outward.
     pub mirrored: bool,
+    /// The transform is a rotation and a translation (to rounding): planes
+    /// and distances carry over unchanged.
+    pub rigid: bool,
 }
 
 impl Placement {
@@ -69,6 +36,11 @@ impl Placement {
                 translation: world.translation - origin,
             },
             mirrored: world.matrix3.determinant() < 0.0,
+            rigid: world.matrix3.determinant() > 0.0
+                && (world.matrix3.transpose() * world.matrix3 - glam::DMat3::IDENTITY)
+                    .to_cols_array()
+                    .iter()
+                    .all(|e| e.abs() <= 1e-12),
         }
     }
 
@@ -76,9 +48,268 @@ impl Placement {
         let [a, b, c] = t.map(|v| self.to_pair.transform_point3(v.as_dvec3()));
         if self.mirrored { [a, c, b] } else { [a, b, c] }
     }
+}
 
-    pub fn node_box(&self, node: &BvhNode) -> Aabb3d {
-        Aabb3f::new(node.mins(), node.maxs()).transformed(&self.to_pair)
+/// One side of a chunk pair: the chunk's BVH (a single leaf for a chunk too
+/// small to have one), its geometry, and its node boxes and triangles carried
+/// into the pair frame on first use, marked valid by a stamp that changes with
+/// every chunk pair, so nothing is cleared between pairs.
+#[derive(Debug, Default)]
+pub(crate) struct PlacedChunk {
+    stamp: u32,
+    boxes: Vec<(u32, Aabb3d)>,
+    triangles: Vec<(u32, Placed)>,
+}
+
+impl PlacedChunk {
+    /// Invalidates what the last chunk pair placed and makes room for a chunk
+    /// of `nodes` nodes and `triangles` triangles.
+    fn begin(&mut self, nodes: usize, triangles: usize) {
+        self.stamp = self.stamp.wrapping_add(1);
+        if self.stamp == 0 {
+            self.boxes.iter_mut().for_each(|b| b.0 = 0);
+            self.triangles.iter_mut().for_each(|t| t.0 = 0);
+            self.stamp = 1;
+        }
+        if self.boxes.len() < nodes {
+            self.boxes.resize(nodes, (0, Aabb3d::EMPTY));
+        }
+        if self.triangles.len() < triangles {
+            self.triangles
+                .resize(triangles, (0, Placed::new([DVec3::ZERO; 3])));
+        }
+    }
+}
+
+/// Scratch for [`chunk_pair`]: the two placed sides and the traversal stack.
+#[derive(Debug, Default)]
+pub(crate) struct PairScratch {
+    a: PlacedChunk,
+    b: PlacedChunk,
+    stack: Vec<(u32, u32)>,
+}
+
+/// What the narrow phase keeps per chunk, built on first use: its BVH (shared
+/// with containment's ray tests) and its flat nodes.
+#[derive(Debug)]
+pub(crate) struct ChunkIndex {
+    pub bvhs: ChunkBvhCache,
+    planes: ChunkPlanes,
+}
+
+impl ChunkIndex {
+    pub fn new(chunks: usize) -> Self {
+        Self {
+            bvhs: ChunkBvhCache::new(chunks),
+            planes: ChunkPlanes::new(chunks),
+        }
+    }
+}
+
+/// A chunk as the traversal sees it.
+struct Side<'a> {
+    nodes: &'a [BvhNode],
+    planes: &'a [Option<NodePlane>],
+    /// Leaf entries to triangle offsets; `None`: the offset itself (one leaf).
+    order: Option<&'a [u32]>,
+    positions: &'a [Vec3],
+    indices: &'a [u32],
+    place: &'a Placement,
+}
+
+impl Side<'_> {
+    fn node_box(&self, placed: &mut PlacedChunk, n: u32) -> Aabb3d {
+        let slot = &mut placed.boxes[n as usize];
+        if slot.0 != placed.stamp {
+            *slot = (
+                placed.stamp,
+                self.nodes[n as usize]
+                    .bounds
+                    .transformed(&self.place.to_pair),
+            );
+        }
+        slot.1
+    }
+
+    /// The offset in the chunk of the triangle at leaf entry `entry`.
+    fn offset(&self, entry: u32) -> u32 {
+        self.order.map_or(entry, |o| o[entry as usize])
+    }
+
+    fn triangle<'p>(&self, placed: &'p mut PlacedChunk, t: u32) -> &'p Placed {
+        let slot = &mut placed.triangles[t as usize];
+        if slot.0 != placed.stamp {
+            let local = local_triangle(self.positions, self.indices, t);
+            *slot = (placed.stamp, Placed::new(self.place.triangle(local)));
+        }
+        &slot.1
+    }
+}
+
+/// Triangle `t` (offset in its chunk) of chunk geometry, part-local.
+fn local_triangle(positions: &[Vec3], indices: &[u32], t: u32) -> [Vec3; 3] {
+    let i = 3 * t as usize;
+    [0, 1, 2].map(|k| positions[indices[i + k] as usize])
+}
+
+/// A triangle of each part of a pair: chunk and offset in the chunk.
+pub(crate) type TrianglePair = [(ChunkId, u32); 2];
+
+/// Offers triangle pair `at` (the nearest at the step before) to the search
+/// before any traversal: its distance, a real one, shrinks the limit at once,
+/// and a part resting where it rested is settled by its first pair.
+pub(crate) fn seed(
+    scene: &Scene,
+    at: TrianglePair,
+    (place_a, place_b): (&Placement, &Placement),
+    search: &mut PairSearch,
+) {
+    let placed = |(chunk, t): (ChunkId, u32), place: &Placement| {
+        let g = scene
+            .chunk_geometry(chunk)
+            .expect("collision needs the geometry loaded");
+        Placed::new(place.triangle(local_triangle(g.positions, g.indices, t)))
+    };
+    let (a, b) = (placed(at[0], place_a), placed(at[1], place_b));
+    if let Some(clash) = placed_clash(&a, &b, search.tolerance, search.limit) {
+        search.offer(clash, at);
+    }
+}
+
+/// Compares two chunks, placed in a common pair frame, triangle pair by
+/// triangle pair as their BVHs are traversed together, nearer node pairs
+/// first; node pairs farther apart than the search's limit are pruned.
+pub(crate) fn chunk_pair(
+    scene: &Scene,
+    chunks: &ChunkIndex,
+    (ca, place_a): (ChunkId, &Placement),
+    (cb, place_b): (ChunkId, &Placement),
+    search: &mut PairSearch,
+    scratch: &mut PairScratch,
+) {
+    let single_a = [single_leaf(scene, ca)];
+    let single_b = [single_leaf(scene, cb)];
+    let a = side(scene, chunks, ca, place_a, &single_a);
+    let b = side(scene, chunks, cb, place_b, &single_b);
+    let rigid = place_a.rigid && place_b.rigid;
+    let PairScratch {
+        a: placed_a,
+        b: placed_b,
+        stack,
+    } = scratch;
+    placed_a.begin(a.nodes.len(), single_a[0].count as usize);
+    placed_b.begin(b.nodes.len(), single_b[0].count as usize);
+    let gap = |pa: &mut PlacedChunk, pb: &mut PlacedChunk, i: u32, j: u32| {
+        box_gap_squared(&a.node_box(pa, i), &b.node_box(pb, j))
+    };
+    stack.clear();
+    if gap(placed_a, placed_b, 0, 0) <= search.limit * search.limit {
+        stack.push((0, 0));
+    }
+    while let Some((i, j)) = stack.pop() {
+        let (na, nb) = (a.nodes[i as usize], b.nodes[j as usize]);
+        // Once a pair at distance 0 is held, only penetration can change the
+        // answer, and faces resting flat on each other cannot penetrate.
+        let settled = search.best.is_some_and(|b| b.distance == 0.0);
+        if settled
+            && rigid
+            && let (Some(plane_a), Some(plane_b)) = (a.planes[i as usize], b.planes[j as usize])
+            && flat_on_each_other(
+                (&plane_a.placed(a.place), &a.node_box(placed_a, i)),
+                (&plane_b.placed(b.place), &b.node_box(placed_b, j)),
+                search.tolerance,
+            )
+        {
+            continue;
+        }
+        match (na.count, nb.count) {
+            (0, _) | (_, 0) => {
+                // Split the inner node with the larger box (or the only one).
+                let split_a = nb.count != 0
+                    || (na.count == 0 && na.bounds.surface_area() >= nb.bounds.surface_area());
+                let pairs = if split_a {
+                    [(na.first, j), (na.first + 1, j)]
+                } else {
+                    [(i, nb.first), (i, nb.first + 1)]
+                };
+                let gaps = pairs.map(|(x, y)| gap(placed_a, placed_b, x, y));
+                let limit2 = search.limit * search.limit;
+                // The nearer pair last, so it is popped first.
+                let order = if gaps[0] <= gaps[1] { [1, 0] } else { [0, 1] };
+                stack.extend(
+                    order
+                        .into_iter()
+                        .filter(|&k| gaps[k] <= limit2)
+                        .map(|k| pairs[k]),
+                );
+            }
+            _ => {
+                if gap(placed_a, placed_b, i, j) > search.limit * search.limit {
+                    continue; // the limit shrank since the pair was pushed
+                }
+                let box_b = b.node_box(placed_b, j);
+                for ea in na.first..na.first + na.count {
+                    let oa = a.offset(ea);
+                    let ta = a.triangle(placed_a, oa);
+                    let reach = |limit: f64| {
+                        box_gap_squared(&Aabb3d::new(ta.min, ta.max), &box_b) <= limit * limit
+                    };
+                    if !reach(search.limit) {
+                        continue;
+                    }
+                    for eb in nb.first..nb.first + nb.count {
+                        let ob = b.offset(eb);
+                        let tb = b.triangle(placed_b, ob);
+                        let clash = if search.best.is_some_and(|b| b.distance == 0.0) {
+                            triangle_penetration(ta, tb, search.tolerance)
+                        } else {
+                            placed_clash(ta, tb, search.tolerance, search.limit)
+                        };
+                        if let Some(clash) = clash {
+                            search.offer(clash, [(ca, oa), (cb, ob)]);
+                            if search.done() {
+                                return;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The whole chunk as one leaf: its box and its triangle count.
+fn single_leaf(scene: &Scene, chunk: ChunkId) -> BvhNode {
+    let c = scene.chunk(chunk);
+    BvhNode {
+        bounds: c.bounds,
+        count: c.triangle_count(),
+        first: 0,
+    }
+}
+
+fn side<'a>(
+    scene: &'a Scene,
+    chunks: &'a ChunkIndex,
+    chunk: ChunkId,
+    place: &'a Placement,
+    single: &'a [BvhNode; 1],
+) -> Side<'a> {
+    let g = scene
+        .chunk_geometry(chunk)
+        .expect("collision needs the geometry loaded");
+    let (nodes, order) = match chunks.bvhs.get(scene, chunk) {
+        Some(bvh) => (bvh.nodes(), Some(bvh.triangles())),
+        None => (single.as_slice(), None),
+    };
+    let offset = |entry: u32| order.map_or(entry, |o| o[entry as usize]);
+    Side {
+        nodes,
+        planes: chunks.planes.get(scene, chunk, nodes, offset),
+        order,
+        positions: g.positions,
+        indices: g.indices,
+        place,
     }
 }
 
@@ -100,6 +331,8 @@ pub(crate) struct PairSearch {
     pub limit: f64,
     /// The nearest (or the first penetrating) triangle pair, in the pair frame.
     pub best: Option<TriangleClash>,
+    /// Which triangles `best` is of.
+    pub best_at: Option<TrianglePair>,
 }
 
 impl PairSearch {
@@ -108,6 +341,7 @@ impl PairSearch {
             tolerance,
             limit: max_distance.max(tolerance),
             best: None,
+            best_at: None,
         }
     }
 
@@ -116,41 +350,11 @@ impl PairSearch {
         self.best.is_some_and(|b| b.penetrating)
     }
 
-    fn offer(&mut self, clash: TriangleClash) {
+    pub fn offer(&mut self, clash: TriangleClash, at: TrianglePair) {
         if clash.penetrating || self.best.is_none_or(|b| clash.distance < b.distance) {
             self.best = Some(clash);
+            self.best_at = Some(at);
             self.limit = clash.distance.max(self.tolerance);
-        }
-    }
-}
-
-/// Compares two chunks, placed in a common pair frame, triangle pair by
-/// triangle pair as the two BVHs are traversed together; node pairs farther
-/// apart than the search's limit are pruned.
-pub(crate) fn chunk_pair(
-    mesh_a: &TriMesh,
-    place_a: &Placement,
-    mesh_b: &TriMesh,
-    place_b: &Placement,
-    search: &mut PairSearch,
-) {
-    // The traversal's check can only read: the limit lives in a cell.
-    let limit = std::cell::Cell::new(search.limit);
-    let close = |n1: &BvhNode, n2: &BvhNode| {
-        let l = limit.get();
-        box_gap_squared(&place_a.node_box(n1), &place_b.node_box(n2)) <= l * l
-    };
-    for (i, j) in mesh_a.bvh().leaf_pairs(mesh_b.bvh(), close) {
-        let ta = mesh_a.triangle(i);
-        let tb = mesh_b.triangle(j);
-        let a = place_a.triangle([ta.a, ta.b, ta.c]);
-        let b = place_b.triangle([tb.a, tb.b, tb.c]);
-        if let Some(clash) = triangle_clash(&a, &b, search.tolerance, search.limit) {
-            search.offer(clash);
-            limit.set(search.limit);
-            if search.done() {
-                return;
-            }
         }
     }
 }

@@ -27,6 +27,17 @@ pub struct TriangleClash {
 /// distance 0 at the crossing point; otherwise the closest pair is a vertex
 /// against a triangle or an edge against an edge.
 pub fn triangle_distance(a: &[DVec3; 3], b: &[DVec3; 3]) -> (f64, DVec3, DVec3) {
+    distance_between(a, b, unit_normal(a).is_some(), unit_normal(b).is_some())
+}
+
+/// [`triangle_distance`] for triangles whose non-degeneracy (`unit_normal` is
+/// `Some`) the caller knows already.
+fn distance_between(
+    a: &[DVec3; 3],
+    b: &[DVec3; 3],
+    a_has_normal: bool,
+    b_has_normal: bool,
+) -> (f64, DVec3, DVec3) {
     if let Some(x) = edges_cross(a, b).or_else(|| edges_cross(b, a)) {
         return (0.0, x, x);
     }
@@ -38,10 +49,10 @@ pub fn triangle_distance(a: &[DVec3; 3], b: &[DVec3; 3]) -> (f64, DVec3, DVec3) 
         }
     };
     for &p in a {
-        consider(p, closest_on_triangle(p, b));
+        consider(p, closest_on_triangle(p, b, b_has_normal));
     }
     for &p in b {
-        consider(closest_on_triangle(p, a), p);
+        consider(closest_on_triangle(p, a, a_has_normal), p);
     }
     for i in 0..3 {
         for j in 0..3 {
@@ -73,50 +84,174 @@ pub fn triangle_clash(
     tolerance: f64,
     max_distance: f64,
 ) -> Option<TriangleClash> {
-    // Cheap rejections first: most pairs a BVH hands over are not close.
-    if box_gap_squared(a, b) > max_distance * max_distance {
-        return None;
-    }
-    let na = unit_normal(a);
-    let nb = unit_normal(b);
-    let side_a = nb.map(|n| a.map(|p| n.dot(p - b[0])));
-    let side_b = na.map(|n| b.map(|p| n.dot(p - a[0])));
-    let beyond =
-        |s: &[f64; 3]| s.iter().all(|&d| d > max_distance) || s.iter().all(|&d| d < -max_distance);
-    if side_a.as_ref().is_some_and(beyond) || side_b.as_ref().is_some_and(beyond) {
-        return None;
-    }
-    let (distance, point_a, point_b) = triangle_distance(a, b);
-    if distance > max_distance {
-        return None;
-    }
-    let mut clash = TriangleClash {
-        distance,
-        point_a,
-        point_b,
-        normal: (point_b - point_a) / distance,
-        penetrating: false,
-    };
-    if distance > tolerance {
-        return Some(clash);
-    }
-    let (depth, axis) = penetration_depth(a, b, na, nb);
-    clash.normal = axis;
-    clash.penetrating = depth > tolerance;
-    if !clash.penetrating
-        && let (Some(na), Some(nb), Some(sa), Some(sb)) = (na, nb, side_a, side_b)
-    {
-        let flat = |s: [f64; 3]| s.iter().all(|d| d.abs() <= tolerance);
-        if flat(sa) && flat(sb) {
-            clash.normal = na;
-            clash.penetrating = na.dot(nb) > 0.0 && coplanar_overlap(a, b, na) > tolerance;
+    let (a, b) = (Placed::new(*a), Placed::new(*b));
+    placed_clash(&a, &b, tolerance, max_distance)
+}
+
+/// A triangle in the frame of a comparison with what [`triangle_clash`] needs
+/// of it alone: its unit normal and its box, computed once for all the
+/// triangles it meets.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Placed {
+    pub v: [DVec3; 3],
+    /// See [`unit_normal`].
+    pub normal: Option<DVec3>,
+    pub min: DVec3,
+    pub max: DVec3,
+}
+
+impl Placed {
+    pub fn new(v: [DVec3; 3]) -> Self {
+        Self {
+            v,
+            normal: unit_normal(&v),
+            min: v[0].min(v[1]).min(v[2]),
+            max: v[0].max(v[1]).max(v[2]),
         }
     }
-    Some(clash)
+
+    /// Squared gap between the two triangles' boxes (0 when they overlap).
+    pub fn box_gap_squared(&self, other: &Self) -> f64 {
+        (other.min - self.max)
+            .max(self.min - other.max)
+            .max(DVec3::ZERO)
+            .length_squared()
+    }
+}
+
+/// [`triangle_clash`] of placed triangles.
+pub(crate) fn placed_clash(
+    a: &Placed,
+    b: &Placed,
+    tolerance: f64,
+    max_distance: f64,
+) -> Option<TriangleClash> {
+    let facing = Facing::of(a, b, max_distance)?;
+    facing.clash(&a.v, &b.v, tolerance, max_distance)
+}
+
+/// [`triangle_clash`] with `max_distance` equal to `tolerance`, when only a
+/// penetrating result matters (the search already holds a pair at distance 0,
+/// which no touching pair can beat): `Some` exactly when that call would say
+/// `penetrating`, with the same result. Most touching pairs are settled without
+/// the distance computation: faces lying flat on each other and facing each
+/// other (a part resting on a floor) cannot penetrate, and neither can a pair
+/// whose separating-axis depth is within the tolerance unless they are
+/// coplanar faces facing the same way.
+pub(crate) fn triangle_penetration(
+    a: &Placed,
+    b: &Placed,
+    tolerance: f64,
+) -> Option<TriangleClash> {
+    let facing = Facing::of(a, b, tolerance)?;
+    let (a, b) = (&a.v, &b.v);
+    let within =
+        |s: Option<[f64; 3]>, limit: f64| s.is_some_and(|s| s.iter().all(|d| d.abs() <= limit));
+    let flat = |limit| within(facing.side_a, limit) && within(facing.side_b, limit);
+    let same_way = match (facing.na, facing.nb) {
+        (Some(na), Some(nb)) => na.dot(nb) > 0.0,
+        _ => false,
+    };
+    // Flat on each other well inside the tolerance and facing each other: the
+    // separating-axis depth along the first normal is at most half the
+    // tolerance (plus rounding far below it), so `clash` finds no penetration.
+    if flat(0.5 * tolerance) && !same_way {
+        return None;
+    }
+    let mut separable = false;
+    separating_axes(a, b, facing.na, facing.nb, |depth, _| {
+        separable = depth <= tolerance;
+        separable // stop at the first axis that separates within the tolerance
+    });
+    if separable && !(flat(tolerance) && same_way) {
+        return None;
+    }
+    facing
+        .clash(a, b, tolerance, tolerance)
+        .filter(|c| c.penetrating)
+}
+
+/// Two triangles that passed the cheap rejections: their unit normals (`None`
+/// when degenerate) and each one's vertices' signed distances from the other's
+/// plane.
+struct Facing {
+    na: Option<DVec3>,
+    nb: Option<DVec3>,
+    side_a: Option<[f64; 3]>,
+    side_b: Option<[f64; 3]>,
+}
+
+impl Facing {
+    /// `None` when the triangles' boxes, or one triangle and the other's plane,
+    /// are farther apart than `max_distance`: most pairs a BVH hands over.
+    fn of(a: &Placed, b: &Placed, max_distance: f64) -> Option<Self> {
+        if a.box_gap_squared(b) > max_distance * max_distance {
+            return None;
+        }
+        let (na, nb) = (a.normal, b.normal);
+        let (a, b) = (&a.v, &b.v);
+        let side_a = nb.map(|n| a.map(|p| n.dot(p - b[0])));
+        let side_b = na.map(|n| b.map(|p| n.dot(p - a[0])));
+        let beyond = |s: &[f64; 3]| {
+            s.iter().all(|&d| d > max_distance) || s.iter().all(|&d| d < -max_distance)
+        };
+        if side_a.as_ref().is_some_and(beyond) || side_b.as_ref().is_some_and(beyond) {
+            return None;
+        }
+        Some(Self {
+            na,
+            nb,
+            side_a,
+            side_b,
+        })
+    }
+
+    /// The rest of [`triangle_clash`].
+    fn clash(
+        &self,
+        a: &[DVec3; 3],
+        b: &[DVec3; 3],
+        tolerance: f64,
+        max_distance: f64,
+    ) -> Option<TriangleClash> {
+        let Self {
+            na,
+            nb,
+            side_a,
+            side_b,
+        } = *self;
+        let (distance, point_a, point_b) = distance_between(a, b, na.is_some(), nb.is_some());
+        if distance > max_distance {
+            return None;
+        }
+        let mut clash = TriangleClash {
+            distance,
+            point_a,
+            point_b,
+            normal: (point_b - point_a) / distance,
+            penetrating: false,
+        };
+        if distance > tolerance {
+            return Some(clash);
+        }
+        let (depth, axis) = penetration_depth(a, b, na, nb);
+        clash.normal = axis;
+        clash.penetrating = depth > tolerance;
+        if !clash.penetrating
+            && let (Some(na), Some(nb), Some(sa), Some(sb)) = (na, nb, side_a, side_b)
+        {
+            let flat = |s: [f64; 3]| s.iter().all(|d| d.abs() <= tolerance);
+            if flat(sa) && flat(sb) {
+                clash.normal = na;
+                clash.penetrating = na.dot(nb) > 0.0 && coplanar_overlap(a, b, na) > tolerance;
+            }
+        }
+        Some(clash)
+    }
 }
 
 /// The unit normal by the winding, `None` for a degenerate triangle.
-fn unit_normal(t: &[DVec3; 3]) -> Option<DVec3> {
+pub(crate) fn unit_normal(t: &[DVec3; 3]) -> Option<DVec3> {
     let n = (t[1] - t[0]).cross(t[2] - t[0]);
     let scale = (t[1] - t[0])
         .length_squared()
@@ -124,16 +259,6 @@ fn unit_normal(t: &[DVec3; 3]) -> Option<DVec3> {
         .max((t[2] - t[1]).length_squared());
     // Zero area, or so thin that the normal is rounding noise.
     (n.length_squared() > 1e-24 * scale * scale).then(|| n.normalize())
-}
-
-/// Squared gap between the triangles' boxes (0 when they overlap).
-fn box_gap_squared(a: &[DVec3; 3], b: &[DVec3; 3]) -> f64 {
-    let (amin, amax) = (a[0].min(a[1]).min(a[2]), a[0].max(a[1]).max(a[2]));
-    let (bmin, bmax) = (b[0].min(b[1]).min(b[2]), b[0].max(b[1]).max(b[2]));
-    (bmin - amax)
-        .max(amin - bmax)
-        .max(DVec3::ZERO)
-        .length_squared()
 }
 
 /// A point where an edge of `a` passes strictly through the plane of `b` inside
@@ -170,30 +295,52 @@ fn penetration_depth(
     nb: Option<DVec3>,
 ) -> (f64, DVec3) {
     let mut best = (f64::INFINITY, na.or(nb).unwrap_or(DVec3::Z));
+    separating_axes(a, b, na, nb, |depth, u| {
+        if depth < best.0 {
+            best = (depth, u);
+        }
+        false
+    });
+    best
+}
+
+/// Calls `visit(depth, axis)` for each candidate separating axis of two
+/// triangles (the normals, then the edge-pair directions) with the overlap of
+/// their projections on it and the unit axis pointing the way `b` should move,
+/// until `visit` returns true.
+fn separating_axes(
+    a: &[DVec3; 3],
+    b: &[DVec3; 3],
+    na: Option<DVec3>,
+    nb: Option<DVec3>,
+    mut visit: impl FnMut(f64, DVec3) -> bool,
+) {
     let mut axis = |u: DVec3| {
         let pa = a.map(|p| u.dot(p));
         let pb = b.map(|p| u.dot(p));
         let (amin, amax) = (pa[0].min(pa[1]).min(pa[2]), pa[0].max(pa[1]).max(pa[2]));
         let (bmin, bmax) = (pb[0].min(pb[1]).min(pb[2]), pb[0].max(pb[1]).max(pb[2]));
         let (up, down) = (amax - bmin, bmax - amin);
-        let depth = up.min(down);
-        if depth < best.0 {
-            best = (depth, if up <= down { u } else { -u });
-        }
+        visit(up.min(down), if up <= down { u } else { -u })
     };
-    na.into_iter().chain(nb).for_each(&mut axis);
+    for n in [na, nb].into_iter().flatten() {
+        if axis(n) {
+            return;
+        }
+    }
     for i in 0..3 {
         let ea = a[(i + 1) % 3] - a[i];
         for j in 0..3 {
             let eb = b[(j + 1) % 3] - b[j];
             let c = ea.cross(eb);
             // Parallel edges give no axis of their own.
-            if c.length_squared() > 1e-24 * ea.length_squared() * eb.length_squared() {
-                axis(c.normalize());
+            if c.length_squared() > 1e-24 * ea.length_squared() * eb.length_squared()
+                && axis(c.normalize())
+            {
+                return;
             }
         }
     }
-    best
 }
 
 /// How far the interiors of two coplanar triangles overlap: the smallest overlap
@@ -219,10 +366,11 @@ fn coplanar_overlap(a: &[DVec3; 3], b: &[DVec3; 3], n: DVec3) -> f64 {
 }
 
 /// The point of triangle `t` nearest to `p` (Ericson, Real-Time Collision
-/// Detection 5.1.5); degenerate triangles fall back to their edges.
-fn closest_on_triangle(p: DVec3, t: &[DVec3; 3]) -> DVec3 {
+/// Detection 5.1.5); degenerate triangles (`has_normal` false: see
+/// [`unit_normal`]) fall back to their edges.
+fn closest_on_triangle(p: DVec3, t: &[DVec3; 3], has_normal: bool) -> DVec3 {
     let [a, b, c] = *t;
-    if unit_normal(t).is_none() {
+    if !has_normal {
         return [(a, b), (b, c), (c, a)]
             .map(|(s, e)| closest_on_segment(p, s, e))
             .into_iter()
@@ -303,4 +451,60 @@ fn closest_on_segments(p1: DVec3, q1: DVec3, p2: DVec3, q2: DVec3) -> (DVec3, DV
         }
     };
     (p1 + d1 * s, p2 + d2 * t)
+}
+
+#[cfg(test)]
+mod tests {
+    use dmu_samples::Rng;
+    use glam::{DQuat, DVec3};
+
+    use super::{Placed, triangle_clash, triangle_penetration};
+
+    fn random_triangle(rng: &mut Rng, size: f64) -> [DVec3; 3] {
+        [(); 3].map(|_| DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 0.0) * size)
+    }
+
+    /// The penetration-only test answers exactly as the full one on pairs where
+    /// its shortcuts apply and where they must not: faces flat on each other
+    /// facing either way, offset within and beyond the tolerance, tilted a
+    /// little or a lot, crossing, degenerate, far from the origin.
+    #[test]
+    fn penetration_only_equals_the_full_test_filtered() {
+        let mut rng = Rng::new(18);
+        let mut penetrating = 0;
+        for i in 0..200_000 {
+            let tolerance = [1e-6, 1e-3, 0.1][i % 3];
+            let size = [1.0, 100.0][i / 3 % 2];
+            let a = random_triangle(&mut rng, size);
+            let mut b = random_triangle(&mut rng, size);
+            if rng.chance(0.5) {
+                b.swap(1, 2); // the other way up
+            }
+            if rng.chance(0.1) {
+                b[2] = b[0].lerp(b[1], 0.5); // degenerate
+            }
+            let tilt = [0.0, 1e-9, 1e-4, 0.3, 1.5][rng.below(5) as usize];
+            let turn = DQuat::from_axis_angle(
+                DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 0.0).normalize_or(DVec3::X),
+                tilt,
+            );
+            let lift = tolerance * [0.0, 0.3, 0.5, 0.9, 1.0, 1.1, 3.0][rng.below(7) as usize];
+            let offset = DVec3::new(0.0, 0.0, if rng.chance(0.5) { lift } else { -lift })
+                + if rng.chance(0.3) {
+                    DVec3::splat(1e7)
+                } else {
+                    DVec3::ZERO
+                };
+            let (a, b) = (
+                a.map(|p| p + offset.with_z(0.0)),
+                b.map(|p| turn * p + offset),
+            );
+            let full = triangle_clash(&a, &b, tolerance, tolerance).filter(|c| c.penetrating);
+            let placed = triangle_penetration(&Placed::new(a), &Placed::new(b), tolerance);
+            assert_eq!(placed, full, "case {i}: {a:?} {b:?}");
+            penetrating += usize::from(full.is_some());
+        }
+        // Both answers occur often (the test cannot pass by always saying no).
+        assert!(penetrating > 10_000, "{penetrating}");
+    }
 }

@@ -6,7 +6,10 @@ use dmu_scene::{PartId, Scene};
 use dmu_tree::{Tree, TreeOptions};
 use glam::{DAffine3, DQuat, DVec3, Vec3};
 
-use crate::support::{Shape, box_mesh, cylinder_mesh, scene_of, tolerance};
+use crate::support::{
+    Shape, box_mesh, brute_inside, cylinder_mesh, oracle, scene_of, tessellated_box_mesh,
+    tolerance, world_triangles,
+};
 
 const GAPS: [f64; 4] = [0.0, 0.05, 1.0, 1000.0];
 const FAR: DVec3 = DVec3::new(1e7, 1e7, 1e7);
@@ -333,6 +336,153 @@ fn a_part_inside_a_closed_part_is_hard_inside_an_open_one_is_not_seen() {
         );
         assert!(check(&scene, &Settings::with_clearance(5.0)).is_empty());
     }
+}
+
+/// Issue 18: a small cube deep inside a closed hollow box of many chunks, whose
+/// chunk boxes are all far from the cube, is a hard clash when the cube moves
+/// (it is swallowed) and when the box moves (it swallows), at the origin and
+/// 10^7 mm from it; outside, or in the box without its top, it is clear.
+#[test]
+fn issue_18_a_part_deep_inside_a_closed_part_of_many_chunks_is_hard() {
+    for offset in [DVec3::ZERO, FAR] {
+        let at = |p: DVec3| DAffine3::from_translation(offset + p);
+        // Half size 1000, each face 5 x 5 squares: 300 triangles, 6 a chunk.
+        let (v, i) = tessellated_box_mesh(Vec3::splat(1000.0), 5);
+        let mut open = i.clone();
+        open.drain(..6 * 25); // the +x face: open, it contains nothing
+        for (shell, closed) in [((v.clone(), i), true), ((v.clone(), open), false)] {
+            let mut scene = scene_of(
+                &[
+                    Shape::new("hall", shell, at(DVec3::ZERO)),
+                    Shape::new(
+                        "pump",
+                        box_mesh(Vec3::splat(5.0)),
+                        at(DVec3::new(10.0, -20.0, 30.0)),
+                    ),
+                ],
+                6,
+            );
+            let (hall, pump) = (PartId(0), PartId(1));
+            assert!(scene.part_mesh(hall).chunks.len() >= if closed { 50 } else { 42 });
+            // The cube's first vertex is inside by brute-force ray parity (the
+            // oracle; the open hall too, but an open surface holds nothing),
+            // and no chunk box of the hall is near the cube.
+            let first = scene
+                .part_world(pump)
+                .transform_point3(scene.part_mesh(pump).positions[0].as_dvec3());
+            assert!(brute_inside(first, &world_triangles(&scene, hall)));
+            let pump_box = scene.part_world_bounds(pump).inflated(5.0);
+            assert!(
+                scene
+                    .part_mesh(hall)
+                    .chunk_ids()
+                    .all(|c| !scene.chunk_world_bounds(hall, c).overlaps(&pump_box))
+            );
+            let mut tree = Tree::build(
+                &scene,
+                TreeOptions {
+                    cell_triangles: 12,
+                    ..TreeOptions::default()
+                },
+            );
+            let mut checker = Checker::new(&scene);
+            let mut report = Report::default();
+            let settings = Settings::with_clearance(5.0);
+            // Moved about inside: found at every step, by either part.
+            for step in 0..=20 {
+                let dx = 10.0 * f64::from(step);
+                tree.move_part(&mut scene, pump, at(DVec3::new(10.0 + dx, -20.0, 30.0)));
+                for moved in [pump, hall] {
+                    checker.check(&scene, &tree, &[moved], &settings, &mut report);
+                    let kinds: Vec<_> = report
+                        .clashes
+                        .iter()
+                        .map(|c| (c.a, c.b, c.kind, c.distance))
+                        .collect();
+                    let (a, b) = if moved == pump {
+                        (pump, hall)
+                    } else {
+                        (hall, pump)
+                    };
+                    let want = if closed {
+                        vec![(a, b, ClashKind::Hard, 0.0)]
+                    } else {
+                        vec![]
+                    };
+                    assert_eq!(
+                        kinds, want,
+                        "offset {offset}, closed {closed}, step {step}, moved {moved:?}"
+                    );
+                    let mut flat = Report::default();
+                    checker.check_without_tree(&scene, &[moved], &settings, &mut flat);
+                    assert_eq!(flat.clashes, report.clashes);
+                }
+            }
+            // Out of the hall: clear, whichever moves.
+            tree.move_part(&mut scene, pump, at(DVec3::new(3000.0, 0.0, 0.0)));
+            for moved in [pump, hall] {
+                checker.check(&scene, &tree, &[moved], &settings, &mut report);
+                assert!(report.clashes.is_empty(), "{:?}", report.clashes);
+            }
+        }
+    }
+}
+
+/// Issue 18: a tessellated block resting on a tessellated floor, where the
+/// narrow phase settles faces lying flat on each other a BVH node at a time,
+/// equals the brute force over every triangle pair: resting (contact), sunk by
+/// a fraction of the tolerance (contact) and by more than it (hard), lifted
+/// (soft), turned about the vertical, tilted, at the origin and 10^7 mm away.
+#[test]
+fn issue_18_resting_faces_settled_a_node_at_a_time_equal_brute_force() {
+    let floor = tessellated_box_mesh(Vec3::new(400.0, 300.0, 10.0), 6);
+    let block = tessellated_box_mesh(Vec3::new(60.0, 40.0, 30.0), 4);
+    let mut kinds = std::collections::BTreeSet::new();
+    let mut rng = Rng::new(18);
+    for offset in [DVec3::ZERO, FAR] {
+        for i in 0..24 {
+            let tolerance = 1e-6 * 1000.0; // the floor's scale (extent ~1000) sets it
+            let z = 40.0 + [0.0, 0.0, -0.3 * tolerance, -3.0 * tolerance, 0.5][i % 5];
+            let turn = DQuat::from_rotation_z(rng.range(-3.2, 3.2));
+            let tilt = if i % 6 == 5 {
+                DQuat::from_rotation_x(0.01)
+            } else {
+                DQuat::IDENTITY
+            };
+            let at = DVec3::new(rng.range(-300.0, 300.0), rng.range(-200.0, 200.0), z);
+            let scene = scene_of(
+                &[
+                    Shape::new("floor", floor.clone(), DAffine3::from_translation(offset)),
+                    Shape::new(
+                        "block",
+                        block.clone(),
+                        DAffine3::from_rotation_translation(tilt * turn, offset + at),
+                    ),
+                ],
+                64,
+            );
+            let settings = Settings::with_clearance(1.0);
+            let got: Vec<_> = check(&scene, &settings)
+                .iter()
+                .map(|c| (c.a, c.b, c.kind, c.distance))
+                .collect();
+            let want: Vec<_> = oracle(&scene, &[PartId(1)], &settings, &[true, true])
+                .iter()
+                .map(|e| (e.a, e.b, e.kind, e.distance))
+                .collect();
+            assert_eq!(got.len(), want.len(), "case {i}: {got:?} vs {want:?}");
+            for (g, w) in got.iter().zip(&want) {
+                assert_eq!(
+                    (g.0, g.1, g.2),
+                    (w.0, w.1, w.2),
+                    "case {i}: {got:?} vs {want:?}"
+                );
+                assert!((g.3 - w.3).abs() <= 1e-9, "case {i}: {got:?} vs {want:?}");
+                kinds.insert(g.2);
+            }
+        }
+    }
+    assert_eq!(kinds.len(), 3, "{kinds:?}");
 }
 
 #[test]

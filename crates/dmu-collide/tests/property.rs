@@ -7,7 +7,7 @@ use dmu_tree::{Tree, TreeOptions};
 use glam::{DAffine3, DQuat, DVec3, Vec3};
 use proptest::prelude::*;
 
-use crate::support::{Expected, Shape, box_mesh, oracle, scene_of};
+use crate::support::{Expected, Shape, oracle, scene_of, tessellated_box_mesh};
 
 fn random_pose(rng: &mut Rng, origin: DVec3, reach: f64) -> DAffine3 {
     let axis = DVec3::new(
@@ -24,8 +24,9 @@ fn random_pose(rng: &mut Rng, origin: DVec3, reach: f64) -> DAffine3 {
     DAffine3::from_rotation_translation(rotation, origin + t)
 }
 
-/// Random parts near `origin`: closed boxes (one chunk each, some big enough to
-/// swallow others) and open triangle soups split into several chunks.
+/// Random parts near `origin`: closed boxes (one to four chunks, some big
+/// enough to swallow others whole, far from any of their chunks) and open
+/// triangle soups split into several chunks.
 fn random_scene(rng: &mut Rng, parts: usize, origin: DVec3) -> (Scene, Vec<bool>) {
     let mut shapes = Vec::new();
     let mut closed = Vec::new();
@@ -37,7 +38,12 @@ fn random_scene(rng: &mut Rng, parts: usize, origin: DVec3) -> (Scene, Vec<bool>
                 rng.range(0.5, 9.0) as f32,
                 rng.range(0.5, 9.0) as f32,
             );
-            shapes.push(Shape::new(&format!("box{p}"), box_mesh(h), world));
+            let n = 1 + rng.below(2) as u32;
+            shapes.push(Shape::new(
+                &format!("box{p}"),
+                tessellated_box_mesh(h, n),
+                world,
+            ));
             closed.push(true);
         } else {
             let size = rng.range(1.0, 8.0) as f32;
@@ -56,7 +62,7 @@ fn random_scene(rng: &mut Rng, parts: usize, origin: DVec3) -> (Scene, Vec<bool>
             closed.push(false);
         }
     }
-    // 12 triangles a chunk: a box is one chunk, a soup up to three.
+    // 12 triangles a chunk: a box is one or four chunks, a soup up to three.
     (scene_of(&shapes, 12), closed)
 }
 

@@ -29,6 +29,44 @@ pub fn box_mesh(h: Vec3) -> (Vec<Vec3>, Vec<u32>) {
     (positions, indices)
 }
 
+/// A closed box like [`box_mesh`] with each face cut into `n` x `n` squares
+/// (`12 n^2` triangles): with small chunks, a closed part of many chunks. The
+/// grid coordinates of each axis are computed once, so the faces' shared edges
+/// weld exactly and the mesh is closed.
+pub fn tessellated_box_mesh(h: Vec3, n: u32) -> (Vec<Vec3>, Vec<u32>) {
+    let steps = |h: f32| -> Vec<f32> {
+        (0..=n)
+            .map(|i| -h + 2.0 * h * (i as f32 / n as f32))
+            .collect()
+    };
+    let axes = [steps(h.x), steps(h.y), steps(h.z)];
+    let (mut positions, mut indices) = (Vec::new(), Vec::new());
+    // Each face: the fixed axis and its side; (u, v) span the face so that
+    // u x v points outwards.
+    for (fixed, u, v) in [(0, 1, 2), (1, 2, 0), (2, 0, 1)] {
+        for (side, (u, v)) in [(n as usize, (u, v)), (0, (v, u))] {
+            let first = positions.len() as u32;
+            for j in 0..=n as usize {
+                for i in 0..=n as usize {
+                    let mut p = [0.0; 3];
+                    p[fixed] = axes[fixed][side];
+                    p[u] = axes[u][i];
+                    p[v] = axes[v][j];
+                    positions.push(Vec3::from_array(p));
+                }
+            }
+            let at = |i: u32, j: u32| first + j * (n + 1) + i;
+            for j in 0..n {
+                for i in 0..n {
+                    let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+                    indices.extend([a, b, c, a, c, d]);
+                }
+            }
+        }
+    }
+    (positions, indices)
+}
+
 /// A closed prism approximating a cylinder: axis along z, centred on the origin,
 /// `sides` vertices on each rim at angles `2πk/sides` (so with an even count
 /// there are rim vertices at +x and -x, exactly at ±radius), fan-triangulated caps.
@@ -191,8 +229,8 @@ pub fn brute_inside(p: DVec3, triangles: &[[DVec3; 3]]) -> bool {
 /// Brute force: every moved visible part against every other visible part (a
 /// pair of moved parts once), every triangle pair in world f64. `closed[p]`
 /// says whether part `p` may contain others. Containment is tested whenever
-/// the inner part's box is inside the outer's (the tests keep closed parts to
-/// one chunk, where the tree's broad phase finds every such pair).
+/// the inner part's box is inside the outer's, however far the inner part is
+/// from the outer's chunks.
 pub fn oracle(
     scene: &Scene,
     moved: &[PartId],

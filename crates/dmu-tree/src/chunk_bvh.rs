@@ -1,7 +1,9 @@
-//! Per-chunk triangle BVHs for exact picking, built on first use and shared by
-//! every instance of the chunk. obvhs builds them (PLOC); traversal is ours, in
-//! f64 with dmu-geom's robust slab and watertight triangle tests, so rays along
-//! faces and edges and axis-parallel rays are answered exactly.
+//! Per-chunk triangle BVHs, built on first use and shared by every instance of
+//! the chunk: the one bounding-volume hierarchy over a chunk's triangles, for
+//! exact picking here and for collision and containment in dmu-collide. obvhs
+//! builds them (PLOC); traversal is the caller's, in f64: picking with
+//! dmu-geom's robust slab and watertight triangle tests, so rays along faces
+//! and edges and axis-parallel rays are answered exactly.
 
 use std::sync::OnceLock;
 use std::time::Duration;
@@ -16,28 +18,53 @@ use obvhs::triangle::Triangle;
 /// Chunks of at most this many triangles are tested without a BVH.
 const BRUTE_FORCE_MAX: u32 = 16;
 
-/// A chunk's BVH: nodes (obvhs layout: an inner node's children are at
-/// `first_index` and `first_index + 1`) and the triangle order of the leaves.
+/// A node of a [`ChunkBvh`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BvhNode {
+    /// Encloses the node's triangles, in the chunk's part-local coordinates.
+    pub bounds: Aabb3f,
+    /// Triangles of a leaf; 0 for an inner node.
+    pub count: u32,
+    /// A leaf's first entry in [`ChunkBvh::triangles`]; an inner node's first
+    /// child (the second is at `first + 1`).
+    pub first: u32,
+}
+
+/// A chunk's BVH: node 0 is the root.
 #[derive(Debug)]
-pub(crate) struct ChunkBvh {
-    nodes: Vec<(Aabb3f, u32, u32)>, // (box, prim_count, first_index)
+pub struct ChunkBvh {
+    nodes: Vec<BvhNode>,
     triangles: Vec<u32>,
 }
 
-/// The lazily built BVHs of all chunks of a scene.
+impl ChunkBvh {
+    /// The nodes; node 0 is the root.
+    pub fn nodes(&self) -> &[BvhNode] {
+        &self.nodes
+    }
+
+    /// The leaves' triangles, as offsets from the chunk's first triangle.
+    pub fn triangles(&self) -> &[u32] {
+        &self.triangles
+    }
+}
+
+/// The lazily built BVHs of all chunks of a scene (chunks of at most 16
+/// triangles have none: they are tested whole).
 #[derive(Debug)]
-pub(crate) struct ChunkBvhCache {
+pub struct ChunkBvhCache {
     slots: Vec<OnceLock<Option<ChunkBvh>>>,
 }
 
 /// A triangle hit inside one chunk: mesh-relative triangle index and parameter.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct LocalHit {
+pub struct LocalHit {
     pub triangle: u32,
     pub t: f64,
 }
 
 impl ChunkBvhCache {
+    /// No BVH built yet, for a scene of `chunks` chunks.
     pub fn new(chunks: usize) -> Self {
         Self {
             slots: (0..chunks).map(|_| OnceLock::new()).collect(),
@@ -49,7 +76,9 @@ impl ChunkBvhCache {
         self.slots.iter().filter(|s| s.get().is_some()).count()
     }
 
-    fn get(&self, scene: &Scene, chunk: ChunkId) -> Option<&ChunkBvh> {
+    /// The chunk's BVH, built on first use; `None` for a chunk small enough to
+    /// test whole. Panics when the chunk's geometry is not loaded.
+    pub fn get(&self, scene: &Scene, chunk: ChunkId) -> Option<&ChunkBvh> {
         self.slots[chunk.index()]
             .get_or_init(|| build(scene, chunk))
             .as_ref()
@@ -86,7 +115,11 @@ impl ChunkBvhCache {
         let box_test = RayBoxTest3d::new(local);
         let mut stack: Vec<u32> = vec![0];
         while let Some(n) = stack.pop() {
-            let (bounds, count, first) = bvh.nodes[n as usize];
+            let BvhNode {
+                bounds,
+                count,
+                first,
+            } = bvh.nodes[n as usize];
             if box_test.hit(&bounds.as_dvec(), t_max).is_none() {
                 continue;
             }
@@ -123,12 +156,10 @@ fn build(scene: &Scene, chunk: ChunkId) -> Option<ChunkBvh> {
     let nodes = bvh
         .nodes
         .iter()
-        .map(|n| {
-            (
-                Aabb3f::new(n.aabb().min.into(), n.aabb().max.into()),
-                n.prim_count,
-                n.first_index,
-            )
+        .map(|n| BvhNode {
+            bounds: Aabb3f::new(n.aabb().min.into(), n.aabb().max.into()),
+            count: n.prim_count,
+            first: n.first_index,
         })
         .collect();
     Some(ChunkBvh {

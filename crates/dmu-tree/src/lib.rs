@@ -53,6 +53,7 @@ mod validate;
 mod visible;
 
 pub use changes::{Change, Changes, NodeId, NodeKind, Revision};
+pub use chunk_bvh::{BvhNode, ChunkBvh, ChunkBvhCache, LocalHit};
 pub use query::{FrustumNode, Hit, chunk_touches_box, triangle_box_overlap};
 pub use tree::{CellId, Entry, EntryId, Tree, TreeOptions, UpdateStats};
 pub use validate::InvariantError;

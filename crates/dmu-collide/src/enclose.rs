@@ -1,0 +1,144 @@
+//! Which parts could swallow a moved part whole: every part whose world box
+//! contains the moved part's box. A closed part holding a small part deep inside
+//! has no chunk near it (a hollow hall of fifty wall chunks around a pump), so
+//! the broad phase over chunk boxes cannot bring the pair together; this index
+//! over whole-part boxes can.
+//!
+//! A static bounding-volume hierarchy over the parts' world boxes, built once
+//! and kept current through the tree's change log: parts moved since the build
+//! are *stale*, skipped in the hierarchy and tested at their current box
+//! instead, until there are enough of them to make a rebuild worth it.
+
+use dmu_geom::Aabb3d;
+use dmu_scene::{PartId, Scene};
+use dmu_tree::{Change, Changes, Revision, Tree};
+
+/// Parts per leaf.
+const LEAF_PARTS: usize = 4;
+
+/// A node of the hierarchy: a leaf holds `count > 0` parts from `first` in
+/// [`Enclosers::parts`]; an internal node (`count == 0`) has its children at
+/// the next index and at `first`.
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    bounds: Aabb3d,
+    first: u32,
+    count: u32,
+}
+
+/// The index (see the module docs).
+#[derive(Debug, Default)]
+pub(crate) struct Enclosers {
+    /// The tree revision the index is current with; `None` before the first use.
+    revision: Option<Revision>,
+    nodes: Vec<Node>,
+    /// Parts with a non-empty box as of the build, in leaf order.
+    parts: Vec<(PartId, Aabb3d)>,
+    /// Parts moved since the build, sorted, without repeats.
+    stale: Vec<PartId>,
+    /// Traversal stack, kept between queries.
+    stack: Vec<u32>,
+}
+
+impl Enclosers {
+    /// Brings the index up to date with `tree` (and `scene`, which the tree
+    /// mirrors): rebuilt on the first call, after a tree rebuild, or once more
+    /// than a sixteenth of the parts (at least 64) moved since the last build.
+    pub fn sync(&mut self, scene: &Scene, tree: &Tree) {
+        let changes = self.revision.map(|r| tree.changes_since(r));
+        match changes {
+            Some(Changes::Touched(changes)) => {
+                let entries = tree.entries();
+                self.stale.extend(changes.iter().filter_map(|c| match *c {
+                    Change::Entry(e) => Some(entries[e.0 as usize].part),
+                    _ => None,
+                }));
+                self.stale.sort_unstable();
+                self.stale.dedup();
+                if self.stale.len() > (scene.parts().len() / 16).max(64) {
+                    self.build(scene);
+                }
+            }
+            None | Some(Changes::Rebuild) => self.build(scene),
+        }
+        self.revision = Some(tree.revision());
+    }
+
+    fn build(&mut self, scene: &Scene) {
+        self.stale.clear();
+        self.parts.clear();
+        self.parts.extend(
+            scene
+                .part_ids()
+                .map(|p| (p, scene.part_world_bounds(p)))
+                .filter(|(_, b)| !b.is_empty()),
+        );
+        self.nodes.clear();
+        if !self.parts.is_empty() {
+            build_node(&mut self.nodes, &mut self.parts, 0);
+        }
+    }
+
+    /// Every part whose current world box contains `inner` (the caller filters
+    /// out the part itself), appended to `out`.
+    pub fn containing(&mut self, scene: &Scene, inner: &Aabb3d, out: &mut Vec<PartId>) {
+        if !self.nodes.is_empty() {
+            self.stack.clear();
+            self.stack.push(0);
+        }
+        while let Some(i) = self.stack.pop() {
+            let node = self.nodes[i as usize];
+            if !node.bounds.contains(inner) {
+                continue;
+            }
+            if node.count == 0 {
+                self.stack.extend([i + 1, node.first]);
+                continue;
+            }
+            let leaf = &self.parts[node.first as usize..(node.first + node.count) as usize];
+            out.extend(
+                leaf.iter()
+                    .filter(|(p, b)| b.contains(inner) && self.stale.binary_search(p).is_err())
+                    .map(|&(p, _)| p),
+            );
+        }
+        out.extend(
+            self.stale
+                .iter()
+                .copied()
+                .filter(|&p| scene.part_world_bounds(p).contains(inner)),
+        );
+    }
+}
+
+/// Builds the subtree over `parts` (a slice of the whole list starting at
+/// `offset`) at the end of `nodes`: median split on the longest axis of the
+/// box centres.
+fn build_node(nodes: &mut Vec<Node>, parts: &mut [(PartId, Aabb3d)], offset: u32) {
+    let bounds = parts
+        .iter()
+        .fold(Aabb3d::EMPTY, |acc, (_, b)| acc.union(*b));
+    let at = nodes.len();
+    nodes.push(Node {
+        bounds,
+        first: offset,
+        count: parts.len() as u32,
+    });
+    if parts.len() <= LEAF_PARTS {
+        return;
+    }
+    let centres = parts
+        .iter()
+        .fold(Aabb3d::EMPTY, |acc, (_, b)| acc.grown(b.center()));
+    let axis = centres.extent().max_position();
+    let mid = parts.len() / 2;
+    parts.select_nth_unstable_by(mid, |(_, x), (_, y)| {
+        x.center()[axis].total_cmp(&y.center()[axis])
+    });
+    let (left, right) = parts.split_at_mut(mid);
+    build_node(nodes, left, offset);
+    let second = nodes.len() as u32;
+    build_node(nodes, right, offset + mid as u32);
+    nodes[at].first = second;
+    nodes[at].count = 0;
+}
