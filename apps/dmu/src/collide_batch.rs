@@ -83,6 +83,10 @@ pub fn check_records<T: Send>(
                     for &part in &moved {
                         tree.move_part(&mut scene, part, poses[part.index()]);
                     }
+                    debug_assert!(
+                        tree.validate_against(&scene).is_ok(),
+                        "the tree follows the restored poses"
+                    );
                     let checked = Checked {
                         findings,
                         summary,
