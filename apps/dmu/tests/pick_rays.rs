@@ -239,6 +239,11 @@ fn bad_ray_lines_are_named() {
     let out = dmu(&["pick", &grid, "--rays", &missing]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("missing.jsonl"));
+    // A folder (as a pipe or a device) is refused before it is read.
+    let folder = dir.path().to_str().unwrap();
+    let out = dmu(&["pick", &grid, "--rays", folder]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("not a regular file"));
     let out = dmu(&["pick", &grid, "--rays", &missing, "--ray", "0,0,0,1,0,0"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("cannot be used with"));
