@@ -1,21 +1,22 @@
 //! `dmu collide`: replay recorded manipulations and report every clash.
 
+use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::{Context as _, bail};
-use dmu_collide::{AllowList, Checker, Settings, StepOutcome, read_record, replay};
+use dmu_collide::{AllowList, Settings, StepOutcome, Summary, read_record};
 use dmu_scene::{PartId, Scene};
-use dmu_tree::{Tree, TreeOptions};
 use glam::DVec3;
 use serde_json::{Value, json};
 
-use crate::load::{ModelArgs, load};
+use crate::collide_batch::{Checked, check_records};
+use crate::load::{Loaded, ModelArgs, load};
 
-/// Replay a record of part moves and report the clashes at every step.
+/// Replay records of part moves and report the clashes at every step.
 ///
-/// The record is JSON Lines, one absolute world pose per line:
+/// A record is JSON Lines, one absolute world pose per line:
 /// `{"t": 0.0, "part": "name or #id", "translation": [x,y,z], "rotation": [x,y,z,w]}`
 /// (see docs/record-format.md). At each step the moved parts are checked
 /// against everything else: `hard` (interpenetrating), `contact` (touching
@@ -23,14 +24,25 @@ use crate::load::{ModelArgs, load};
 /// --continuous each move is also swept from the pose before, and the first
 /// `impact` along the way is reported.
 ///
-/// Exit status: 0 when clear, 1 when any step has a clash or impact, 2 on error.
+/// Several records (`--record a.jsonl b.jsonl`, or a folder: every `*.jsonl`
+/// in it, by name) are checked in parallel, each from the model's own poses,
+/// the model loaded once; every record is read before any is checked, so a bad
+/// one stops the run before it starts. The report has a part per record, in
+/// the order given: text prints a block per record under `record FILE`, CSV
+/// adds a first column `record`, JSON prints `{"records": [...], "summary":
+/// ...}`, each entry what one record alone prints with --json. One record
+/// named as a file prints as it always has.
+///
+/// Exit status: 0 when clear, 1 when any step of any record has a clash or
+/// impact, 2 on error.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     #[command(flatten)]
     model: ModelArgs,
-    /// The record (JSON Lines).
-    #[arg(long)]
-    record: PathBuf,
+    /// The records (JSON Lines), or folders of them (every `*.jsonl` inside,
+    /// sorted by name). Give the model FILE before them.
+    #[arg(long, required = true, num_args = 1.., value_name = "RECORD")]
+    record: Vec<PathBuf>,
     /// Soft clash below this distance, model units (millimetres in the plant);
     /// 0 reports hard clashes and contacts only.
     #[arg(long, default_value_t = 5.0, value_parser = crate::units::number_in(0.0, crate::units::MAX_LENGTH))]
@@ -48,7 +60,15 @@ pub struct Args {
     /// Print CSV, one row per finding; the summary goes to standard error.
     #[arg(long)]
     csv: bool,
+    /// Records checked at once (1 to 1024; default: the available cores, at
+    /// most one per record). Each worker holds its own copy of the model, cell
+    /// tree and collision meshes, so memory grows with --jobs.
+    #[arg(long, value_parser = crate::units::count_in(1, MAX_JOBS))]
+    jobs: Option<u64>,
 }
+
+/// The most workers `--jobs` may ask for.
+const MAX_JOBS: u64 = 1024;
 
 fn allow_list(scene: &Scene, pairs: &[String]) -> anyhow::Result<AllowList> {
     let mut list = AllowList::default();
@@ -80,51 +100,50 @@ fn csv_field(s: &str) -> String {
 }
 
 /// A clash or impact of one step, ready to print.
-struct Finding<'a> {
+#[derive(Debug)]
+struct Finding {
+    step: usize,
+    t: f64,
     kind: &'static str,
     a: PartId,
     b: PartId,
-    a_name: &'a str,
-    b_name: &'a str,
+    a_name: String,
+    b_name: String,
     distance: f64,
     toi: Option<f64>,
     point: DVec3,
     normal: Option<DVec3>,
 }
 
-impl Finding<'_> {
-    /// Clashes, then impacts.
-    fn of<'a>(o: &'a StepOutcome<'_>) -> impl Iterator<Item = Finding<'a>> {
-        let name = |p| o.scene.part_name(p);
-        let clashes = o.report.clashes.iter().map(move |c| Finding {
-            kind: c.kind.as_str(),
-            a: c.a,
-            b: c.b,
-            a_name: name(c.a),
-            b_name: name(c.b),
-            distance: c.distance,
-            toi: None,
-            point: c.point,
-            normal: Some(c.normal),
+impl Finding {
+    /// A step's clashes, then its impacts.
+    fn of<'a>(o: &'a StepOutcome<'_>) -> impl Iterator<Item = Finding> + 'a {
+        let found = |kind, a, b, distance, toi, point, normal| Finding {
+            step: o.index,
+            t: o.step.t,
+            kind,
+            a,
+            b,
+            a_name: o.scene.part_name(a).to_owned(),
+            b_name: o.scene.part_name(b).to_owned(),
+            distance,
+            toi,
+            point,
+            normal,
+        };
+        let clashes = o.report.clashes.iter().map(move |c| {
+            let kind = c.kind.as_str();
+            found(kind, c.a, c.b, c.distance, None, c.point, Some(c.normal))
         });
-        let impacts = o.report.impacts.iter().map(move |i| Finding {
-            kind: "impact",
-            a: i.a,
-            b: i.b,
-            a_name: name(i.a),
-            b_name: name(i.b),
-            distance: i.distance,
-            toi: Some(i.toi),
-            point: i.point,
-            normal: None,
-        });
+        let impacts = (o.report.impacts.iter())
+            .map(move |i| found("impact", i.a, i.b, i.distance, Some(i.toi), i.point, None));
         clashes.chain(impacts)
     }
 
-    fn json(&self, o: &StepOutcome<'_>) -> Value {
+    fn json(&self) -> Value {
         json!({
-            "step": o.index,
-            "t": o.step.t,
+            "step": self.step,
+            "t": self.t,
             "kind": self.kind,
             "a": self.a_name,
             "b": self.b_name,
@@ -137,15 +156,15 @@ impl Finding<'_> {
         })
     }
 
-    fn csv(&self, o: &StepOutcome<'_>) -> String {
+    fn csv(&self) -> String {
         let p = self.point;
         format!(
             "{},{},{},{},{},{},{},{},{},{}",
-            o.index,
-            o.step.t,
+            self.step,
+            self.t,
             self.kind,
-            csv_field(self.a_name),
-            csv_field(self.b_name),
+            csv_field(&self.a_name),
+            csv_field(&self.b_name),
             self.distance,
             self.toi.map_or(String::new(), |t| t.to_string()),
             p.x,
@@ -154,7 +173,7 @@ impl Finding<'_> {
         )
     }
 
-    fn text(&self, o: &StepOutcome<'_>) -> String {
+    fn text(&self) -> String {
         let what = match self.toi {
             Some(toi) => format!("toi {toi:.6}"),
             None => format!("distance {:.6}", self.distance),
@@ -162,80 +181,195 @@ impl Finding<'_> {
         let p = self.point;
         format!(
             "t={} {:<7} {} {} {what} at [{:.3}, {:.3}, {:.3}]",
-            o.step.t, self.kind, self.a_name, self.b_name, p.x, p.y, p.z
+            self.t, self.kind, self.a_name, self.b_name, p.x, p.y, p.z
         )
     }
 }
 
-/// Replays the record; `Ok` carries the exit status (0 clear, 1 clashes).
-/// Errors (model, record, arguments) are for the caller to report with status 2.
+/// The record files the arguments name: files as given, folders as the
+/// `*.jsonl` files in them sorted by name; and whether a folder was named.
+fn record_files(args: &[PathBuf]) -> anyhow::Result<(Vec<PathBuf>, bool)> {
+    let mut files = Vec::new();
+    let mut folder = false;
+    for path in args {
+        if !path.is_dir() {
+            files.push(path.clone());
+            continue;
+        }
+        folder = true;
+        let context = || format!("record folder {}", path.display());
+        let mut found = Vec::new();
+        for entry in std::fs::read_dir(path).with_context(context)? {
+            let file = entry.with_context(context)?.path();
+            if file.extension().is_some_and(|e| e == "jsonl") {
+                found.push(file);
+            }
+        }
+        if found.is_empty() {
+            bail!("{}: no *.jsonl records in it", context());
+        }
+        found.sort();
+        files.extend(found);
+    }
+    Ok((files, folder))
+}
+
+/// A record's totals, as the text report's last line.
+fn summary_line(summary: &Summary) -> String {
+    format!(
+        "{} steps, {} part pairs ({} chunk pairs) tested, {} clashes, {} impacts, {:.1} ms",
+        summary.steps,
+        summary.part_pairs_tested,
+        summary.chunk_pairs_tested,
+        summary.clashes,
+        summary.impacts,
+        summary.seconds * 1e3
+    )
+}
+
+/// Whether a replay found anything (exit status 1).
+fn found_any(summary: &Summary) -> bool {
+    summary.clashes + summary.impacts > 0
+}
+
+/// Replays the records; `Ok` carries the exit status (0 clear, 1 clashes).
+/// Errors (model, records, arguments) are for the caller to report with status 2.
 pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
-    let mut loaded = load(&args.model)?;
-    let scene = &mut loaded.scene;
-    let steps = read_record(&args.record, scene)
-        .with_context(|| format!("record {}", args.record.display()))?;
+    let Loaded {
+        scene,
+        source,
+        load_ms,
+        ..
+    } = load(&args.model)?;
+    let (files, folder) = record_files(&args.record)?;
+    // One record named as a file prints as it always has.
+    let batch = folder || files.len() > 1;
+    let records = files
+        .iter()
+        .map(|file| read_record(file, &scene).with_context(|| format!("record {}", file.display())))
+        .collect::<anyhow::Result<Vec<_>>>()?;
     let settings = Settings {
         clearance: args.clearance,
-        allow: allow_list(scene, &args.allow)?,
+        allow: allow_list(&scene, &args.allow)?,
         ..Settings::default()
     };
-    let start = Instant::now();
-    let mut tree = Tree::build(scene, TreeOptions::default());
-    let tree_ms = start.elapsed().as_secs_f64() * 1e3;
-    let mut checker = Checker::new(scene);
+    let model = source.map_or_else(|| "built-in plant".to_owned(), |p| p.display().to_string());
+    let jobs = args.jobs.map_or_else(
+        || std::thread::available_parallelism().map_or(1, std::num::NonZero::get),
+        |jobs| jobs as usize,
+    );
 
-    let mut all = Vec::new();
+    let start = Instant::now();
+    let mut reports = Vec::new();
+    let mut totals = Summary::default();
+    let mut records_with_findings = 0;
     if args.csv {
-        println!("step,t,kind,part_a,part_b,distance,toi,x,y,z");
+        let record_column = if batch { "record," } else { "" };
+        println!("{record_column}step,t,kind,part_a,part_b,distance,toi,x,y,z");
     }
-    let summary = replay(
+    let emit = |index: usize, checked: Checked<Finding>| -> anyhow::Result<()> {
+        let record = files[index].display().to_string();
+        let Checked {
+            findings,
+            summary,
+            tree_build_ms,
+        } = checked;
+        totals.steps += summary.steps;
+        totals.part_pairs_tested += summary.part_pairs_tested;
+        totals.chunk_pairs_tested += summary.chunk_pairs_tested;
+        totals.clashes += summary.clashes;
+        totals.impacts += summary.impacts;
+        totals.seconds += summary.seconds;
+        records_with_findings += usize::from(found_any(&summary));
+        let mut out = std::io::stdout().lock();
+        if args.json {
+            reports.push(json!({
+                "model": model,
+                "record": record,
+                "clearance": args.clearance,
+                "continuous": args.continuous,
+                "clashes": findings.iter().map(Finding::json).collect::<Vec<_>>(),
+                "summary": {
+                    "steps": summary.steps,
+                    "part_pairs_tested": summary.part_pairs_tested,
+                    "chunk_pairs_tested": summary.chunk_pairs_tested,
+                    "clashes": summary.clashes,
+                    "impacts": summary.impacts,
+                    "check_ms": summary.seconds * 1e3,
+                    "load_ms": load_ms,
+                    "tree_build_ms": tree_build_ms,
+                },
+            }));
+        } else if args.csv {
+            let record_field = if batch {
+                format!("{},", csv_field(&record))
+            } else {
+                String::new()
+            };
+            for f in &findings {
+                writeln!(out, "{record_field}{}", f.csv())?;
+            }
+            let record_name = if batch {
+                format!("{record}: ")
+            } else {
+                String::new()
+            };
+            eprintln!("{record_name}{}", summary_line(&summary));
+        } else {
+            if batch {
+                writeln!(out, "record {record}")?;
+            }
+            for f in &findings {
+                writeln!(out, "{}", f.text())?;
+            }
+            writeln!(out, "{}", summary_line(&summary))?;
+        }
+        Ok(())
+    };
+    let collect = |o: &StepOutcome<'_>, found: &mut Vec<Finding>| found.extend(Finding::of(o));
+    let workers = check_records(
         scene,
-        &mut tree,
-        &mut checker,
-        &steps,
+        &records,
         &settings,
         args.continuous,
-        |o| {
-            for f in Finding::of(o) {
-                if args.json {
-                    all.push(f.json(o));
-                } else if args.csv {
-                    println!("{}", f.csv(o));
-                } else {
-                    println!("{}", f.text(o));
-                }
-            }
-        },
-    );
-    let summary_json = json!({
-        "steps": summary.steps,
-        "part_pairs_tested": summary.part_pairs_tested,
-        "chunk_pairs_tested": summary.chunk_pairs_tested,
-        "clashes": summary.clashes,
-        "impacts": summary.impacts,
-        "check_ms": summary.seconds * 1e3,
-        "load_ms": loaded.load_ms,
-        "tree_build_ms": tree_ms,
-    });
+        jobs,
+        collect,
+        emit,
+    )?;
+    let wall_ms = start.elapsed().as_secs_f64() * 1e3;
+
     if args.json {
-        let out = json!({
-            "model": loaded.source.as_ref().map_or_else(|| "built-in plant".to_owned(), |p| p.display().to_string()),
-            "record": args.record.display().to_string(),
-            "clearance": args.clearance,
-            "continuous": args.continuous,
-            "clashes": all,
-            "summary": summary_json,
-        });
+        let out = if batch {
+            json!({
+                "model": model,
+                "clearance": args.clearance,
+                "continuous": args.continuous,
+                "jobs": workers,
+                "records": reports,
+                "summary": {
+                    "records": records.len(),
+                    "records_with_findings": records_with_findings,
+                    "steps": totals.steps,
+                    "part_pairs_tested": totals.part_pairs_tested,
+                    "chunk_pairs_tested": totals.chunk_pairs_tested,
+                    "clashes": totals.clashes,
+                    "impacts": totals.impacts,
+                    "check_ms": totals.seconds * 1e3,
+                    "load_ms": load_ms,
+                    "wall_ms": wall_ms,
+                },
+            })
+        } else {
+            reports.pop().expect("one record, one report")
+        };
         println!("{}", serde_json::to_string_pretty(&out)?);
-    } else {
+    } else if batch {
         let line = format!(
-            "{} steps, {} part pairs ({} chunk pairs) tested, {} clashes, {} impacts, {:.1} ms",
-            summary.steps,
-            summary.part_pairs_tested,
-            summary.chunk_pairs_tested,
-            summary.clashes,
-            summary.impacts,
-            summary.seconds * 1e3
+            "{} records ({records_with_findings} with clashes or impacts), {} steps, {} clashes, {} impacts, {workers} jobs, {wall_ms:.1} ms",
+            records.len(),
+            totals.steps,
+            totals.clashes,
+            totals.impacts,
         );
         if args.csv {
             eprintln!("{line}");
@@ -243,7 +377,7 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
             println!("{line}");
         }
     }
-    Ok(if summary.clashes + summary.impacts > 0 {
+    Ok(if found_any(&totals) {
         ExitCode::from(1)
     } else {
         ExitCode::SUCCESS

@@ -10,6 +10,7 @@ mod cmd_move;
 mod cmd_pick;
 mod cmd_render;
 mod cmd_walk;
+mod collide_batch;
 mod walk_render;
 
 use std::process::ExitCode;

@@ -1,7 +1,9 @@
-//! The `dmu` binary end to end: generate, info, errors and exit codes.
+//! The `dmu` binary end to end: generate, info, errors and exit codes; the
+//! modules below take one command each (collide, bulk picks) or hostile input.
 
 mod collide;
 mod hostile;
+mod pick_rays;
 
 use std::path::Path;
 use std::process::{Command, Output, Stdio};

@@ -1,5 +1,6 @@
-//! Reporting long work alike in every dmu application: the import progress
-//! bar's style and the process's peak memory.
+//! Reporting long work alike in every dmu application: the progress bars'
+//! styles (an import's meshes, an input read as it is processed) and the
+//! process's peak memory.
 
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -10,6 +11,23 @@ pub fn style_mesh_bar(bar: &ProgressBar) {
             .expect("static template")
             .progress_chars("=> "),
     );
+}
+
+/// Styles the progress bar of an input read as it is processed (`pos` bytes
+/// read): a bar of the input's length when `known_length`, else (standard
+/// input) a spinner with the bytes read so far.
+pub fn style_input_bar(bar: &ProgressBar, what: &str, known_length: bool) {
+    let template = if known_length {
+        "{spinner} {msg} {bytes}/{total_bytes} [{bar:30}] {elapsed}, {eta} left"
+    } else {
+        "{spinner} {msg} {bytes} read {elapsed}"
+    };
+    bar.set_style(
+        ProgressStyle::with_template(template)
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    bar.set_message(what.to_owned());
 }
 
 /// The process's peak resident set size in bytes (Linux `VmHWM`), or `None`
