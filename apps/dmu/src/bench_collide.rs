@@ -10,6 +10,7 @@ use dmu_scene::{PartId, Scene};
 use dmu_tree::{Tree, TreeOptions};
 use glam::{DAffine3, DVec3};
 use serde_json::json;
+use xxhash_rust::xxh3::Xxh3;
 
 use crate::cmd_bench::{median, percentile};
 use crate::load::{ModelArgs, load};
@@ -102,6 +103,9 @@ struct TreeRun {
     /// Clashes by kind: hard, contact, soft.
     kinds: [u64; 3],
     results: Vec<Found>,
+    /// Every step's clashes (parts and kind), hashed in order: equal digests
+    /// mean the same answers at every step, across runs and versions.
+    digest: Xxh3,
 }
 
 impl TreeRun {
@@ -160,7 +164,11 @@ pub fn bench_collide(args: &CollideArgs) -> anyhow::Result<()> {
             run.clashes += report.clashes.len() as u64;
             for c in &report.clashes {
                 run.kinds[c.kind as usize] += 1;
+                run.digest.update(&c.a.0.to_le_bytes());
+                run.digest.update(&c.b.0.to_le_bytes());
+                run.digest.update(&[c.kind as u8]);
             }
+            run.digest.update(b"/");
             if i < args.no_tree_steps {
                 run.results.push(found(&report));
             }
@@ -255,6 +263,7 @@ pub fn bench_collide(args: &CollideArgs) -> anyhow::Result<()> {
         "broad_phase_us_median": median(&mut broad_tree_us),
         "broad_phase_us_median_no_tree": median(&mut broad_scan_us),
         "same_results": warm.results == flat_results,
+        "results_digest": format!("{:016x}", warm.digest.digest()),
         "chunk_meshes_built": checker.chunk_meshes_built(),
     });
     if args.json {
