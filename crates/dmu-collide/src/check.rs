@@ -5,14 +5,14 @@ use std::fmt;
 
 use dmu_geom::Aabb3d;
 use dmu_scene::{ChunkId, PartId, Scene};
-use dmu_tree::{EntryId, Tree};
+use dmu_tree::{ChunkBvhCache, EntryId, Tree};
 use glam::DVec3;
 
 use crate::contain::{Closedness, point_inside};
 use crate::enclose::Enclosers;
 use crate::narrow::{
-    ChunkIndex, PairScratch, PairSearch, Placement, TrianglePair, box_gap_squared, chunk_pair,
-    pair_tolerance, part_tolerance, seed,
+    PairScratch, PairSearch, Placement, TrianglePair, box_gap_squared, chunk_pair, pair_tolerance,
+    part_tolerance, seed,
 };
 use crate::sweep::Path;
 
@@ -216,8 +216,8 @@ pub(crate) fn run_end(pairs: &[ChunkPair], start: usize) -> usize {
 /// once warm, except for what a report grows to).
 #[derive(Debug)]
 pub struct Checker {
-    /// The chunks' BVHs and flat nodes, built on first use.
-    pub(crate) chunks: ChunkIndex,
+    /// The chunks' BVHs, built on first use.
+    pub(crate) bvhs: ChunkBvhCache,
     /// The narrow phase's scratch (behind a cell: the sweep's search reads the
     /// checker while it advances).
     scratch: RefCell<PairScratch>,
@@ -253,7 +253,7 @@ impl Checker {
             .map(|p| part_tolerance(scene, p, 1.0))
             .fold(0.0, f64::max);
         Self {
-            chunks: ChunkIndex::new(scene.chunks().len()),
+            bvhs: ChunkBvhCache::new(scene.chunks().len()),
             scratch: RefCell::default(),
             closed: Closedness::new(scene.meshes().len()),
             max_scale,
@@ -273,7 +273,7 @@ impl Checker {
 
     /// Chunks whose triangle mesh has been built so far.
     pub fn chunk_meshes_built(&self) -> usize {
-        self.chunks.bvhs.built()
+        self.bvhs.built()
     }
 
     /// Clashes of the `moved` parts, at their current poses, with every other
@@ -444,7 +444,7 @@ impl Checker {
             report.chunk_pairs_tested += 1;
             chunk_pair(
                 scene,
-                &self.chunks,
+                &self.bvhs,
                 (pair.ca, place_a),
                 (pair.cb, place_b),
                 search,
@@ -561,7 +561,7 @@ impl Checker {
                     }
                     let first = *scene.part_mesh(inner).positions.first()?;
                     let p = scene.part_world(inner).transform_point3(first.as_dvec3());
-                    point_inside(scene, &self.chunks.bvhs, outer, p, &mut self.hits).then_some(p)
+                    point_inside(scene, &self.bvhs, outer, p, &mut self.hits).then_some(p)
                 },
             )
     }

@@ -21,12 +21,10 @@
 //!   next check: its real distance shrinks the search at once.
 //! - **Contact settled cheaply, exactly.** Once a pair at distance 0 is held
 //!   (a part resting on a floor), only penetration can change the answer: a
-//!   triangle pair is tested for penetration only (faces flat on each other
+//!   triangle pair is tested for penetration only: faces flat on each other
 //!   facing each other are settled by their plane distances, others by the
-//!   first separating axis within the tolerance), and two BVH nodes whose
-//!   triangles all lie in one plane each, resting on each other, are settled
-//!   without looking at their triangles. Each shortcut gives the answer the
-//!   full test gives (tests compare them).
+//!   first separating axis within the tolerance. Each shortcut gives the
+//!   answer the full test gives (a test compares them).
 //! - **f64 where it matters.** Both parts are placed in a frame with world axes
 //!   and its origin at the first part's translation, the offset between them
 //!   formed in f64 before any geometry is touched; the triangle pairs the BVHs
@@ -92,7 +90,6 @@
 mod check;
 mod contain;
 mod enclose;
-mod flat;
 mod narrow;
 mod record;
 mod sweep;

@@ -9,7 +9,6 @@ use dmu_scene::{ChunkId, PartId, Scene};
 use dmu_tree::{BvhNode, ChunkBvhCache};
 use glam::{DAffine3, DVec3, Vec3};
 
-use crate::flat::{ChunkPlanes, NodePlane, flat_on_each_other};
 use crate::triangle::{Placed, TriangleClash, placed_clash, triangle_penetration};
 
 /// Where a part sits in the frame of a pair: world axes, origin at the first
@@ -22,9 +21,6 @@ pub(crate) struct Placement {
     /// The transform mirrors: triangle windings flip, so they are reordered to
     /// keep outward normals outward.
     pub mirrored: bool,
-    /// The transform is a rotation and a translation (to rounding): planes
-    /// and distances carry over unchanged.
-    pub rigid: bool,
 }
 
 impl Placement {
@@ -36,11 +32,6 @@ impl Placement {
                 translation: world.translation - origin,
             },
             mirrored: world.matrix3.determinant() < 0.0,
-            rigid: world.matrix3.determinant() > 0.0
-                && (world.matrix3.transpose() * world.matrix3 - glam::DMat3::IDENTITY)
-                    .to_cols_array()
-                    .iter()
-                    .all(|e| e.abs() <= 1e-12),
         }
     }
 
@@ -89,27 +80,9 @@ pub(crate) struct PairScratch {
     stack: Vec<(u32, u32)>,
 }
 
-/// What the narrow phase keeps per chunk, built on first use: its BVH (shared
-/// with containment's ray tests) and its flat nodes.
-#[derive(Debug)]
-pub(crate) struct ChunkIndex {
-    pub bvhs: ChunkBvhCache,
-    planes: ChunkPlanes,
-}
-
-impl ChunkIndex {
-    pub fn new(chunks: usize) -> Self {
-        Self {
-            bvhs: ChunkBvhCache::new(chunks),
-            planes: ChunkPlanes::new(chunks),
-        }
-    }
-}
-
 /// A chunk as the traversal sees it.
 struct Side<'a> {
     nodes: &'a [BvhNode],
-    planes: &'a [Option<NodePlane>],
     /// Leaf entries to triangle offsets; `None`: the offset itself (one leaf).
     order: Option<&'a [u32]>,
     positions: &'a [Vec3],
@@ -181,7 +154,7 @@ pub(crate) fn seed(
 /// first; node pairs farther apart than the search's limit are pruned.
 pub(crate) fn chunk_pair(
     scene: &Scene,
-    chunks: &ChunkIndex,
+    bvhs: &ChunkBvhCache,
     (ca, place_a): (ChunkId, &Placement),
     (cb, place_b): (ChunkId, &Placement),
     search: &mut PairSearch,
@@ -189,9 +162,8 @@ pub(crate) fn chunk_pair(
 ) {
     let single_a = [single_leaf(scene, ca)];
     let single_b = [single_leaf(scene, cb)];
-    let a = side(scene, chunks, ca, place_a, &single_a);
-    let b = side(scene, chunks, cb, place_b, &single_b);
-    let rigid = place_a.rigid && place_b.rigid;
+    let a = side(scene, bvhs, ca, place_a, &single_a);
+    let b = side(scene, bvhs, cb, place_b, &single_b);
     let PairScratch {
         a: placed_a,
         b: placed_b,
@@ -208,20 +180,6 @@ pub(crate) fn chunk_pair(
     }
     while let Some((i, j)) = stack.pop() {
         let (na, nb) = (a.nodes[i as usize], b.nodes[j as usize]);
-        // Once a pair at distance 0 is held, only penetration can change the
-        // answer, and faces resting flat on each other cannot penetrate.
-        let settled = search.best.is_some_and(|b| b.distance == 0.0);
-        if settled
-            && rigid
-            && let (Some(plane_a), Some(plane_b)) = (a.planes[i as usize], b.planes[j as usize])
-            && flat_on_each_other(
-                (&plane_a.placed(a.place), &a.node_box(placed_a, i)),
-                (&plane_b.placed(b.place), &b.node_box(placed_b, j)),
-                search.tolerance,
-            )
-        {
-            continue;
-        }
         match (na.count, nb.count) {
             (0, _) | (_, 0) => {
                 // Split the inner node with the larger box (or the only one).
@@ -290,7 +248,7 @@ fn single_leaf(scene: &Scene, chunk: ChunkId) -> BvhNode {
 
 fn side<'a>(
     scene: &'a Scene,
-    chunks: &'a ChunkIndex,
+    bvhs: &'a ChunkBvhCache,
     chunk: ChunkId,
     place: &'a Placement,
     single: &'a [BvhNode; 1],
@@ -298,14 +256,12 @@ fn side<'a>(
     let g = scene
         .chunk_geometry(chunk)
         .expect("collision needs the geometry loaded");
-    let (nodes, order) = match chunks.bvhs.get(scene, chunk) {
+    let (nodes, order) = match bvhs.get(scene, chunk) {
         Some(bvh) => (bvh.nodes(), Some(bvh.triangles())),
         None => (single.as_slice(), None),
     };
-    let offset = |entry: u32| order.map_or(entry, |o| o[entry as usize]);
     Side {
         nodes,
-        planes: chunks.planes.get(scene, chunk, nodes, offset),
         order,
         positions: g.positions,
         indices: g.indices,

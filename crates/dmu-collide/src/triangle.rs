@@ -251,7 +251,7 @@ impl Facing {
 }
 
 /// The unit normal by the winding, `None` for a degenerate triangle.
-pub(crate) fn unit_normal(t: &[DVec3; 3]) -> Option<DVec3> {
+fn unit_normal(t: &[DVec3; 3]) -> Option<DVec3> {
     let n = (t[1] - t[0]).cross(t[2] - t[0]);
     let scale = (t[1] - t[0])
         .length_squared()
