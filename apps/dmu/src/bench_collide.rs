@@ -124,6 +124,10 @@ impl TreeRun {
     }
 }
 
+fn mean(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len().max(1) as f64
+}
+
 fn found(report: &Report) -> Found {
     report.clashes.iter().map(|c| (c.a, c.b, c.kind)).collect()
 }
@@ -245,6 +249,8 @@ pub fn bench_collide(args: &CollideArgs) -> anyhow::Result<()> {
         "step_us_p95": percentile(&mut warm.step_us(), 0.95),
         "move_us_median": median(&mut warm.move_us.clone()),
         "check_us_median": median(&mut warm.check_us.clone()),
+        "move_us_mean": mean(&warm.move_us),
+        "check_us_mean": mean(&warm.check_us),
         "part_pairs_tested_per_step": warm.part_pairs as f64 / n,
         "pairs_tested_per_step": warm.chunk_pairs.iter().sum::<u64>() as f64 / n,
         "clashes_per_step": warm.clashes as f64 / n,
