@@ -5,11 +5,10 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::{Context as _, bail};
-use dmu_collide::{AllowList, Checker, Settings, StepOutcome, read_record, replay};
-use dmu_scene::{PartId, Scene};
+use dmu_collide::{AllowList, Checker, Finding, Settings, read_record, replay};
+use dmu_scene::Scene;
 use dmu_tree::{Tree, TreeOptions};
-use glam::DVec3;
-use serde_json::{Value, json};
+use serde_json::json;
 
 use crate::load::{ModelArgs, load};
 
@@ -79,92 +78,35 @@ fn csv_field(s: &str) -> String {
     }
 }
 
-/// A clash or impact of one step, ready to print.
-struct Finding<'a> {
-    kind: &'static str,
-    a: PartId,
-    b: PartId,
-    a_name: &'a str,
-    b_name: &'a str,
-    distance: f64,
-    toi: Option<f64>,
-    point: DVec3,
-    normal: Option<DVec3>,
+/// A finding as one CSV row.
+fn csv_row(f: &Finding<'_>) -> String {
+    let p = f.point;
+    format!(
+        "{},{},{},{},{},{},{},{},{},{}",
+        f.step,
+        f.t,
+        f.kind,
+        csv_field(f.a),
+        csv_field(f.b),
+        f.distance,
+        f.toi.map_or(String::new(), |t| t.to_string()),
+        p[0],
+        p[1],
+        p[2]
+    )
 }
 
-impl Finding<'_> {
-    /// Clashes, then impacts.
-    fn of<'a>(o: &'a StepOutcome<'_>) -> impl Iterator<Item = Finding<'a>> {
-        let name = |p| o.scene.part_name(p);
-        let clashes = o.report.clashes.iter().map(move |c| Finding {
-            kind: c.kind.as_str(),
-            a: c.a,
-            b: c.b,
-            a_name: name(c.a),
-            b_name: name(c.b),
-            distance: c.distance,
-            toi: None,
-            point: c.point,
-            normal: Some(c.normal),
-        });
-        let impacts = o.report.impacts.iter().map(move |i| Finding {
-            kind: "impact",
-            a: i.a,
-            b: i.b,
-            a_name: name(i.a),
-            b_name: name(i.b),
-            distance: i.distance,
-            toi: Some(i.toi),
-            point: i.point,
-            normal: None,
-        });
-        clashes.chain(impacts)
-    }
-
-    fn json(&self, o: &StepOutcome<'_>) -> Value {
-        json!({
-            "step": o.index,
-            "t": o.step.t,
-            "kind": self.kind,
-            "a": self.a_name,
-            "b": self.b_name,
-            "a_id": self.a.0,
-            "b_id": self.b.0,
-            "distance": self.distance,
-            "toi": self.toi,
-            "point": self.point.to_array(),
-            "normal": self.normal.map(|n| n.to_array()),
-        })
-    }
-
-    fn csv(&self, o: &StepOutcome<'_>) -> String {
-        let p = self.point;
-        format!(
-            "{},{},{},{},{},{},{},{},{},{}",
-            o.index,
-            o.step.t,
-            self.kind,
-            csv_field(self.a_name),
-            csv_field(self.b_name),
-            self.distance,
-            self.toi.map_or(String::new(), |t| t.to_string()),
-            p.x,
-            p.y,
-            p.z
-        )
-    }
-
-    fn text(&self, o: &StepOutcome<'_>) -> String {
-        let what = match self.toi {
-            Some(toi) => format!("toi {toi:.6}"),
-            None => format!("distance {:.6}", self.distance),
-        };
-        let p = self.point;
-        format!(
-            "t={} {:<7} {} {} {what} at [{:.3}, {:.3}, {:.3}]",
-            o.step.t, self.kind, self.a_name, self.b_name, p.x, p.y, p.z
-        )
-    }
+/// A finding as one line of text.
+fn text_line(f: &Finding<'_>) -> String {
+    let what = match f.toi {
+        Some(toi) => format!("toi {toi:.6}"),
+        None => format!("distance {:.6}", f.distance),
+    };
+    let p = f.point;
+    format!(
+        "t={} {:<7} {} {} {what} at [{:.3}, {:.3}, {:.3}]",
+        f.t, f.kind, f.a, f.b, p[0], p[1], p[2]
+    )
 }
 
 /// Replays the record; `Ok` carries the exit status (0 clear, 1 clashes).
@@ -196,13 +138,13 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
         &settings,
         args.continuous,
         |o| {
-            for f in Finding::of(o) {
+            for f in o.findings() {
                 if args.json {
-                    all.push(f.json(o));
+                    all.push(serde_json::to_value(&f).expect("a finding serializes"));
                 } else if args.csv {
-                    println!("{}", f.csv(o));
+                    println!("{}", csv_row(&f));
                 } else {
-                    println!("{}", f.text(o));
+                    println!("{}", text_line(&f));
                 }
             }
         },

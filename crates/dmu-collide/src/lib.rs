@@ -74,6 +74,7 @@
 
 mod check;
 mod contain;
+mod finding;
 mod narrow;
 mod record;
 mod sweep;
@@ -82,6 +83,7 @@ mod triangle;
 pub use check::{
     AllowList, Checker, Clash, ClashKind, DEFAULT_CONTACT_TOLERANCE, Impact, Report, Settings,
 };
+pub use finding::Finding;
 pub use record::{
     RecordError, RecordLine, RecordedMove, Step, StepOutcome, Summary, parse_record, read_record,
     record_part_name, replay, write_record,
