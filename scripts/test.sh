@@ -36,6 +36,7 @@ set -x
 cargo fmt --all --check
 cargo clippy --workspace --all-targets --locked -- -D warnings
 cargo test --workspace --locked
+scripts/test-python.sh
 scripts/fuzz.sh
 cargo bench --workspace --locked --no-run
 RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked
