@@ -36,6 +36,9 @@ set -x
 cargo fmt --all --check
 cargo clippy --workspace --all-targets --locked -- -D warnings
 cargo test --workspace --locked
+scripts/test-python.sh
 scripts/fuzz.sh
-cargo bench --workspace --locked --no-run
+# The benchmarks compile (with the test build's artifacts, not a second, release
+# build of everything: CI's time goes to tests); `cargo bench` runs them.
+cargo build --workspace --benches --locked
 RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked

@@ -6,10 +6,9 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::{Context as _, bail};
-use dmu_collide::{AllowList, Settings, StepOutcome, Summary, read_record};
-use dmu_scene::{PartId, Scene};
-use glam::DVec3;
-use serde_json::{Value, json};
+use dmu_collide::{AllowList, Finding, Settings, StepOutcome, Summary, read_record};
+use dmu_scene::Scene;
+use serde_json::json;
 
 use crate::collide_batch::{Checked, check_records};
 use crate::load::{Loaded, ModelArgs, load};
@@ -99,91 +98,35 @@ fn csv_field(s: &str) -> String {
     }
 }
 
-/// A clash or impact of one step, ready to print.
-#[derive(Debug)]
-struct Finding {
-    step: usize,
-    t: f64,
-    kind: &'static str,
-    a: PartId,
-    b: PartId,
-    a_name: String,
-    b_name: String,
-    distance: f64,
-    toi: Option<f64>,
-    point: DVec3,
-    normal: Option<DVec3>,
+/// A finding as one CSV row.
+fn csv_row(f: &Finding<'_>) -> String {
+    let p = f.point;
+    format!(
+        "{},{},{},{},{},{},{},{},{},{}",
+        f.step,
+        f.t,
+        f.kind,
+        csv_field(f.a),
+        csv_field(f.b),
+        f.distance,
+        f.toi.map_or(String::new(), |t| t.to_string()),
+        p[0],
+        p[1],
+        p[2]
+    )
 }
 
-impl Finding {
-    /// A step's clashes, then its impacts.
-    fn of<'a>(o: &'a StepOutcome<'_>) -> impl Iterator<Item = Finding> + 'a {
-        let found = |kind, a, b, distance, toi, point, normal| Finding {
-            step: o.index,
-            t: o.step.t,
-            kind,
-            a,
-            b,
-            a_name: o.scene.part_name(a).to_owned(),
-            b_name: o.scene.part_name(b).to_owned(),
-            distance,
-            toi,
-            point,
-            normal,
-        };
-        let clashes = o.report.clashes.iter().map(move |c| {
-            let kind = c.kind.as_str();
-            found(kind, c.a, c.b, c.distance, None, c.point, Some(c.normal))
-        });
-        let impacts = (o.report.impacts.iter())
-            .map(move |i| found("impact", i.a, i.b, i.distance, Some(i.toi), i.point, None));
-        clashes.chain(impacts)
-    }
-
-    fn json(&self) -> Value {
-        json!({
-            "step": self.step,
-            "t": self.t,
-            "kind": self.kind,
-            "a": self.a_name,
-            "b": self.b_name,
-            "a_id": self.a.0,
-            "b_id": self.b.0,
-            "distance": self.distance,
-            "toi": self.toi,
-            "point": self.point.to_array(),
-            "normal": self.normal.map(|n| n.to_array()),
-        })
-    }
-
-    fn csv(&self) -> String {
-        let p = self.point;
-        format!(
-            "{},{},{},{},{},{},{},{},{},{}",
-            self.step,
-            self.t,
-            self.kind,
-            csv_field(&self.a_name),
-            csv_field(&self.b_name),
-            self.distance,
-            self.toi.map_or(String::new(), |t| t.to_string()),
-            p.x,
-            p.y,
-            p.z
-        )
-    }
-
-    fn text(&self) -> String {
-        let what = match self.toi {
-            Some(toi) => format!("toi {toi:.6}"),
-            None => format!("distance {:.6}", self.distance),
-        };
-        let p = self.point;
-        format!(
-            "t={} {:<7} {} {} {what} at [{:.3}, {:.3}, {:.3}]",
-            self.t, self.kind, self.a_name, self.b_name, p.x, p.y, p.z
-        )
-    }
+/// A finding as one line of text.
+fn text_line(f: &Finding<'_>) -> String {
+    let what = match f.toi {
+        Some(toi) => format!("toi {toi:.6}"),
+        None => format!("distance {:.6}", f.distance),
+    };
+    let p = f.point;
+    format!(
+        "t={} {:<7} {} {} {what} at [{:.3}, {:.3}, {:.3}]",
+        f.t, f.kind, f.a, f.b, p[0], p[1], p[2]
+    )
 }
 
 /// The record files the arguments name: files as given, folders as the
@@ -254,6 +197,10 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
         ..Settings::default()
     };
     let model = source.map_or_else(|| "built-in plant".to_owned(), |p| p.display().to_string());
+    let names: Vec<String> = scene
+        .part_ids()
+        .map(|p| scene.part_name(p).to_owned())
+        .collect();
     let jobs = args.jobs.map_or_else(
         || std::thread::available_parallelism().map_or(1, std::num::NonZero::get),
         |jobs| jobs as usize,
@@ -288,7 +235,7 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
                 "record": record,
                 "clearance": args.clearance,
                 "continuous": args.continuous,
-                "clashes": findings.iter().map(Finding::json).collect::<Vec<_>>(),
+                "clashes": findings,
                 "summary": {
                     "steps": summary.steps,
                     "part_pairs_tested": summary.part_pairs_tested,
@@ -307,7 +254,7 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
                 String::new()
             };
             for f in &findings {
-                writeln!(out, "{record_field}{}", f.csv())?;
+                writeln!(out, "{record_field}{}", csv_row(f))?;
             }
             let record_name = if batch {
                 format!("{record}: ")
@@ -320,13 +267,29 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
                 writeln!(out, "record {record}")?;
             }
             for f in &findings {
-                writeln!(out, "{}", f.text())?;
+                writeln!(out, "{}", text_line(f))?;
             }
             writeln!(out, "{}", summary_line(&summary))?;
         }
         Ok(())
     };
-    let collect = |o: &StepOutcome<'_>, found: &mut Vec<Finding>| found.extend(Finding::of(o));
+    // Findings name parts by the model's names, which outlive the workers'
+    // copies of the scene.
+    let collect = |o: &StepOutcome<'_>, found: &mut Vec<_>| {
+        found.extend(o.findings().map(|f| Finding {
+            a: &names[f.a_id as usize],
+            b: &names[f.b_id as usize],
+            step: f.step,
+            t: f.t,
+            kind: f.kind,
+            a_id: f.a_id,
+            b_id: f.b_id,
+            distance: f.distance,
+            toi: f.toi,
+            point: f.point,
+            normal: f.normal,
+        }));
+    };
     let workers = check_records(
         scene,
         &records,

@@ -3,7 +3,6 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context as _, bail};
 use dmu_scene::{ImportOptions, ImportReport, Scene};
 use indicatif::ProgressBar;
 
@@ -56,23 +55,6 @@ pub fn load(args: &ModelArgs) -> anyhow::Result<Loaded> {
 }
 
 fn import(path: &Path, chunk_triangles: u32) -> anyhow::Result<(Scene, ImportReport)> {
-    let ext = path
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase());
-    if ext.as_deref() == Some("dmu") || is_store(path) {
-        // A store is chunked already: its own chunks are kept.
-        let store = dmu_store::Store::open(path)?;
-        let scene = store
-            .load_scene()
-            .with_context(|| format!("loading {}", path.display()))?;
-        return Ok((scene, ImportReport::default()));
-    }
-    if !matches!(ext.as_deref(), Some("glb" | "gltf")) {
-        bail!(
-            "{}: unknown file type (dmu reads .glb, .gltf and .dmu)",
-            path.display()
-        );
-    }
     // A bar only for files big enough to take a while; indicatif hides it when
     // stderr is not a terminal, so scripts see clean output.
     let big = std::fs::metadata(path)
@@ -92,17 +74,8 @@ fn import(path: &Path, chunk_triangles: u32) -> anyhow::Result<(Scene, ImportRep
         chunk_triangles,
         progress: Some(&progress),
     };
-    let result = dmu_scene::import_gltf(path, &options)
-        .with_context(|| format!("importing {}", path.display()));
+    // The one opening path, shared with the GPU-free users (the Python module).
+    let result = dmu_store::open_scene(path, &options);
     bar.finish_and_clear();
-    result
-}
-
-/// Whether the file starts with a store's magic, whatever its name says (a store
-/// renamed `.glb` is read as the store it is, not reported as malformed JSON).
-fn is_store(path: &Path) -> bool {
-    use std::io::Read as _;
-    let mut magic = [0; 8];
-    dmu_scene::open_regular_file(path).is_ok_and(|mut f| f.read_exact(&mut magic).is_ok())
-        && &magic == b"DMUSTORE"
+    Ok(result?)
 }

@@ -1,7 +1,7 @@
 //! The discrete check: moved parts at their current poses against everything.
 
-use std::cell::RefCell;
 use std::fmt;
+use std::sync::{Mutex, PoisonError};
 
 use dmu_geom::Aabb3d;
 use dmu_scene::{ChunkId, PartId, Scene};
@@ -218,9 +218,9 @@ pub(crate) fn run_end(pairs: &[ChunkPair], start: usize) -> usize {
 pub struct Checker {
     /// The chunks' BVHs, built on first use.
     pub(crate) bvhs: ChunkBvhCache,
-    /// The narrow phase's scratch (behind a cell: the sweep's search reads the
-    /// checker while it advances).
-    scratch: RefCell<PairScratch>,
+    /// The narrow phase's scratch (behind a lock, never contended: the sweep's
+    /// search reads the checker while it advances, and a checker stays `Sync`).
+    scratch: Mutex<PairScratch>,
     closed: Closedness,
     /// The largest part scale in the scene, for the broad phase's margin: no
     /// pair's contact tolerance exceeds the relative tolerance times it.
@@ -254,7 +254,7 @@ impl Checker {
             .fold(0.0, f64::max);
         Self {
             bvhs: ChunkBvhCache::new(scene.chunks().len()),
-            scratch: RefCell::default(),
+            scratch: Mutex::default(),
             closed: Closedness::new(scene.meshes().len()),
             max_scale,
             moved: Vec::new(),
@@ -448,7 +448,7 @@ impl Checker {
                 (pair.ca, place_a),
                 (pair.cb, place_b),
                 search,
-                &mut self.scratch.borrow_mut(),
+                &mut self.scratch.lock().unwrap_or_else(PoisonError::into_inner),
             );
         }
     }

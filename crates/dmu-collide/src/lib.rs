@@ -90,6 +90,7 @@
 mod check;
 mod contain;
 mod enclose;
+mod finding;
 mod narrow;
 mod record;
 mod sweep;
@@ -98,6 +99,7 @@ mod triangle;
 pub use check::{
     AllowList, Checker, Clash, ClashKind, DEFAULT_CONTACT_TOLERANCE, Impact, Report, Settings,
 };
+pub use finding::Finding;
 pub use record::{
     RecordError, RecordLine, RecordedMove, Step, StepOutcome, Summary, parse_record, read_record,
     record_part_name, replay, write_record,

@@ -2,6 +2,8 @@
 //! penetrate. Every clash the crate reports comes down to these functions, on
 //! part-local f32 vertices carried into a common frame in f64.
 
+use std::cell::Cell;
+
 use glam::DVec3;
 
 /// How two triangles meet, from [`triangle_clash`].
@@ -42,22 +44,44 @@ fn distance_between(
         return (0.0, x, x);
     }
     let mut best = (f64::INFINITY, a[0], b[0]);
-    let mut consider = |pa: DVec3, pb: DVec3| {
+    let consider = |best: &mut (f64, DVec3, DVec3), pa: DVec3, pb: DVec3| {
         let d2 = pa.distance_squared(pb);
         if d2 < best.0 {
-            best = (d2, pa, pb);
+            *best = (d2, pa, pb);
         }
     };
+    // A candidate whose boxes are farther apart than the best so far cannot
+    // beat it (with a margin far above the rounding of the closest points, so
+    // the answer is the one every candidate would give).
+    let span = |p: &[DVec3]| {
+        let (lo, hi) = p
+            .iter()
+            .fold((p[0], p[0]), |(lo, hi), q| (lo.min(*q), hi.max(*q)));
+        (lo, hi)
+    };
+    let may_beat = |best: f64, (lo1, hi1): (DVec3, DVec3), (lo2, hi2): (DVec3, DVec3)| {
+        let gap = (lo2 - hi1).max(lo1 - hi2).max(DVec3::ZERO).length_squared();
+        gap <= best * (1.0 + 1e-9)
+    };
+    let (box_a, box_b) = (span(a), span(b));
     for &p in a {
-        consider(p, closest_on_triangle(p, b, b_has_normal));
+        if may_beat(best.0, (p, p), box_b) {
+            consider(&mut best, p, closest_on_triangle(p, b, b_has_normal));
+        }
     }
     for &p in b {
-        consider(closest_on_triangle(p, a, a_has_normal), p);
+        if may_beat(best.0, box_a, (p, p)) {
+            consider(&mut best, closest_on_triangle(p, a, a_has_normal), p);
+        }
     }
     for i in 0..3 {
+        let ea = [a[i], a[(i + 1) % 3]];
         for j in 0..3 {
-            let (pa, pb) = closest_on_segments(a[i], a[(i + 1) % 3], b[j], b[(j + 1) % 3]);
-            consider(pa, pb);
+            let eb = [b[j], b[(j + 1) % 3]];
+            if may_beat(best.0, span(&ea), span(&eb)) {
+                let (pa, pb) = closest_on_segments(ea[0], ea[1], eb[0], eb[1]);
+                consider(&mut best, pa, pb);
+            }
         }
     }
     (best.0.sqrt(), best.1, best.2)
@@ -89,13 +113,13 @@ pub fn triangle_clash(
 }
 
 /// A triangle in the frame of a comparison with what [`triangle_clash`] needs
-/// of it alone: its unit normal and its box, computed once for all the
-/// triangles it meets.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// of it alone: its box, and its unit normal once a pair gets past the boxes,
+/// computed once for all the triangles it meets.
+#[derive(Clone, Debug, PartialEq)]
 pub(crate) struct Placed {
     pub v: [DVec3; 3],
-    /// See [`unit_normal`].
-    pub normal: Option<DVec3>,
+    /// See [`unit_normal`]; `None` until first asked for.
+    normal: Cell<Option<Option<DVec3>>>,
     pub min: DVec3,
     pub max: DVec3,
 }
@@ -104,10 +128,20 @@ impl Placed {
     pub fn new(v: [DVec3; 3]) -> Self {
         Self {
             v,
-            normal: unit_normal(&v),
+            normal: Cell::new(None),
             min: v[0].min(v[1]).min(v[2]),
             max: v[0].max(v[1]).max(v[2]),
         }
+    }
+
+    /// See [`unit_normal`].
+    pub fn normal(&self) -> Option<DVec3> {
+        if let Some(n) = self.normal.get() {
+            return n;
+        }
+        let n = unit_normal(&self.v);
+        self.normal.set(Some(n));
+        n
     }
 
     /// Squared gap between the two triangles' boxes (0 when they overlap).
@@ -188,7 +222,7 @@ impl Facing {
         if a.box_gap_squared(b) > max_distance * max_distance {
             return None;
         }
-        let (na, nb) = (a.normal, b.normal);
+        let (na, nb) = (a.normal(), b.normal());
         let (a, b) = (&a.v, &b.v);
         let side_a = nb.map(|n| a.map(|p| n.dot(p - b[0])));
         let side_b = na.map(|n| b.map(|p| n.dot(p - a[0])));

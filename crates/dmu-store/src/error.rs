@@ -98,6 +98,12 @@ pub enum StoreError {
         #[source]
         source: dmu_scene::ExportError,
     },
+    /// An input that is neither a store nor glTF by its name or its first bytes.
+    #[error("{}: unknown file type (dmu reads .glb, .gltf and .dmu)", path.display())]
+    UnknownInputFormat {
+        /// The file.
+        path: PathBuf,
+    },
     /// An output whose extension names no format dmu writes.
     #[error(
         "{}: unknown output format (the extension picks it: .dmu for a store, .glb or .gltf for glTF)",

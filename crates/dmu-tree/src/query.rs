@@ -26,6 +26,45 @@ pub struct Hit {
     pub normal: DVec3,
 }
 
+/// A hit as reports print it, named from the scene: the one definition of the
+/// fields of `dmu pick --json`, the viewer's pick report and the Python
+/// module's `pick` (serialized with serde, so they cannot drift apart).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct HitReport<'a> {
+    /// Always `true` (a miss is reported as `{"hit": false}` or `None`).
+    pub hit: bool,
+    /// The part's name.
+    pub part: &'a str,
+    /// The part's id.
+    pub part_id: u32,
+    /// The part's full assembly path.
+    pub path: String,
+    /// Triangle index within the part's mesh.
+    pub triangle: u32,
+    /// Distance from the ray's origin, world units, whatever the direction's length.
+    pub distance: f64,
+    /// World point.
+    pub point: [f64; 3],
+    /// Unit world normal, facing the ray's origin.
+    pub normal: [f64; 3],
+}
+
+impl<'a> HitReport<'a> {
+    /// The report of `hit` on a ray whose direction is `ray_length` long.
+    pub fn new(scene: &'a Scene, hit: &Hit, ray_length: f64) -> Self {
+        Self {
+            hit: true,
+            part: scene.part_name(hit.part),
+            part_id: hit.part.0,
+            path: scene.part_path(hit.part),
+            triangle: hit.triangle,
+            distance: hit.t * ray_length,
+            point: hit.point.to_array(),
+            normal: hit.normal.to_array(),
+        }
+    }
+}
+
 /// What a frustum visitor is told about a node.
 #[derive(Clone, Copy, Debug)]
 pub struct FrustumNode {

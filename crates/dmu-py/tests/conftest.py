@@ -1,0 +1,99 @@
+"""Fixtures of the `dmu` Python tests: the command line (the oracle the module
+is compared with), small models and generated records.
+
+A prerequisite that is missing (the `dmu` binary, ray) fails the test under
+CI=true and skips it elsewhere, saying so."""
+
+import json
+import os
+import pathlib
+import random
+import subprocess
+
+import pytest
+
+REPO = pathlib.Path(__file__).resolve().parents[3]
+
+
+def require(condition, reason):
+    """Fails under CI when `condition` is false; elsewhere skips, printing why."""
+    if condition:
+        return
+    if os.environ.get("CI") == "true":
+        pytest.fail(f"prerequisite missing under CI: {reason}")
+    print(f"SKIPPED: {reason}")
+    pytest.skip(reason)
+
+
+@pytest.fixture(scope="session")
+def dmu_bin():
+    """The `dmu` command line: $DMU_BIN, else target/release/dmu or target/debug/dmu."""
+    candidates = [os.environ.get("DMU_BIN")] if os.environ.get("DMU_BIN") else [
+        REPO / "target" / "release" / "dmu",
+        REPO / "target" / "debug" / "dmu",
+    ]
+    found = [pathlib.Path(c) for c in candidates if c and pathlib.Path(c).is_file()]
+    require(found, f"no dmu binary (set DMU_BIN or build it: cargo build --workspace); looked at {candidates}")
+    return found[0]
+
+
+def run_cli(dmu_bin, *args):
+    """Runs the command line; returns (exit status, stdout)."""
+    out = subprocess.run([str(dmu_bin), *map(str, args)], capture_output=True, text=True, timeout=600)
+    assert out.returncode in (0, 1), f"dmu {' '.join(map(str, args))} failed: {out.stderr}"
+    return out.returncode, out.stdout
+
+
+@pytest.fixture(scope="session")
+def grid_glb(tmp_path_factory, dmu_bin):
+    """A 4×4×4 grid of boxes of side 4 on a pitch of 10 (box_x_y_z at 10·(x, y, z))."""
+    path = tmp_path_factory.mktemp("grid") / "grid.glb"
+    run_cli(dmu_bin, "generate", "grid", "--n", 4, "-o", path)
+    return path
+
+
+@pytest.fixture(scope="session")
+def plant_store(tmp_path_factory):
+    """The built-in plant at 100k triangles, saved as a store by the module."""
+    import dmu
+
+    path = tmp_path_factory.mktemp("plant") / "plant.dmu"
+    dmu.plant(triangles=100_000).save(path)
+    return path
+
+
+def make_records(model, directory, count, steps=4, seed=7):
+    """Writes `count` records that move parts onto and around other parts'
+    positions (so they clash), returns their paths."""
+    rng = random.Random(seed)
+    parts = [p for p in model.parts() if not p["hidden"] and p["triangles"] > 0]
+    directory = pathlib.Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for r in range(count):
+        lines = []
+        for step in range(steps):
+            for a, b in [rng.sample(parts, 2) for _ in range(2)]:
+                if any(line["t"] == step and line["part"] == f"#{a['id']}" for line in lines):
+                    continue
+                at = model.world(b["id"])[:3, 3]
+                offset = [rng.uniform(-200.0, 200.0) for _ in range(3)]
+                lines.append({
+                    "t": float(step),
+                    "part": f"#{a['id']}",
+                    "translation": [float(at[i] + offset[i]) for i in range(3)],
+                    "rotation": [0.0, 0.0, 0.0, 1.0],
+                })
+        path = directory / f"record{r:02}.jsonl"
+        path.write_text("".join(json.dumps(line) + "\n" for line in lines))
+        paths.append(path)
+    return paths
+
+
+def cli_collide(dmu_bin, model_path, record, clearance=5.0, continuous=False):
+    """`dmu collide MODEL --record R --json`'s clash list."""
+    args = ["collide", model_path, "--record", record, "--clearance", clearance, "--json"]
+    if continuous:
+        args.append("--continuous")
+    _, out = run_cli(dmu_bin, *args)
+    return json.loads(out)["clashes"]
