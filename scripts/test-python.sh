@@ -29,4 +29,5 @@ start=$(date +%s)
 MATURIN_PEP517_ARGS="--profile dev" "$venv/bin/pip" install --quiet --disable-pip-version-check ./crates/dmu-py pytest 'ray>=2.9' ||
     skip "pip could not install the wheel, pytest or ray"
 echo "wheel and packages installed in $(($(date +%s) - start)) s"
-"$venv/bin/python" -m pytest -rs -q crates/dmu-py/tests
+# -s: the Ray test prints its 1- and 2-worker times into the log.
+"$venv/bin/python" -m pytest -rs -q -s crates/dmu-py/tests

@@ -30,6 +30,17 @@ fn at(t: f64, part: &str, x: f64) -> String {
     )
 }
 
+/// The command exited with `code`; its output is shown when it did not.
+fn assert_exit(out: &Output, code: i32) {
+    assert_eq!(
+        out.status.code(),
+        Some(code),
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 /// stdout as JSON whatever the exit code.
 fn parse(out: &Output) -> Value {
     serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
@@ -55,12 +66,7 @@ fn collide_reports_clashes_with_exit_1_and_clear_runs_with_exit_0() {
     let steps: Vec<&str> = steps.iter().map(String::as_str).collect();
     let moves = record(dir.path(), "moves.jsonl", &steps);
     let out = dmu(&["collide", &model, "--record", &moves, "--json"]);
-    assert_eq!(
-        out.status.code(),
-        Some(1),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_exit(&out, 1);
     let v = parse(&out);
     let found: Vec<(u64, &str, &str, &str, f64)> = v["clashes"]
         .as_array()
@@ -104,12 +110,7 @@ fn collide_reports_clashes_with_exit_1_and_clear_runs_with_exit_0() {
         "--allow",
         "box_0_0_0,box_1_0_0",
     ]);
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&out.stdout)
-    );
+    assert_exit(&out, 0);
     assert!(String::from_utf8_lossy(&out.stdout).contains("4 steps"));
 
     // CSV: a header and one row per clash; the summary on stderr.
@@ -135,12 +136,7 @@ fn collide_finds_a_jump_through_a_part_only_when_continuous() {
     let jump = at(1.0, "box_0_0_0", 20.0);
     let moves = record(dir.path(), "jump.jsonl", &[&jump]);
     let out = dmu(&["collide", &model, "--record", &moves, "--clearance", "1"]);
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&out.stdout)
-    );
+    assert_exit(&out, 0);
     let out = dmu(&[
         "collide",
         &model,
@@ -396,12 +392,7 @@ fn a_batch_prints_a_part_per_record() {
         "--jobs",
         "2",
     ]);
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&out.stdout)
-    );
+    assert_exit(&out, 0);
 
     let out = dmu(&[
         "collide",
