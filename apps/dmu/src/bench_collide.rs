@@ -15,7 +15,8 @@ use xxhash_rust::xxh3::Xxh3;
 use crate::cmd_bench::{median, percentile};
 use crate::load::{ModelArgs, load};
 use crate::units::{
-    MAX_CHUNK_TRIANGLES, MAX_LENGTH, MAX_STEPS, MAX_TRIANGLES, count_in, number_in,
+    MAX_CHUNK_TRIANGLES, MAX_LENGTH, MAX_STEPS, MAX_TRIANGLES, MIN_PLANT_TRIANGLES, count_in,
+    number_in,
 };
 
 /// Collision checks per second for a part moving through the model.
@@ -24,7 +25,7 @@ pub struct CollideArgs {
     /// Model file; the built-in plant of `--triangles` when omitted.
     file: Option<PathBuf>,
     /// Size of the built-in plant.
-    #[arg(long, default_value = "10M", value_parser = count_in(10_000, MAX_TRIANGLES))]
+    #[arg(long, default_value = "10M", value_parser = count_in(MIN_PLANT_TRIANGLES, MAX_TRIANGLES))]
     triangles: u64,
     /// The moving part is the one whose triangle count is closest to this.
     #[arg(long, default_value_t = 10_000)]

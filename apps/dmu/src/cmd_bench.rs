@@ -16,7 +16,8 @@ use serde_json::json;
 use crate::bench_collide::{drag_path, dragged_part};
 use crate::load::{ModelArgs, load};
 use crate::units::{
-    MAX_CHUNK_TRIANGLES, MAX_LENGTH, MAX_STEPS, MAX_TRIANGLES, count_in, number_in,
+    MAX_CHUNK_TRIANGLES, MAX_LENGTH, MAX_STEPS, MAX_TRIANGLES, MIN_PLANT_TRIANGLES, count_in,
+    number_in,
 };
 
 /// Measure a subsystem on a model (the built-in plant by default).
@@ -39,7 +40,7 @@ struct TreeArgs {
     /// Model file; the built-in plant of `--triangles` when omitted.
     file: Option<PathBuf>,
     /// Size of the built-in plant.
-    #[arg(long, default_value = "10M", value_parser = count_in(10_000, MAX_TRIANGLES))]
+    #[arg(long, default_value = "10M", value_parser = count_in(MIN_PLANT_TRIANGLES, MAX_TRIANGLES))]
     triangles: u64,
     /// Rays to pick (each aimed at a random triangle, so it hits).
     #[arg(long, default_value_t = 10_000, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=MAX_STEPS))]

@@ -5,7 +5,9 @@ use std::time::Instant;
 
 use dmu_samples::{PlantOptions, grid, plant};
 
-use crate::units::{MAX_CHUNK_TRIANGLES, MAX_TRIANGLES, count_in, parse_dvec3};
+use crate::units::{
+    MAX_CHUNK_TRIANGLES, MAX_TRIANGLES, MIN_PLANT_TRIANGLES, count_in, parse_dvec3,
+};
 
 /// Generate a sample model and write it as glTF (.glb, or .gltf with an embedded
 /// buffer) or as a dmu store (.dmu).
@@ -18,7 +20,7 @@ pub struct Args {
     #[arg(value_enum)]
     model: Model,
     /// Triangle target for `plant`: 10k to 1G; suffixes k, M, G.
-    #[arg(long, default_value = "1M", value_parser = count_in(10_000, MAX_TRIANGLES))]
+    #[arg(long, default_value = "1M", value_parser = count_in(MIN_PLANT_TRIANGLES, MAX_TRIANGLES))]
     triangles: u64,
     /// Random seed.
     #[arg(long, default_value_t = 1)]

@@ -28,7 +28,7 @@ pub struct ModelArgs {
     #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..=crate::units::MAX_CHUNK_TRIANGLES as i64))]
     pub chunk_triangles: u32,
     /// Size of the built-in plant used when no file is given (10k to 1G).
-    #[arg(long = "plant-triangles", default_value = "2M", value_parser = crate::units::count_in(10_000, crate::units::MAX_TRIANGLES))]
+    #[arg(long = "plant-triangles", default_value = "2M", value_parser = crate::units::count_in(crate::units::MIN_PLANT_TRIANGLES, crate::units::MAX_TRIANGLES))]
     pub plant_triangles: u64,
 }
 

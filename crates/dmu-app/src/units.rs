@@ -50,15 +50,9 @@ pub fn parse_bytes(s: &str) -> anyhow::Result<u64> {
     Ok(v.round() as u64)
 }
 
-/// The most triangles a generated or benchmarked model may have.
-pub const MAX_TRIANGLES: u64 = 1_000_000_000;
-/// The most steps, rays, moves or frames one command may run.
-pub const MAX_STEPS: u64 = 100_000_000;
-/// The most triangles per chunk.
-pub const MAX_CHUNK_TRIANGLES: u32 = 1 << 20;
-/// The largest distance, length or offset a flag takes, model units (1e12 mm
-/// is a million kilometres: past it f64 keeps less than a micrometre).
-pub const MAX_LENGTH: f64 = 1e12;
+pub use dmu_scene::limits::{
+    MAX_CHUNK_TRIANGLES, MAX_LENGTH, MAX_STEPS, MAX_TRIANGLES, MIN_PLANT_TRIANGLES,
+};
 
 /// A clap value parser for a count ([`parse_count`]: `10M`, `2.5k`) in
 /// `min..=max`, saying the range when refused.

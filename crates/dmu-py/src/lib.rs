@@ -39,6 +39,7 @@ use std::path::PathBuf;
 
 use dmu_collide::{AllowList, Checker, Settings, Step, parse_record, read_record, replay};
 use dmu_geom::Ray3d;
+use dmu_scene::limits::{MAX_CHUNK_TRIANGLES, MAX_LENGTH, MAX_TRIANGLES, MIN_PLANT_TRIANGLES};
 use dmu_scene::{ImportOptions, PartId, Scene};
 use dmu_tree::{HitReport, Tree, TreeOptions};
 use glam::{DAffine3, DMat3, DVec3};
@@ -62,12 +63,8 @@ fn dmu_error(e: impl Into<anyhow::Error>) -> PyErr {
     DmuError::new_err(format!("{:#}", e.into()))
 }
 
-/// Largest chunk size accepted, as on the command line.
-const MAX_CHUNK_TRIANGLES: u32 = 1 << 20;
 /// Plant sizes accepted, as on the command line (`--plant-triangles`).
-const PLANT_TRIANGLES: std::ops::RangeInclusive<u64> = 10_000..=1_000_000_000;
-/// Largest clearance accepted, as on the command line.
-const MAX_CLEARANCE: f64 = 1e12;
+const PLANT_TRIANGLES: std::ops::RangeInclusive<u64> = MIN_PLANT_TRIANGLES..=MAX_TRIANGLES;
 
 /// A model in memory: its scene, its cell tree, and the collision checker's
 /// caches (built on the first `collide`).
@@ -317,9 +314,9 @@ impl Model {
         continuous: bool,
         allow: Vec<(Bound<'py, PyAny>, Bound<'py, PyAny>)>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        if !(0.0..=MAX_CLEARANCE).contains(&clearance) {
+        if !(0.0..=MAX_LENGTH).contains(&clearance) {
             return Err(DmuError::new_err(format!(
-                "clearance {clearance}: expected a number from 0 to {MAX_CLEARANCE:e}"
+                "clearance {clearance}: expected a number from 0 to {MAX_LENGTH:e}"
             )));
         }
         let mut list = AllowList::default();

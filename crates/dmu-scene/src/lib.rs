@@ -52,5 +52,5 @@ pub use gltf_import::{StreamOptions, import_gltf_streaming};
 pub use ids::{ChunkId, MaterialId, MeshId, NodeId, PartId};
 pub use scene::{
     AssemblyNode, Chunk, ChunkGeometry, DEFAULT_CHUNK_TRIANGLES, MAX_WORLD_COORDINATE, Material,
-    Mesh, Part, Scene, SceneBuilder,
+    Mesh, Part, Scene, SceneBuilder, limits,
 };

@@ -13,6 +13,23 @@ use crate::ids::{ChunkId, MaterialId, MeshId, NodeId, PartId};
 /// Default maximum triangles per chunk.
 pub const DEFAULT_CHUNK_TRIANGLES: u32 = 2048;
 
+/// Input limits every front end (command line, viewer, Python) applies the
+/// same way; docs/limits.md lists them with the rest.
+pub mod limits {
+    /// The fewest triangles of a generated plant.
+    pub const MIN_PLANT_TRIANGLES: u64 = 10_000;
+    /// The most triangles a generated or benchmarked model may have.
+    pub const MAX_TRIANGLES: u64 = 1_000_000_000;
+    /// The most steps, rays, moves or frames one command may run.
+    pub const MAX_STEPS: u64 = 100_000_000;
+    /// The most triangles per chunk.
+    pub const MAX_CHUNK_TRIANGLES: u32 = 1 << 20;
+    /// The largest distance, length or offset an argument takes, model units
+    /// (1e12 mm is a million kilometres: past it f64 keeps less than a
+    /// micrometre).
+    pub const MAX_LENGTH: f64 = 1e12;
+}
+
 /// A material: a name and a base colour (linear RGBA, as glTF's `baseColorFactor`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Material {
