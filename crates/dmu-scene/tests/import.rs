@@ -360,3 +360,32 @@ proptest! {
         let _ = import_gltf_slice(&bytes, None, "t", &ImportOptions::default());
     }
 }
+
+/// Issue 18's CI run: a fuzzed glTF whose accessor has no bufferView and a
+/// count of 4e9 asked for 48 GB of zeros and aborted. It is an error naming
+/// the accessor; a small zero-filled accessor still imports.
+#[test]
+fn issue_18_a_huge_accessor_without_a_buffer_view_is_refused() {
+    let gltf = |count: u64| {
+        format!(
+            r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}],
+            "accessors": [{{"componentType": 5126, "count": {count}, "type": "VEC3",
+                "min": [0, 0, 0], "max": [0, 0, 0]}}],
+            "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}}}]}}],
+            "nodes": [{{"mesh": 0}}]}}"#
+        )
+    };
+    let err = import_gltf_slice(
+        gltf(4_000_000_000).as_bytes(),
+        None,
+        "t",
+        &ImportOptions::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("accessors[0]") && err.contains("without a bufferView"),
+        "{err}"
+    );
+    assert!(import_gltf_slice(gltf(3).as_bytes(), None, "t", &ImportOptions::default()).is_ok());
+}

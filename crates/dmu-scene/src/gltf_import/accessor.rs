@@ -111,6 +111,10 @@ impl<'a> Strided<'a> {
 }
 
 /// Decodes one element from its bytes, component type and `normalized` flag;
+/// The most an accessor without a bufferView may decode to (zeros and its sparse
+/// values), bytes; docs/limits.md.
+const MAX_ZERO_FILLED_BYTES: usize = 256 << 20;
+
 /// `None` when the component type is not allowed for the use.
 type Decode<T> = dyn Fn(&[u8], ComponentType, bool) -> Option<T>;
 
@@ -168,7 +172,18 @@ fn read_elements<T: Clone>(
                 .map(|i| decode(run.element(i), ctype, acc.normalized).ok_or_else(wrong_type))
                 .collect::<Result<Vec<T>, _>>()?
         }
-        None => vec![zero; count],
+        None => {
+            // No data behind it: zeros (then sparse values), bounded, since no
+            // buffer's length limits what the count claims.
+            if count.saturating_mul(elem) > MAX_ZERO_FILLED_BYTES {
+                return Err(invalid(format!(
+                    "{}: count {count} without a bufferView is more than {} MiB of zeros",
+                    what(),
+                    MAX_ZERO_FILLED_BYTES >> 20
+                )));
+            }
+            vec![zero; count]
+        }
     };
     if let Some(sparse) = &acc.sparse {
         let n = sparse.count.0 as usize;
