@@ -48,6 +48,9 @@ pub struct Options {
     pub script: Vec<Action>,
     /// Wait for vertical sync.
     pub vsync: bool,
+    /// Compose frames from the panels as last painted where the surface
+    /// allows (else paint the whole window every frame).
+    pub compose: bool,
 }
 
 impl Options {
@@ -229,6 +232,25 @@ impl App {
             .filter_map(|f| f["frame_ms"].as_f64())
             .collect();
         report["drag_frame_ms"] = summary(&drag);
+        let all = |key: &str| -> Vec<f64> {
+            self.runner
+                .frames
+                .iter()
+                .filter_map(|f| f[key].as_f64())
+                .collect()
+        };
+        report["frame_split_ms"] = json!({
+            "frame": summary(&all("frame_ms")),
+            "ui": summary(&all("ui_ms")),
+            "view": summary(&all("view_ms")),
+            "paint": summary(&all("paint_ms")),
+            "frames_painted_whole": self
+                .runner
+                .frames
+                .iter()
+                .filter(|f| f["painted_whole"] == true)
+                .count(),
+        });
         Ok(Some(report))
     }
 
@@ -536,6 +558,11 @@ impl App {
                 self.panes[self.active].view.culling =
                     crate::script::culling_from_name(name).context("culling mode")?;
             }
+            Action::PaintWhole(whole) => {
+                if let Some(gfx) = self.gfx.as_mut() {
+                    gfx.set_compose(!whole);
+                }
+            }
             Action::Overlays(o) => {
                 self.ui.show_stats = o.stats.unwrap_or(self.ui.show_stats);
                 self.ui.show_clashes = o.clashes.unwrap_or(self.ui.show_clashes);
@@ -694,6 +721,7 @@ impl App {
                 textures: &textures,
                 drawn_cells: &self.drawn_cells,
             };
+            let ui_start = Instant::now();
             let mut output = self.egui_ctx.run_ui(raw, |ui| {
                 shortcuts(ui, review);
                 input = crate::ui::show(ui, ui_state, review, &mut panes, overlay);
@@ -720,7 +748,9 @@ impl App {
                     .then(|| self.options.screenshot.clone())
                     .flatten()
             });
+            let ui_ms = ms_since(ui_start);
             self.sync_tints();
+            let view_start = Instant::now();
             let stats = match self.render_panes() {
                 Ok(stats) => stats,
                 Err(e) => {
@@ -729,6 +759,7 @@ impl App {
                     return Err(e);
                 }
             };
+            let view_ms = ms_since(view_start);
             let main = stats[0];
             let shown = stats[self.active.min(stats.len() - 1)];
             // Occlusion culling converges over a few frames.
@@ -736,14 +767,16 @@ impl App {
             let renderer = self.renderer.as_mut().expect("made with the window");
             let resident = renderer.geometry_pool().resident_bytes();
             let gfx = self.gfx.as_mut().expect("checked above");
-            let image = gfx.present(&self.egui_ctx, output, screenshot.is_some())?;
-            if let (Some(path), Some(image)) = (&screenshot, image) {
+            let paint_start = Instant::now();
+            let presented = gfx.present(&self.egui_ctx, output, screenshot.is_some())?;
+            let paint_ms = ms_since(paint_start);
+            if let (Some(path), Some(image)) = (&screenshot, presented.image) {
                 if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
                     std::fs::create_dir_all(dir)?;
                 }
                 dmu_render::save_png(&image, path)?;
             }
-            let frame_ms = start.elapsed().as_secs_f64() * 1e3;
+            let frame_ms = ms_since(start);
             self.frame_ms.push_back(frame_ms);
             if self.frame_ms.len() > 30 {
                 self.frame_ms.pop_front();
@@ -752,6 +785,10 @@ impl App {
                 frame: shown,
                 frame_ms,
                 frame_ms_avg: self.frame_ms.iter().sum::<f64>() / self.frame_ms.len() as f64,
+                ui_ms,
+                view_ms,
+                paint_ms,
+                painted_whole: presented.painted_whole,
                 model_triangles: self.review.scene.triangle_count(),
                 resident_bytes: resident,
             };
@@ -761,6 +798,10 @@ impl App {
                     "action": action,
                     "step": step,
                     "frame_ms": frame_ms,
+                    "ui_ms": ui_ms,
+                    "view_ms": view_ms,
+                    "paint_ms": paint_ms,
+                    "painted_whole": presented.painted_whole,
                     "render_cpu_ms": main.cpu_ms,
                     "render_gpu_ms": main.gpu_ms,
                     "triangles_drawn": main.triangles_drawn,
@@ -843,6 +884,11 @@ fn camera_json(nav: &Navigator) -> Value {
 }
 
 /// A window rectangle (x, y, width, height) in the report.
+/// Milliseconds since `start`.
+fn ms_since(start: Instant) -> f64 {
+    start.elapsed().as_secs_f64() * 1e3
+}
+
 fn rect_json(r: (u32, u32, u32, u32)) -> Value {
     json!({ "x": r.0, "y": r.1, "width": r.2, "height": r.3 })
 }
@@ -878,7 +924,14 @@ impl ApplicationHandler for App {
         let made = event_loop
             .create_window(attributes)
             .context("opening the window")
-            .and_then(|w| Gfx::new(&self.instance, Arc::new(w), self.options.vsync));
+            .and_then(|w| {
+                Gfx::new(
+                    &self.instance,
+                    Arc::new(w),
+                    self.options.vsync,
+                    self.options.compose,
+                )
+            });
         match made {
             Ok(gfx) => {
                 let renderer = Renderer::new(

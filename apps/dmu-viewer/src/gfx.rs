@@ -1,5 +1,6 @@
 //! The window's GPU side: device, surface, the offscreen 3D view egui shows as
-//! an image, the egui painter, and reading a frame back for screenshots.
+//! an image, the egui painter with its copy of the panels as last painted
+//! (see [`crate::compose`]), and reading a frame back for screenshots.
 
 use std::sync::Arc;
 
@@ -93,6 +94,29 @@ pub struct Gfx {
     pub egui: egui_wgpu::Renderer,
     /// One target per 3D view (pane), each with its egui texture.
     pub views: Vec<ViewTarget>,
+    /// The panels as last painted, when frames are composed from them (the
+    /// surface can be copied into, and it is not turned off).
+    panels: Option<Panels>,
+    /// Whether the surface can be copied into (frames can be composed).
+    can_compose: bool,
+}
+
+/// The window's panels as last painted and what they were painted from.
+struct Panels {
+    texture: Option<wgpu::Texture>,
+    /// The primitives outside the views it was painted from (`None`: it
+    /// cannot be reused).
+    painted_from: Option<Vec<(egui::Rect, egui::epaint::Mesh)>>,
+}
+
+/// What [`Gfx::present`] did.
+#[derive(Debug, Default)]
+pub struct Presented {
+    /// The frame as shown (RGBA, sRGB-encoded), when asked for.
+    pub image: Option<image::RgbaImage>,
+    /// Whether the whole window was painted; otherwise the panels were copied
+    /// from the last paint and only the 3D views' rectangles painted.
+    pub painted_whole: bool,
 }
 
 impl std::fmt::Debug for Gfx {
@@ -108,10 +132,13 @@ impl std::fmt::Debug for Gfx {
 impl Gfx {
     /// Opens the device for `window` with the optional features the renderer
     /// uses, and configures the surface (`vsync` or as fast as possible).
+    /// With `compose`, frames reuse the panels as last painted where the
+    /// surface can be copied into.
     pub fn new(
         instance: &wgpu::Instance,
         window: Arc<Window>,
         vsync: bool,
+        compose: bool,
     ) -> anyhow::Result<Self> {
         let surface = instance
             .create_surface(window.clone())
@@ -142,14 +169,11 @@ impl Gfx {
             .or_else(|| caps.formats.first().copied())
             .context("the surface offers no format")?;
         let can_read_back = caps.usages.contains(wgpu::TextureUsages::COPY_SRC);
+        let can_compose = caps.usages.contains(wgpu::TextureUsages::COPY_DST);
         let size = window.inner_size();
         let config = wgpu::SurfaceConfiguration {
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                | if can_read_back {
-                    wgpu::TextureUsages::COPY_SRC
-                } else {
-                    wgpu::TextureUsages::empty()
-                },
+                | caps.usages & (wgpu::TextureUsages::COPY_SRC | wgpu::TextureUsages::COPY_DST),
             format,
             color_space: wgpu::SurfaceColorSpace::Auto,
             width: size.width.max(1),
@@ -173,7 +197,7 @@ impl Gfx {
                 ..Default::default()
             },
         );
-        Ok(Self {
+        let mut gfx = Self {
             window,
             device,
             queue,
@@ -183,7 +207,22 @@ impl Gfx {
             can_read_back,
             egui,
             views: Vec::new(),
-        })
+            panels: None,
+            can_compose,
+        };
+        gfx.set_compose(compose);
+        Ok(gfx)
+    }
+
+    /// Composes frames from the panels as last painted (where the surface
+    /// allows), or paints the whole window every frame.
+    pub fn set_compose(&mut self, compose: bool) {
+        if compose != self.panels.is_some() {
+            self.panels = (compose && self.can_compose).then(|| Panels {
+                texture: None,
+                painted_from: None,
+            });
+        }
     }
 
     /// Follows a window resize.
@@ -232,14 +271,19 @@ impl Gfx {
         }
     }
 
-    /// Paints egui's output over a cleared frame and presents it; with
-    /// `read_back`, returns the frame as RGBA (sRGB-encoded, as shown).
+    /// Paints egui's output and presents it. When frames are composed and
+    /// nothing outside the 3D views changed since the panels were last
+    /// painted, the frame is a copy of that paint with only the views'
+    /// rectangles painted over it; otherwise the whole window is painted (and
+    /// kept). With `read_back`, the frame as shown comes back too.
     pub fn present(
         &mut self,
         ctx: &egui::Context,
         output: egui::FullOutput,
         read_back: bool,
-    ) -> anyhow::Result<Option<image::RgbaImage>> {
+    ) -> anyhow::Result<Presented> {
+        // A new glyph or image changes how unchanged primitives look.
+        let textures_changed = !output.textures_delta.set.is_empty();
         // Texture updates go first: egui counts them applied whatever happens next.
         for (id, deltas) in &output.textures_delta.set {
             for delta in deltas {
@@ -266,7 +310,7 @@ impl Gfx {
                 if read_back {
                     anyhow::bail!("no frame to read back: the surface said {other:?}");
                 }
-                return Ok(None);
+                return Ok(Presented::default());
             }
         };
         let pixels_per_point = output.pixels_per_point;
@@ -280,27 +324,69 @@ impl Gfx {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("dmu-viewer egui"),
             });
-        let mut commands =
-            self.egui
-                .update_buffers(&self.device, &self.queue, &mut encoder, &jobs, &screen);
         let target = frame.texture.create_view(&Default::default());
-        {
-            let pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("dmu-viewer egui"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &target,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                ..Default::default()
-            });
-            self.egui
-                .render(&mut pass.forget_lifetime(), &jobs, &screen);
-        }
+        let view_textures: Vec<egui::TextureId> = self.views.iter().map(|v| v.texture).collect();
+        let (mut commands, painted_whole) = match self.panels.as_mut() {
+            None => {
+                let commands = self.egui.update_buffers(
+                    &self.device,
+                    &self.queue,
+                    &mut encoder,
+                    &jobs,
+                    &screen,
+                );
+                paint(&self.egui, &mut encoder, &target, true, &jobs, &screen);
+                (commands, true)
+            }
+            Some(panels) => {
+                let split = crate::compose::split(&jobs, &view_textures, pixels_per_point);
+                let size = frame.texture.size();
+                if panels.texture.as_ref().map(wgpu::Texture::size) != Some(size) {
+                    panels.texture = Some(self.device.create_texture(&wgpu::TextureDescriptor {
+                        label: Some("dmu-viewer panels"),
+                        size,
+                        mip_level_count: 1,
+                        sample_count: 1,
+                        dimension: wgpu::TextureDimension::D2,
+                        format: self.config.format,
+                        usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                            | wgpu::TextureUsages::COPY_SRC,
+                        view_formats: &[],
+                    }));
+                    panels.painted_from = None;
+                }
+                let texture = panels.texture.as_ref().expect("made above");
+                let reuse = !textures_changed
+                    && split.as_ref().map(|s| &s.panels) == panels.painted_from.as_ref();
+                let (jobs, whole) = match split {
+                    Some(split) if reuse => (split.views, false),
+                    split => {
+                        panels.painted_from = split.map(|s| s.panels);
+                        (jobs, true)
+                    }
+                };
+                let commands = self.egui.update_buffers(
+                    &self.device,
+                    &self.queue,
+                    &mut encoder,
+                    &jobs,
+                    &screen,
+                );
+                if whole {
+                    let view = texture.create_view(&Default::default());
+                    paint(&self.egui, &mut encoder, &view, true, &jobs, &screen);
+                }
+                encoder.copy_texture_to_texture(
+                    texture.as_image_copy(),
+                    frame.texture.as_image_copy(),
+                    size,
+                );
+                if !whole {
+                    paint(&self.egui, &mut encoder, &target, false, &jobs, &screen);
+                }
+                (commands, whole)
+            }
+        };
         let readback = (read_back && self.can_read_back).then(|| {
             let (w, h) = (frame.texture.width(), frame.texture.height());
             let row = (4 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
@@ -332,13 +418,17 @@ impl Gfx {
             self.egui.free_texture(id);
         }
         output.textures_delta.clear();
-        match readback {
-            Some((buffer, row, w, h)) => Ok(Some(self.read_frame(&buffer, row, w, h)?)),
+        let image = match readback {
+            Some((buffer, row, w, h)) => Some(self.read_frame(&buffer, row, w, h)?),
             None if read_back => anyhow::bail!(
                 "this surface cannot be copied from (no COPY_SRC usage): no screenshot"
             ),
-            None => Ok(None),
-        }
+            None => None,
+        };
+        Ok(Presented {
+            image,
+            painted_whole,
+        })
     }
 
     fn read_frame(
@@ -384,4 +474,34 @@ impl Gfx {
         buffer.unmap();
         image::RgbaImage::from_raw(w, h, pixels).context("screenshot size")
     }
+}
+
+/// Paints egui's `jobs` (their buffers updated) into `target`, cleared first
+/// when `clear`.
+fn paint(
+    egui: &egui_wgpu::Renderer,
+    encoder: &mut wgpu::CommandEncoder,
+    target: &wgpu::TextureView,
+    clear: bool,
+    jobs: &[egui::ClippedPrimitive],
+    screen: &egui_wgpu::ScreenDescriptor,
+) {
+    let pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some("dmu-viewer egui"),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: target,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations {
+                load: if clear {
+                    wgpu::LoadOp::Clear(wgpu::Color::BLACK)
+                } else {
+                    wgpu::LoadOp::Load
+                },
+                store: wgpu::StoreOp::Store,
+            },
+        })],
+        ..Default::default()
+    });
+    egui.render(&mut pass.forget_lifetime(), jobs, screen);
 }

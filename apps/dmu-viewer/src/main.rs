@@ -29,6 +29,7 @@
 //! coordinates; view pixels are physical pixels of the 3D view, y down.
 
 mod app;
+mod compose;
 mod gfx;
 mod panes;
 mod record;
@@ -82,6 +83,11 @@ struct Cli {
     /// Do not wait for vertical sync (measure frame times).
     #[arg(long)]
     no_vsync: bool,
+    /// Paint the whole window every frame instead of copying the panels as
+    /// last painted and painting only the 3D views over them (slower on a CPU
+    /// rasterizer; for comparison).
+    #[arg(long)]
+    paint_whole: bool,
 }
 
 fn run(cli: &Cli) -> anyhow::Result<()> {
@@ -122,6 +128,7 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
         frames: cli.frames,
         script,
         vsync: !(cli.no_vsync || automated),
+        compose: !cli.paint_whole,
     };
     let event_loop = winit::event_loop::EventLoop::new()
         .context("opening the display (is DISPLAY or WAYLAND_DISPLAY set?)")?;

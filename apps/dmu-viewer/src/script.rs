@@ -19,6 +19,7 @@
 //!   {"culling": "chc"},
 //!   {"occlusion": "auto"},
 //!   {"overlays": {"stats": false, "clashes": true}},
+//!   {"paint_whole": true},
 //!   {"frames": 5},
 //!   {"screenshot": "docs/viewer.png"},
 //!   {"save": "/tmp/edited.glb"}
@@ -161,6 +162,9 @@ pub enum Action {
     Occlusion(crate::settings::Occlusion),
     /// Show or hide the view's overlays.
     Overlays(Overlays),
+    /// Paint the whole window every frame (`true`), or compose frames from
+    /// the panels as last painted (`false`, the default).
+    PaintWhole(bool),
     /// Render this many frames without doing anything.
     Frames(u32),
     /// Save the window as PNG after this frame.
@@ -202,6 +206,7 @@ impl Action {
             Self::FrameAll => "frame_all",
             Self::Culling(_) => "culling",
             Self::Overlays(_) => "overlays",
+            Self::PaintWhole(_) => "paint_whole",
             Self::Frames(_) => "frames",
             Self::Screenshot(_) => "screenshot",
             Self::Save(_) => "save",

@@ -80,6 +80,15 @@ pub struct Overlay {
     pub frame_ms: f64,
     /// Average wall time over recent frames, ms.
     pub frame_ms_avg: f64,
+    /// Of the last frame: running the panels (egui), ms.
+    pub ui_ms: f64,
+    /// Drawing the 3D views (CPU side, until submitted), ms.
+    pub view_ms: f64,
+    /// Painting the panels and views into the window and presenting, ms.
+    pub paint_ms: f64,
+    /// Whether the whole window was painted (else the panels were copied
+    /// from their last paint).
+    pub painted_whole: bool,
     /// Triangles in the model (instances counted).
     pub model_triangles: u64,
     /// Chunk geometry on the GPU, bytes.
@@ -806,6 +815,7 @@ fn stats_overlay(painter: &egui::Painter, rect: Rect, o: &Overlay, review: &Revi
     let s = &o.frame;
     let text = format!(
         "frame {:.1} ms (avg {:.1}, {:.0} fps)\n\
+         ui {:.1} · 3D {:.1} · paint {:.1} ms ({})\n\
          3D: cpu {:.1} ms · gpu {:.1} ms\n\
          triangles {} drawn / {} in frustum / {} model\n\
          chunks {} drawn · {} queries in {} rounds\n\
@@ -816,6 +826,14 @@ fn stats_overlay(painter: &egui::Painter, rect: Rect, o: &Overlay, review: &Revi
         o.frame_ms,
         o.frame_ms_avg,
         1000.0 / o.frame_ms_avg.max(1e-3),
+        o.ui_ms,
+        o.view_ms,
+        o.paint_ms,
+        if o.painted_whole {
+            "whole window"
+        } else {
+            "views only"
+        },
         s.cpu_ms,
         s.gpu_ms,
         s.triangles_drawn,

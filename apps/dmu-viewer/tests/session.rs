@@ -334,3 +334,69 @@ fn four_panes_with_a_cells_view_under_xvfb() {
     }
     assert!(inside > 0, "some cell lies wholly in the main view");
 }
+
+/// Frames composed from the panels as last painted (the default) show what a
+/// whole paint of the same frame shows, pixel for pixel: after a pick (the
+/// panels change), a drag (the part moves under clash markers drawn over the
+/// view), a preset view and frames with only the 3D view changing. Most of
+/// those frames reuse the panels; painting whole, none does. (One run: the
+/// panels show timings, which differ from run to run.)
+#[test]
+fn composed_frames_equal_whole_paints_under_xvfb() {
+    if !can_run("composed_frames_equal_whole_paints_under_xvfb") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (_, (px, py), _) = first_look(dir.path(), "viewer-compose");
+    let [composed_png, whole_png] =
+        ["composed", "whole"].map(|n| image_path(&format!("viewer-compose-{n}.png")));
+    let report = run_script(
+        dir.path(),
+        &json!([
+            {"overlays": {"stats": false, "clashes": true}},
+            {"pick": [px, py]},
+            {"drag": {"by": [0.0, 0.0, -400.0], "steps": 4}},
+            {"view": "iso"},
+            {"frames": 4},
+            {"hover": [px, py]},
+            {"frames": 2},
+            {"screenshot": composed_png},
+            {"paint_whole": true},
+            {"frames": 2},
+            {"screenshot": whole_png},
+        ]),
+    );
+    let whole: Vec<bool> = report["frames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| {
+            f["painted_whole"]
+                .as_bool()
+                .expect("painted_whole per frame")
+        })
+        .collect();
+    // The 15 frames up to the first screenshot, then 4 painted whole.
+    let (composing, painting) = whole.split_at(whole.len() - 4);
+    assert!(painting.iter().all(|&w| w), "{whole:?}");
+    let reused = composing.iter().filter(|&&w| !w).count();
+    assert!(
+        reused * 2 >= composing.len(),
+        "most frames reuse the panels: {whole:?}"
+    );
+    let composed = image::open(&composed_png).unwrap().to_rgba8();
+    let painted = image::open(&whole_png).unwrap().to_rgba8();
+    assert_eq!(composed.dimensions(), painted.dimensions());
+    let differing: Vec<(u32, u32)> = composed
+        .enumerate_pixels()
+        .filter(|&(x, y, p)| p != painted.get_pixel(x, y))
+        .map(|(x, y, _)| (x, y))
+        .collect();
+    assert!(
+        differing.is_empty(),
+        "composed and whole paints differ in {} pixels, from {:?} to {:?}",
+        differing.len(),
+        differing.iter().min(),
+        differing.iter().max()
+    );
+}
