@@ -939,7 +939,10 @@ impl ApplicationHandler for App {
                     &gfx.queue,
                     &self.review.scene,
                     &self.review.tree,
-                    Default::default(),
+                    dmu_render::RendererOptions {
+                        color_format: gfx.view_format,
+                        ..Default::default()
+                    },
                 );
                 let state = egui_winit::State::new(
                     self.egui_ctx.clone(),

@@ -4,10 +4,12 @@
 //! On a CPU rasterizer every pixel painted costs: repainting the whole window's
 //! panels each frame (text, rounded frames, blending) cost more than the 3D
 //! view itself. The panels rarely change while the view does, so the window is
-//! composed from a copy of the panels as last painted plus, over each 3D view's
-//! rectangle only, the view's image and whatever egui draws over it (the stats
-//! overlay, clash markers, tooltips) — exactly the primitives a full paint
-//! would draw there, in the same order, so the pixels are the same.
+//! composed from a copy of the panels as last painted, a copy of each 3D
+//! view's image into its rectangle (the views are drawn in the window's own
+//! format, so that is a copy too) and, clipped to those rectangles, whatever
+//! egui draws over the views (the stats overlay, clash markers, tooltips):
+//! exactly the primitives a full paint would draw there, in the same order, so
+//! the pixels are the same.
 //!
 //! The split is decided on the tessellated primitives themselves, not on a
 //! "did the UI change" flag: the panels are repainted when any primitive
@@ -24,9 +26,12 @@ pub struct Split {
     /// (with its clip rectangle): the panels are painted from these, and a
     /// later frame with equal ones can reuse that paint.
     pub panels: Vec<(Rect, Mesh)>,
-    /// What to paint each frame over the copied panels: each view's image and
-    /// every later primitive that reaches into it, clipped to the view.
-    pub views: Vec<ClippedPrimitive>,
+    /// Each view's image: its texture and its rectangle, on whole pixels.
+    pub images: Vec<(TextureId, Rect)>,
+    /// What to paint each frame over the copied panels and images: every
+    /// primitive after a view's image that reaches into it, clipped to the
+    /// view.
+    pub over_views: Vec<ClippedPrimitive>,
 }
 
 /// Splits `jobs` (egui's tessellated output, in paint order) around the
@@ -55,10 +60,7 @@ pub fn split(
                 return None;
             }
             regions.push(footprint);
-            out.views.push(ClippedPrimitive {
-                clip_rect: footprint,
-                primitive: job.primitive.clone(),
-            });
+            out.images.push((mesh.texture_id, footprint));
             continue;
         }
         let mut inside_one = false;
@@ -66,7 +68,7 @@ pub fn split(
             let overlap = footprint.intersect(*region);
             if overlap.is_positive() {
                 inside_one |= region.contains_rect(footprint);
-                out.views.push(ClippedPrimitive {
+                out.over_views.push(ClippedPrimitive {
                     clip_rect: job.clip_rect.intersect(*region),
                     primitive: job.primitive.clone(),
                 });
@@ -160,24 +162,19 @@ mod tests {
         // under it but kept with the panels) and the popup reaching out.
         let colours: Vec<Color32> = s.panels.iter().map(|(_, m)| m.vertices[0].color).collect();
         assert_eq!(colours, [Color32::GRAY, Color32::BLACK, Color32::BLUE]);
-        // Each frame: the image, the overlay, the popup's part in the view.
+        // Each frame: the image, then the overlay and the popup's part in
+        // the view.
         let view = rect(100.0, 0.0, 400.0, 300.0);
+        assert_eq!(s.images, [(VIEW, view)]);
         let painted: Vec<(Rect, Color32)> = s
-            .views
+            .over_views
             .iter()
             .map(|j| match &j.primitive {
                 Primitive::Mesh(m) => (j.clip_rect, m.vertices[0].color),
                 Primitive::Callback(_) => unreachable!(),
             })
             .collect();
-        assert_eq!(
-            painted,
-            [
-                (view, Color32::WHITE),
-                (view, Color32::RED),
-                (view, Color32::BLUE)
-            ]
-        );
+        assert_eq!(painted, [(view, Color32::RED), (view, Color32::BLUE)]);
     }
 
     #[test]
@@ -205,8 +202,8 @@ mod tests {
         assert!(split(&jobs, &[VIEW], 1.0).is_none());
         // At 2 pixels per point it is on whole pixels.
         let s = split(&jobs, &[VIEW], 2.0).unwrap();
-        assert!(s.panels.is_empty());
-        assert_eq!(s.views[0].clip_rect, view);
+        assert!(s.panels.is_empty() && s.over_views.is_empty());
+        assert_eq!(s.images, [(VIEW, view)]);
     }
 
     #[test]
@@ -223,7 +220,7 @@ mod tests {
         // Its pixels are unknown here: the frame is painted whole.
         assert!(split(&[jobs.clone(), vec![callback]].concat(), &[VIEW], 1.0).is_none());
         let s = split(&jobs, &[VIEW], 1.0).unwrap();
-        assert!(s.views.is_empty());
+        assert!(s.images.is_empty() && s.over_views.is_empty());
         assert_eq!(s.panels.len(), 4);
     }
 }

@@ -5,7 +5,7 @@
 use std::sync::Arc;
 
 use anyhow::Context as _;
-use dmu_render::{CAPTURE_FORMAT, DEPTH_FORMAT, FrameTarget};
+use dmu_render::{DEPTH_FORMAT, FrameTarget};
 use winit::window::Window;
 
 /// A 3D view's offscreen colour and depth, shown by egui as a texture.
@@ -15,6 +15,9 @@ pub struct ViewTarget {
     pub size: (u32, u32),
     /// The egui texture showing it.
     pub texture: egui::TextureId,
+    /// Its colour, in the window's format (sRGB-encoding), copied into
+    /// composed frames.
+    color: wgpu::Texture,
     color_view: wgpu::TextureView,
     /// The same texels read without sRGB decoding: egui expects gamma-space
     /// textures and writes them out unchanged.
@@ -23,9 +26,9 @@ pub struct ViewTarget {
 }
 
 impl ViewTarget {
-    /// Targets of `size` pixels; `texture` is set by the caller once egui
-    /// knows them.
-    fn new(device: &wgpu::Device, size: (u32, u32)) -> Self {
+    /// Targets of `size` pixels with colour in `format`; `texture` is set by
+    /// the caller once egui knows them.
+    fn new(device: &wgpu::Device, size: (u32, u32), format: wgpu::TextureFormat) -> Self {
         let texture = |label, format, usage, view_formats: &[wgpu::TextureFormat]| {
             device.create_texture(&wgpu::TextureDescriptor {
                 label: Some(label),
@@ -42,11 +45,13 @@ impl ViewTarget {
                 view_formats,
             })
         };
-        let gamma = CAPTURE_FORMAT.remove_srgb_suffix();
+        let gamma = format.remove_srgb_suffix();
         let color = texture(
             "dmu-viewer 3d colour",
-            CAPTURE_FORMAT,
-            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            format,
+            wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
             &[gamma],
         );
         let depth = texture(
@@ -64,6 +69,7 @@ impl ViewTarget {
                 ..Default::default()
             }),
             depth_view: depth.create_view(&Default::default()),
+            color,
         }
     }
 
@@ -86,6 +92,9 @@ pub struct Gfx {
     pub queue: wgpu::Queue,
     /// The adapter's name, for reports.
     pub adapter: String,
+    /// The 3D views' colour format: the window's, sRGB-encoding (so a view
+    /// copies into a frame as it is).
+    pub view_format: wgpu::TextureFormat,
     surface: wgpu::Surface<'static>,
     config: wgpu::SurfaceConfiguration,
     /// Whether frames can be copied out of the swapchain (screenshots).
@@ -202,6 +211,7 @@ impl Gfx {
             device,
             queue,
             adapter: info.name,
+            view_format: format.add_srgb_suffix(),
             surface,
             config,
             can_read_back,
@@ -243,7 +253,7 @@ impl Gfx {
     /// with its egui texture.
     pub fn ensure_views(&mut self, count: usize) {
         while self.views.len() < count {
-            let mut view = ViewTarget::new(&self.device, (1, 1));
+            let mut view = ViewTarget::new(&self.device, (1, 1), self.view_format);
             view.texture = self.egui.register_native_texture(
                 &self.device,
                 &view.egui_view,
@@ -260,7 +270,7 @@ impl Gfx {
         let view = &mut self.views[index];
         if view.size != size {
             let texture = view.texture;
-            *view = ViewTarget::new(&self.device, size);
+            *view = ViewTarget::new(&self.device, size, self.view_format);
             view.texture = texture;
             self.egui.update_egui_texture_from_wgpu_texture(
                 &self.device,
@@ -356,10 +366,14 @@ impl Gfx {
                     panels.painted_from = None;
                 }
                 let texture = panels.texture.as_ref().expect("made above");
+                let copies = split
+                    .as_ref()
+                    .and_then(|s| image_copies(&self.views, &s.images, pixels_per_point, size));
                 let reuse = !textures_changed
+                    && copies.is_some()
                     && split.as_ref().map(|s| &s.panels) == panels.painted_from.as_ref();
                 let (jobs, whole) = match split {
-                    Some(split) if reuse => (split.views, false),
+                    Some(split) if reuse => (split.over_views, false),
                     split => {
                         panels.painted_from = split.map(|s| s.panels);
                         (jobs, true)
@@ -382,6 +396,18 @@ impl Gfx {
                     size,
                 );
                 if !whole {
+                    for (view, origin) in copies.into_iter().flatten() {
+                        encoder.copy_texture_to_texture(
+                            view.as_image_copy(),
+                            wgpu::TexelCopyTextureInfo {
+                                texture: &frame.texture,
+                                mip_level: 0,
+                                origin,
+                                aspect: wgpu::TextureAspect::All,
+                            },
+                            view.size(),
+                        );
+                    }
                     paint(&self.egui, &mut encoder, &target, false, &jobs, &screen);
                 }
                 (commands, whole)
@@ -504,4 +530,42 @@ fn paint(
         ..Default::default()
     });
     egui.render(&mut pass.forget_lifetime(), jobs, screen);
+}
+
+/// Where each view's image goes in a frame of `frame` size: its colour
+/// texture and the pixel it starts at. `None` when an image is not exactly
+/// its view's texture on whole pixels inside the frame (a pane being resized),
+/// which only a paint can show.
+fn image_copies<'a>(
+    views: &'a [ViewTarget],
+    images: &[(egui::TextureId, egui::Rect)],
+    pixels_per_point: f32,
+    frame: wgpu::Extent3d,
+) -> Option<Vec<(&'a wgpu::Texture, wgpu::Origin3d)>> {
+    images
+        .iter()
+        .map(|&(id, rect)| {
+            let view = views.iter().find(|v| v.texture == id)?;
+            let (x, y) = (rect.min.x * pixels_per_point, rect.min.y * pixels_per_point);
+            let (w, h) = (
+                rect.width() * pixels_per_point,
+                rect.height() * pixels_per_point,
+            );
+            let fits = x >= 0.0
+                && y >= 0.0
+                && (w, h) == (view.size.0 as f32, view.size.1 as f32)
+                && x + w <= frame.width as f32
+                && y + h <= frame.height as f32;
+            fits.then(|| {
+                (
+                    &view.color,
+                    wgpu::Origin3d {
+                        x: x as u32,
+                        y: y as u32,
+                        z: 0,
+                    },
+                )
+            })
+        })
+        .collect()
 }
