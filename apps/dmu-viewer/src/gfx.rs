@@ -556,16 +556,14 @@ fn image_copies<'a>(
                 && (w, h) == (view.size.0 as f32, view.size.1 as f32)
                 && x + w <= frame.width as f32
                 && y + h <= frame.height as f32;
-            fits.then(|| {
-                (
-                    &view.color,
-                    wgpu::Origin3d {
-                        x: x as u32,
-                        y: y as u32,
-                        z: 0,
-                    },
-                )
-            })
+            fits.then_some((
+                &view.color,
+                wgpu::Origin3d {
+                    x: x as u32,
+                    y: y as u32,
+                    z: 0,
+                },
+            ))
         })
         .collect()
 }
