@@ -51,6 +51,8 @@ pub struct Options {
     /// Compose frames from the panels as last painted where the surface
     /// allows (else paint the whole window every frame).
     pub compose: bool,
+    /// Pixels of error a chunk's simplified level may show (0: exact).
+    pub lod_error_px: f64,
 }
 
 impl Options {
@@ -163,12 +165,13 @@ impl std::fmt::Debug for App {
 impl App {
     /// A viewer of `review`; `facts` start the run's report.
     pub fn new(instance: wgpu::Instance, review: Review, options: Options, facts: Value) -> Self {
-        let main = Pane::new(
+        let mut main = Pane::new(
             &review.tree.bounds(),
             None,
             PaneKind::Model,
             options.culling,
         );
+        main.view.options.lod_error_px = options.lod_error_px;
         let ui = UiState::new(review.source.as_deref());
         let runner = Runner {
             actions: options.script.clone(),
@@ -941,6 +944,8 @@ impl ApplicationHandler for App {
                     &self.review.tree,
                     dmu_render::RendererOptions {
                         color_format: gfx.view_format,
+                        // The LOD setting can be raised from 0 in the panel.
+                        lod_levels: true,
                         ..Default::default()
                     },
                 );

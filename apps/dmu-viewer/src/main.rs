@@ -88,6 +88,10 @@ struct Cli {
     /// rasterizer; for comparison).
     #[arg(long)]
     paint_whole: bool,
+    /// Draw each chunk's coarsest simplified level whose error projects to at
+    /// most this many pixels (0: every chunk whole, the exact image).
+    #[arg(long, default_value_t = 1.0, value_parser = dmu_app::units::number_in(0.0, 1e6))]
+    lod_error_px: f64,
 }
 
 fn run(cli: &Cli) -> anyhow::Result<()> {
@@ -129,6 +133,7 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
         script,
         vsync: !(cli.no_vsync || automated),
         compose: !cli.paint_whole,
+        lod_error_px: cli.lod_error_px,
     };
     let event_loop = winit::event_loop::EventLoop::new()
         .context("opening the display (is DISPLAY or WAYLAND_DISPLAY set?)")?;

@@ -68,14 +68,16 @@ impl Pane {
     }
 }
 
-/// Adds panes ([`Pane::nth`], culling as the main pane's) looking at
+/// Adds panes ([`Pane::nth`], culling and its options as the main pane's) looking at
 /// `bounds`, or drops the last ones, to `count` (clamped to 1 to
 /// [`MAX_PANES`]).
 pub fn set_count(panes: &mut Vec<Pane>, count: usize, bounds: &Aabb3d) {
     let count = count.clamp(1, MAX_PANES);
-    let culling = panes[0].view.culling;
+    let (culling, options) = (panes[0].view.culling, panes[0].view.options);
     while panes.len() < count {
-        panes.push(Pane::nth(panes.len(), bounds, culling));
+        let mut pane = Pane::nth(panes.len(), bounds, culling);
+        pane.view.options = options;
+        panes.push(pane);
     }
     panes.truncate(count);
 }

@@ -270,6 +270,16 @@ fn top_bar(
                     .prefix("min px "),
             )
             .on_hover_text("cells covering fewer pixels across are not drawn");
+            ui.add(
+                egui::DragValue::new(&mut view.options.lod_error_px)
+                    .range(0.0..=16.0)
+                    .speed(0.05)
+                    .prefix("LOD px "),
+            )
+            .on_hover_text(
+                "chunks are drawn simplified where the difference is at most this many \
+                 pixels (0: exact)",
+            );
             ui.label(memory_text(review)).on_hover_text(MEMORY_HOVER);
             ui.separator();
             for preset in Preset::ALL {

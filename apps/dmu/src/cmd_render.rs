@@ -46,6 +46,10 @@ pub struct Args {
     /// Nodes covering fewer pixels across than this are dropped (0: none).
     #[arg(long, default_value_t = 0.0, value_parser = number_in(0.0, 1e6))]
     min_pixels: f64,
+    /// Draw each chunk's coarsest simplified level whose error projects to at
+    /// most this many pixels (0: every chunk whole, the exact image).
+    #[arg(long, default_value_t = 1.0, value_parser = number_in(0.0, 1e6))]
+    lod_error_px: f64,
     /// Frames rendered from the viewpoint (occlusion culling converges over a
     /// few); the image and stats are the last frame's.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10_000))]
@@ -246,6 +250,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let (device, queue, adapter) = headless_device().context("opening a GPU device")?;
     let options = RendererOptions {
         stereo: stereo_mode,
+        lod_levels: args.lod_error_px > 0.0,
         ..Default::default()
     };
     let mut renderer = Renderer::new(&device, &queue, scene, &tree, options);
@@ -262,6 +267,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let capture = Capture::new(&device, size);
     let mut view = View::new(single_camera, size, culling);
     view.options.min_pixels = args.min_pixels;
+    view.options.lod_error_px = args.lod_error_px;
     let single_frames = render_frames(args.frames, || {
         renderer.render(&mut view, scene, &tree, scene, capture.frame_target())
     })?;
@@ -269,6 +275,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         let capture = Capture::stereo(&device, size);
         let mut pair = StereoView::new(stereo_camera, size, culling);
         pair.view.options.min_pixels = args.min_pixels;
+        pair.view.options.lod_error_px = args.lod_error_px;
         let frames = render_frames(args.frames, || {
             renderer.render_stereo(&mut pair, scene, &tree, scene, capture.stereo_target())
         })?;
@@ -332,6 +339,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             "adapter": adapter.name,
             "size": [size.0, size.1],
             "culling": args.culling,
+            "lod_error_px": args.lod_error_px,
             "scene_triangles": scene.triangle_count(),
             "load_ms": loaded.load_ms,
             "last": stats_json(last),

@@ -10,7 +10,8 @@ use std::sync::Arc;
 
 use anyhow::Context as _;
 use dmu_render::{
-    Camera, Capture, Culling, CullingOptions, FrameStats, Renderer, View, headless_device,
+    Camera, Capture, Culling, CullingOptions, FrameStats, Renderer, RendererOptions, View,
+    headless_device,
 };
 use dmu_scene::Scene;
 use dmu_store::{CameraFrame, Drawn, Store, WalkOptions};
@@ -106,8 +107,18 @@ fn mode_totals<'a>(culling: Culling, frames: impl Iterator<Item = &'a ModeFrame>
     }
 }
 
+/// Renderer options for views culled with `culling`: chunks get simplified
+/// levels when the views may draw them.
+fn lod_options(culling: &CullingOptions) -> RendererOptions {
+    RendererOptions {
+        lod_levels: culling.lod_error_px > 0.0,
+        ..Default::default()
+    }
+}
+
 /// Renders `path` with each of `modes` (the first is the reference when
-/// `compare`) and returns the JSON report.
+/// `compare`, drawn exact whatever `culling.lod_error_px`) and returns the
+/// JSON report.
 pub fn run(
     scene: &Scene,
     tree: &Tree,
@@ -118,14 +129,19 @@ pub fn run(
     culling: CullingOptions,
 ) -> anyhow::Result<serde_json::Value> {
     let (device, queue, adapter) = headless_device().context("opening a GPU device")?;
-    let mut renderer = Renderer::new(&device, &queue, scene, tree, Default::default());
+    let mut renderer = Renderer::new(&device, &queue, scene, tree, lod_options(&culling));
     let camera = |f: &CameraFrame| camera(f, tree);
     let captures: Vec<Capture> = modes.iter().map(|_| Capture::new(&device, size)).collect();
     let mut views: Vec<View> = modes
         .iter()
-        .map(|&m| {
+        .enumerate()
+        .map(|(i, &m)| {
             let mut view = View::new(camera(&path[0]), size, m);
             view.options = culling;
+            if compare && i == 0 {
+                // The reference is exact.
+                view.options.lod_error_px = 0.0;
+            }
             view
         })
         .collect();
@@ -218,6 +234,7 @@ pub fn run(
         "frames": path.len(),
         "scene_triangles": scene.triangle_count(),
         "requery_interval": culling.requery_interval,
+        "lod_error_px": culling.lod_error_px,
         "max_rounds": culling.max_rounds,
         "totals": totals,
         "frustum_over_chc_frame_time": ratio("frustum", "chc"),
@@ -246,7 +263,7 @@ pub fn run_resident(
     let scene = store.skeleton();
     let size = (options.viewport.width, options.viewport.height);
     let (device, queue, adapter) = headless_device().context("opening a GPU device")?;
-    let mut renderer = Renderer::new(&device, &queue, scene, tree, Default::default());
+    let mut renderer = Renderer::new(&device, &queue, scene, tree, lod_options(&culling_options));
     let capture = Capture::new(&device, size);
     let camera = |f: &CameraFrame| camera(f, tree);
     let mut view = View::new(camera(&path[0]), size, culling);

@@ -13,7 +13,7 @@ use crate::capture::{Capture, IdImage};
 use crate::geometry::GeometrySource;
 use crate::gpu::QueryBox;
 use crate::hierarchy::{Hierarchy, NodeKind};
-use crate::renderer::{Draw, FrameTarget, Renderer, RoundResult, RoundTarget, Shading};
+use crate::renderer::{Draw, FrameTarget, LodPick, Renderer, RoundResult, RoundTarget, Shading};
 use crate::stereo::StereoCamera;
 use crate::view::{Culling, EntryState, FrameStats, View};
 
@@ -30,6 +30,8 @@ struct Cull {
     min_pixels: f64,
     /// How far the near plane's corners reach from an eye.
     near_reach: f64,
+    /// Pixels of error a chunk's simplified level may show (0: none).
+    lod_error_px: f64,
 }
 
 impl Cull {
@@ -62,7 +64,16 @@ impl Cull {
             eye_count,
             min_pixels: view.options.min_pixels,
             near_reach: c.near * (1.0 + t * t * (1.0 + a * a)).sqrt(),
+            lod_error_px: view.options.lod_error_px,
         }
+    }
+
+    /// How the view's rounds pick chunk levels, when they may.
+    fn lod(&self) -> Option<LodPick> {
+        (self.lod_error_px > 0.0).then_some(LodPick {
+            coverage: self.coverage,
+            max_error_px: self.lod_error_px,
+        })
     }
 
     /// World to view of each eye.
@@ -199,6 +210,7 @@ impl Renderer {
                 tree,
                 &draws,
                 &[],
+                cull.lod(),
             )
             .map(|r| add_round(&mut stats, &r))
         };
@@ -256,6 +268,7 @@ impl Renderer {
             tree,
             &draws,
             &[],
+            None,
         );
         view.gpu = Some(gpu_state);
         result?;
@@ -437,6 +450,7 @@ impl Renderer {
                 tree,
                 &draws,
                 &boxes,
+                cull.lod(),
             ) {
                 Ok(r) => r,
                 Err(e) => {

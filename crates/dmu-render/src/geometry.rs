@@ -2,7 +2,7 @@
 //! pooled buffers it lives in ([`GeometryPool`]).
 
 use bytemuck::{Pod, Zeroable};
-use dmu_scene::{ChunkGeometry, ChunkId, Scene};
+use dmu_scene::{ChunkGeometry, ChunkId, MAX_LOD_LEVELS, Scene};
 
 /// Where the renderer gets chunk geometry: "give me this chunk if it is resident".
 ///
@@ -39,7 +39,7 @@ pub(crate) struct PoolVertex {
 const _: () = assert!(size_of::<PoolVertex>() == 16);
 
 /// Where a resident chunk lives in the pool.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct ChunkSlot {
     /// Vertex page.
     pub vertex_page: u32,
@@ -55,13 +55,44 @@ pub(crate) struct ChunkSlot {
     pub index_count: u32,
     /// Indices are u16 (chunks under 65 536 vertices), else u32.
     pub short_indices: bool,
+    /// Indices reserved: the chunk's, then each simplified level's.
+    reserved_indices: u32,
+    /// The simplified levels, coarser each time, indexed after the chunk's
+    /// own indices; the first `level_count` are used.
+    levels: [LodRange; MAX_LOD_LEVELS],
+    level_count: u8,
+}
+
+/// A simplified level of a resident chunk.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct LodRange {
+    /// First index in the page.
+    first_index: u32,
+    index_count: u32,
+    /// How far it may stray from the chunk, over the chunk's box diagonal.
+    relative_error: f32,
 }
 
 impl ChunkSlot {
     /// Bytes reserved in the index page (padded to 4 for copy alignment).
     fn index_bytes(&self) -> u64 {
         let unit = if self.short_indices { 2 } else { 4 };
-        (u64::from(self.index_count) * unit).next_multiple_of(4)
+        (u64::from(self.reserved_indices) * unit).next_multiple_of(4)
+    }
+
+    /// The slot drawing the coarsest level whose error, on a box projected
+    /// `size_px` pixels across, stays within `max_error_px` pixels (the
+    /// chunk itself when none does).
+    pub(crate) fn at_lod(mut self, size_px: f64, max_error_px: f64) -> Self {
+        if let Some(level) = self.levels[..usize::from(self.level_count)]
+            .iter()
+            .rev()
+            .find(|l| f64::from(l.relative_error) * size_px <= max_error_px)
+        {
+            self.first_index = level.first_index;
+            self.index_count = level.index_count;
+        }
+        self
     }
 
     /// Byte offset of the first index.
@@ -112,12 +143,15 @@ pub struct GeometryPool {
     resident_bytes: u64,
     /// Reused staging for one chunk's packed data.
     scratch: Vec<u8>,
+    /// Whether chunks get simplified levels when uploaded.
+    lods: bool,
 }
 
 impl GeometryPool {
     /// An empty pool whose buffers are `page_bytes` each (chunks larger than a
-    /// page get a page of their own size).
-    pub(crate) fn new(chunk_count: usize, page_bytes: u64) -> Self {
+    /// page get a page of their own size); with `lods`, chunks get their
+    /// simplified levels ([`dmu_scene::lod_levels`]) when uploaded.
+    pub(crate) fn new(chunk_count: usize, page_bytes: u64, lods: bool) -> Self {
         Self {
             vertex_pages: Vec::new(),
             index_pages: Vec::new(),
@@ -125,6 +159,7 @@ impl GeometryPool {
             slots: vec![None; chunk_count],
             resident_bytes: 0,
             scratch: Vec::new(),
+            lods,
         }
     }
 
@@ -164,6 +199,11 @@ impl GeometryPool {
             return Some(slot);
         }
         let geometry = source.chunk_geometry(chunk)?;
+        let lods = if self.lods {
+            dmu_scene::lod_levels(&geometry)
+        } else {
+            Vec::new()
+        };
         let vertex_count = geometry.positions.len() as u32;
         let short_indices = vertex_count <= u32::from(u16::MAX) + 1;
         let vertex_bytes = u64::from(vertex_count) * size_of::<PoolVertex>() as u64;
@@ -175,6 +215,11 @@ impl GeometryPool {
             first_index: 0,
             index_count: geometry.indices.len() as u32,
             short_indices,
+            reserved_indices: (geometry.indices.len()
+                + lods.iter().map(|l| l.indices.len()).sum::<usize>())
+                as u32,
+            levels: [LodRange::default(); MAX_LOD_LEVELS],
+            level_count: lods.len() as u8,
         };
         let index_bytes = slot.index_bytes();
         let (vp, vo) = Self::alloc(
@@ -195,6 +240,22 @@ impl GeometryPool {
         slot.first_vertex = (vo / size_of::<PoolVertex>() as u64) as u32;
         slot.index_page = ip;
         slot.first_index = (io / if short_indices { 2 } else { 4 }) as u32;
+        let diagonal = {
+            let (lo, hi) = geometry.positions.iter().fold(
+                (glam::Vec3::INFINITY, glam::Vec3::NEG_INFINITY),
+                |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+            );
+            (hi - lo).length()
+        };
+        let mut first = slot.first_index + slot.index_count;
+        for (range, level) in slot.levels.iter_mut().zip(&lods) {
+            *range = LodRange {
+                first_index: first,
+                index_count: level.indices.len() as u32,
+                relative_error: level.error / diagonal.max(f32::MIN_POSITIVE),
+            };
+            first += range.index_count;
+        }
 
         self.scratch.clear();
         for (p, n) in geometry.positions.iter().zip(geometry.normals) {
@@ -209,13 +270,17 @@ impl GeometryPool {
             queue.write_buffer(self.vertex_buffer(vp), vo, &self.scratch);
         }
         self.scratch.clear();
-        if short_indices {
-            for &i in geometry.indices {
-                self.scratch.extend_from_slice(&(i as u16).to_le_bytes());
+        let all_indices =
+            std::iter::once(geometry.indices).chain(lods.iter().map(|l| &l.indices[..]));
+        for indices in all_indices {
+            if short_indices {
+                for &i in indices {
+                    self.scratch.extend_from_slice(&(i as u16).to_le_bytes());
+                }
+            } else {
+                self.scratch
+                    .extend_from_slice(bytemuck::cast_slice(indices));
             }
-        } else {
-            self.scratch
-                .extend_from_slice(bytemuck::cast_slice(geometry.indices));
         }
         self.scratch.resize(index_bytes as usize, 0);
         if index_bytes > 0 {
@@ -271,5 +336,55 @@ impl GeometryPool {
         let offset = page.alloc(bytes, size).expect("a fresh page fits");
         pages.push(page);
         (pages.len() as u32 - 1, offset)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_coarsest_level_within_the_pixel_error_is_drawn() {
+        let mut slot = ChunkSlot {
+            vertex_page: 0,
+            first_vertex: 0,
+            vertex_count: 100,
+            index_page: 0,
+            first_index: 10,
+            index_count: 600,
+            short_indices: true,
+            reserved_indices: 600 + 300 + 150 + 60,
+            levels: [LodRange::default(); MAX_LOD_LEVELS],
+            level_count: 3,
+        };
+        let errors = [0.001, 0.01, 0.1];
+        let counts = [300, 150, 60];
+        let mut first = 610;
+        for k in 0..3 {
+            slot.levels[k] = LodRange {
+                first_index: first,
+                index_count: counts[k],
+                relative_error: errors[k],
+            };
+            first += counts[k];
+        }
+        let drawn = |size_px: f64, tau: f64| {
+            let s = slot.at_lod(size_px, tau);
+            (s.first_index, s.index_count)
+        };
+        // Brute force: the coarsest level whose error times the size fits.
+        for size_px in [0.5, 5.0, 50.0, 100.0, 500.0, 5000.0, f64::INFINITY] {
+            for tau in [0.0, 0.5, 1.0, 2.0] {
+                let want = (0..3)
+                    .rev()
+                    .find(|&k| f64::from(errors[k]) * size_px <= tau)
+                    .map_or((10, 600), |k| (slot.levels[k].first_index, counts[k]));
+                assert_eq!(drawn(size_px, tau), want, "{size_px} px, tau {tau}");
+            }
+        }
+        assert_eq!(drawn(100.0, 1.0), (910, 150));
+        assert_eq!(drawn(f64::INFINITY, 4.0), (10, 600), "an eye inside: whole");
+        // Other fields are untouched.
+        assert_eq!(slot.at_lod(5.0, 1.0).vertex_count, 100);
     }
 }

@@ -160,6 +160,10 @@ pub struct RendererOptions {
     pub clear_color: wgpu::Color,
     /// How stereo pairs reach their two layers.
     pub stereo: crate::StereoMode,
+    /// Give chunks simplified levels when they are uploaded (costs upload
+    /// time and index memory), for views with
+    /// [`crate::CullingOptions::lod_error_px`] above 0.
+    pub lod_levels: bool,
 }
 
 impl Default for RendererOptions {
@@ -177,6 +181,7 @@ impl Default for RendererOptions {
                 a: 1.0,
             },
             stereo: crate::StereoMode::Auto,
+            lod_levels: false,
         }
     }
 }
@@ -186,6 +191,15 @@ impl Default for RendererOptions {
 pub(crate) struct Draw {
     pub entry: u32,
     pub query: bool,
+}
+
+/// How a round picks chunk levels: the coarsest whose error projects to at
+/// most `max_error_px` pixels on the chunk instance's box, as `coverage`
+/// measures boxes.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct LodPick {
+    pub coverage: dmu_geom::Coverage,
+    pub max_error_px: f64,
 }
 
 /// Which pipeline draws the geometry of a round.
@@ -467,7 +481,7 @@ impl Renderer {
                 as u64,
             ids,
             boxes_color,
-            pool: GeometryPool::new(scene.chunks().len(), options.page_bytes),
+            pool: GeometryPool::new(scene.chunks().len(), options.page_bytes, options.lod_levels),
             hierarchy: Hierarchy::default(),
             timestamp_period_ns: device
                 .features()
@@ -746,6 +760,7 @@ impl Renderer {
         tree: &Tree,
         draws: &[Draw],
         boxes: &[QueryBox],
+        lod: Option<LodPick>,
     ) -> Result<RoundResult, RenderError> {
         assert!(
             !target.is_multiview() || (shading == Shading::Color && draws.iter().all(|d| !d.query)),
@@ -760,8 +775,14 @@ impl Renderer {
         let mut queried = Vec::with_capacity(draws.len());
         let mut resident = Vec::with_capacity(draws.len());
         for d in draws {
-            let chunk = tree.entries()[d.entry as usize].chunk;
-            let slot = self.pool.ensure(&self.device, &self.queue, geometry, chunk);
+            let entry = &tree.entries()[d.entry as usize];
+            let slot = self
+                .pool
+                .ensure(&self.device, &self.queue, geometry, entry.chunk)
+                .map(|slot| match lod {
+                    Some(l) => slot.at_lod(l.coverage.size_px(&entry.bounds), l.max_error_px),
+                    None => slot,
+                });
             resident.push(slot.is_some());
             match slot {
                 Some(slot) => {

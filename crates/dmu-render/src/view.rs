@@ -34,6 +34,11 @@ pub struct CullingOptions {
     pub expand_levels: u32,
     /// Switch occlusion queries off in a view where they cost more than they save.
     pub adaptive: bool,
+    /// Draw a chunk's coarsest simplified level whose error projects to at
+    /// most this many pixels (from the nearest eye, on the chunk instance's
+    /// box); 0 draws every chunk whole (images stay exact). Needs a renderer
+    /// made with [`crate::RendererOptions::lod_levels`].
+    pub lod_error_px: f64,
 }
 
 impl Default for CullingOptions {
@@ -44,6 +49,7 @@ impl Default for CullingOptions {
             requery_interval: 2,
             expand_levels: 2,
             adaptive: true,
+            lod_error_px: 0.0,
         }
     }
 }

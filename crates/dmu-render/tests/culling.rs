@@ -234,3 +234,74 @@ fn occlusion_culling_survives_geometry_that_is_not_resident() {
         diff.len()
     );
 }
+
+/// Chunk LODs: with levels uploaded but τ = 0 the image is the exact one, pixel
+/// for pixel; as τ grows, fewer triangles are drawn (never more) and the
+/// image stays close to the exact one: shading drifts slightly where
+/// triangles change, but pixels showing another surface (a channel off by
+/// more than 24) stay under 1 % of the image up to 1 px, τ % beyond.
+#[test]
+fn lod_levels_trade_triangles_for_bounded_pixel_error() {
+    let (scene, tree) = small_plant();
+    let size = (480, 270);
+    let options = dmu_render::RendererOptions {
+        lod_levels: true,
+        ..Default::default()
+    };
+    let Some(mut rig) = Rig::with_options(&scene, &tree, size, options) else {
+        return;
+    };
+    let Some(mut exact_rig) = Rig::new(&scene, &tree, size) else {
+        return;
+    };
+    let pixels = f64::from(size.0 * size.1);
+    let mut saved_somewhere = false;
+    for (i, cam) in viewpoints().into_iter().enumerate() {
+        let exact = exact_rig.shot(cam, Culling::Frustum, &scene, &tree);
+        let mut previous = u64::MAX;
+        let mut full = 0;
+        for tau in [0.0, 0.5, 1.0, 2.0, 4.0] {
+            let mut view = View::new(cam, size, Culling::Frustum);
+            view.options.lod_error_px = tau;
+            let stats = rig.frame(&mut view, &scene, &tree);
+            let image = rig.image();
+            let share = differing(&exact, &image).len() as f64 / pixels;
+            // Shading drifts a little where triangles change; a pixel that
+            // changes by more than this shows another surface (or none).
+            let far = exact
+                .pixels()
+                .zip(image.pixels())
+                .filter(|(a, b)| a.0.iter().zip(b.0).any(|(&x, y)| x.abs_diff(y) > 24))
+                .count() as f64
+                / pixels;
+            println!(
+                "view {i} tau {tau}: {} triangles, {:.3} % of pixels differ, {:.3} % by more than 24",
+                stats.triangles_drawn,
+                100.0 * share,
+                100.0 * far
+            );
+            if tau == 0.0 {
+                assert_eq!(
+                    share, 0.0,
+                    "view {i}: levels uploaded change the exact image"
+                );
+                full = stats.triangles_drawn;
+            }
+            assert!(stats.triangles_drawn <= previous, "view {i} tau {tau}");
+            // Measured here: 0.26-0.41 % at 0.5 px, 0.36-0.71 % at 1 px,
+            // under 1 % up to 4 px.
+            assert!(far <= 0.01 * tau.max(1.0), "view {i} tau {tau}: {far}");
+            saved_somewhere |= tau == 1.0 && stats.triangles_drawn * 10 < full * 9;
+            previous = stats.triangles_drawn;
+            if tau == 1.0 {
+                image
+                    .save(image_path(&format!("plant_lod_1px_{i}.png")))
+                    .unwrap();
+            }
+        }
+    }
+    assert!(
+        saved_somewhere,
+        "1 px saves a tenth of the triangles somewhere"
+    );
+}

@@ -39,6 +39,7 @@ mod error;
 mod gltf_export;
 mod gltf_import;
 mod ids;
+mod lod;
 mod scene;
 
 pub use atomic::{AtomicFile, open_regular_file, read_regular_file, write_file_atomically};
@@ -50,6 +51,7 @@ pub use gltf_import::{
 };
 pub use gltf_import::{StreamOptions, import_gltf_streaming};
 pub use ids::{ChunkId, MaterialId, MeshId, NodeId, PartId};
+pub use lod::{LodLevel, MAX_LOD_LEVELS, MIN_LOD_TRIANGLES, lod_levels};
 pub use scene::{
     AssemblyNode, Chunk, ChunkGeometry, DEFAULT_CHUNK_TRIANGLES, MAX_WORLD_COORDINATE, Material,
     Mesh, Part, Scene, SceneBuilder, limits,

@@ -1,0 +1,225 @@
+//! Simplified levels of a chunk, drawn instead of it where the difference is
+//! smaller than a pixel or two.
+//!
+//! Each level keeps the chunk's vertices and indexes a subset of them
+//! (meshoptimizer's edge-collapse simplifier), so on the GPU a level costs only
+//! its indices. Levels are simplified from the full chunk each time (not from
+//! the level before), so errors do not add up, with the chunk's open borders
+//! locked: neighbouring chunks of a mesh still meet at every level. Small
+//! disconnected pieces (bolts, nuts) may vanish from a coarse level; their loss
+//! is inside the reported error.
+
+use glam::Vec3;
+
+use crate::ChunkGeometry;
+
+/// At most this many levels after the full chunk.
+pub const MAX_LOD_LEVELS: usize = 7;
+
+/// Chunks with fewer triangles get no levels: too little to gain.
+pub const MIN_LOD_TRIANGLES: usize = 64;
+
+/// The chain stops before a level would aim below this many triangles.
+const FEWEST_TRIANGLES: usize = 16;
+
+/// meshoptimizer's error is a quadric estimate, not a bound: on a sphere the
+/// surface strayed 1.33 (half the triangles) to 1.82 (a sixteenth) times the
+/// estimate (the test below). Levels claim this multiple of it, so the pixel
+/// bound drawn from it holds there; the images measure the rest.
+const ERROR_MARGIN: f32 = 2.0;
+
+/// One simplified level.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LodLevel {
+    /// Chunk-local indices, three per triangle, into the chunk's vertices.
+    pub indices: Vec<u32>,
+    /// How far the simplified surface may lie from the full one, in the
+    /// chunk's local units: meshoptimizer's estimate of the largest distance
+    /// with a margin (it is not a strict bound).
+    pub error: f32,
+}
+
+/// The simplified levels of `geometry`, coarser each time: about half the
+/// triangles of the one before, down to a few dozen. A level that would keep
+/// more than 3/4 of the one before (the simplifier is stuck on locked
+/// borders or features) ends the chain; chunks under [`MIN_LOD_TRIANGLES`]
+/// get none.
+pub fn lod_levels(geometry: &ChunkGeometry<'_>) -> Vec<LodLevel> {
+    let triangles = geometry.indices.len() / 3;
+    let mut levels: Vec<LodLevel> = Vec::new();
+    if triangles < MIN_LOD_TRIANGLES {
+        return levels;
+    }
+    let positions: Vec<[f32; 3]> = geometry.positions.iter().map(Vec3::to_array).collect();
+    let options = meshopt::SimplifyOptions::LockBorder
+        | meshopt::SimplifyOptions::ErrorAbsolute
+        | meshopt::SimplifyOptions::Prune;
+    let mut previous = triangles;
+    while levels.len() < MAX_LOD_LEVELS && previous / 2 >= FEWEST_TRIANGLES {
+        let target = previous / 2;
+        let mut error = 0.0f32;
+        let indices = meshopt::simplify_decoder(
+            geometry.indices,
+            &positions,
+            3 * target,
+            f32::MAX,
+            options,
+            Some(&mut error),
+        );
+        let kept = indices.len() / 3;
+        if kept == 0 || 4 * kept > 3 * previous || !error.is_finite() {
+            break;
+        }
+        // A coarser level never claims less error than a finer one.
+        let error = ERROR_MARGIN * error;
+        let error = levels.last().map_or(error, |l| l.error.max(error));
+        levels.push(LodLevel { indices, error });
+        previous = kept;
+    }
+    levels
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A UV sphere of `rings` x `segments` (closed, no borders).
+    fn sphere(rings: u32, segments: u32, radius: f32) -> (Vec<Vec3>, Vec<u32>) {
+        let mut positions = Vec::new();
+        for r in 0..=rings {
+            let theta = std::f32::consts::PI * r as f32 / rings as f32;
+            for s in 0..segments {
+                let phi = std::f32::consts::TAU * s as f32 / segments as f32;
+                positions.push(
+                    radius
+                        * Vec3::new(
+                            theta.sin() * phi.cos(),
+                            theta.sin() * phi.sin(),
+                            theta.cos(),
+                        ),
+                );
+            }
+        }
+        let at = |r: u32, s: u32| r * segments + s % segments;
+        let mut indices = Vec::new();
+        for r in 0..rings {
+            for s in 0..segments {
+                indices.extend([at(r, s), at(r + 1, s), at(r + 1, s + 1)]);
+                indices.extend([at(r, s), at(r + 1, s + 1), at(r, s + 1)]);
+            }
+        }
+        (positions, indices)
+    }
+
+    /// The point of triangle `abc` nearest the origin (Ericson, Real-Time
+    /// Collision Detection, 5.1.5).
+    fn nearest_to_origin(a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
+        let p = Vec3::ZERO;
+        let (ab, ac, ap) = (b - a, c - a, p - a);
+        let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+        if d1 <= 0.0 && d2 <= 0.0 {
+            return a;
+        }
+        let bp = p - b;
+        let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+        if d3 >= 0.0 && d4 <= d3 {
+            return b;
+        }
+        let vc = d1 * d4 - d3 * d2;
+        if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+            return a + ab * (d1 / (d1 - d3));
+        }
+        let cp = p - c;
+        let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+        if d6 >= 0.0 && d5 <= d6 {
+            return c;
+        }
+        let vb = d5 * d2 - d1 * d6;
+        if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+            return a + ac * (d2 / (d2 - d6));
+        }
+        let va = d3 * d6 - d5 * d4;
+        if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+            return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+        }
+        let denom = 1.0 / (va + vb + vc);
+        a + ab * (vb * denom) + ac * (vc * denom)
+    }
+
+    /// How far inside the sphere of `radius` about the origin the surface of
+    /// `indices` reaches: its vertices lie on the sphere, so this is the
+    /// largest distance between the surface and the sphere (analytic).
+    fn depth_inside(positions: &[Vec3], indices: &[u32], radius: f32) -> f32 {
+        indices
+            .chunks_exact(3)
+            .map(|t| {
+                let [a, b, c] = [0, 1, 2].map(|k| positions[t[k] as usize]);
+                radius - nearest_to_origin(a, b, c).length()
+            })
+            .fold(0.0, f32::max)
+    }
+
+    #[test]
+    fn levels_halve_and_their_errors_grow_and_bound_what_moved() {
+        let radius = 1000.0;
+        let (positions, indices) = sphere(32, 64, radius);
+        let normals: Vec<Vec3> = positions.iter().map(|p| p.normalize_or_zero()).collect();
+        let geometry = ChunkGeometry {
+            positions: &positions,
+            normals: &normals,
+            indices: &indices,
+        };
+        let levels = lod_levels(&geometry);
+        let full_depth = depth_inside(&positions, &indices, radius);
+        assert!(levels.len() >= 4, "{} levels", levels.len());
+        let mut previous = indices.len() / 3;
+        let mut previous_error = 0.0;
+        for (k, level) in levels.iter().enumerate() {
+            let kept = level.indices.len() / 3;
+            assert!(kept * 4 <= previous * 3, "level {k}: {kept} of {previous}");
+            assert!(level.error >= previous_error, "level {k}");
+            assert!(
+                level
+                    .indices
+                    .iter()
+                    .all(|&i| (i as usize) < positions.len())
+            );
+            // The level strays from the full mesh by at least its extra
+            // depth inside the sphere; the claimed error must cover that.
+            let strayed = depth_inside(&positions, &level.indices, radius) - full_depth;
+            assert!(
+                strayed <= level.error,
+                "level {k}: strays {strayed} beyond its error {}",
+                level.error
+            );
+            previous = kept;
+            previous_error = level.error;
+        }
+        // The coarsest has at most an eighth of the triangles, and its error
+        // is of the order of the sphere's size: not zero, not wild.
+        let last = levels.last().unwrap();
+        assert!(
+            last.indices.len() * 8 <= indices.len(),
+            "{}",
+            last.indices.len() / 3
+        );
+        assert!(
+            last.error > 1.0 && last.error < 2.0 * radius,
+            "{}",
+            last.error
+        );
+    }
+
+    #[test]
+    fn small_chunks_get_no_levels() {
+        let (positions, indices) = sphere(4, 6, 1.0);
+        assert!(indices.len() / 3 < MIN_LOD_TRIANGLES);
+        let normals = vec![Vec3::Z; positions.len()];
+        let geometry = ChunkGeometry {
+            positions: &positions,
+            normals: &normals,
+            indices: &indices,
+        };
+        assert!(lod_levels(&geometry).is_empty());
+    }
+}
