@@ -809,6 +809,7 @@ impl App {
                     "render_gpu_ms": main.gpu_ms,
                     "triangles_drawn": main.triangles_drawn,
                     "chunks_drawn": main.chunks_drawn,
+                    "draw_calls": main.draw_calls,
                     "queries": main.queries,
                     "move_us": self.review.timings.move_us,
                     "check_ms": self.review.timings.check_ms,

@@ -174,6 +174,7 @@ fn stats_json(s: &FrameStats) -> serde_json::Value {
         "rounds": s.rounds,
         "passes": s.passes,
         "chunks_drawn": s.chunks_drawn,
+        "draw_calls": s.draw_calls,
         "triangles_drawn": s.triangles_drawn,
         "triangles_in_frustum": s.triangles_in_frustum,
         "newly_visible": s.newly_visible,

@@ -29,6 +29,7 @@ struct ModeFrame {
     gpu_ms: f64,
     triangles_drawn: u64,
     chunks_drawn: u64,
+    draw_calls: u64,
     queries: u64,
     rounds: u32,
     occlusion_enabled: bool,
@@ -54,9 +55,12 @@ struct ModeTotals {
     median_frame_ms: f64,
     p95_frame_ms: f64,
     mean_triangles_drawn: f64,
+    mean_draw_calls: f64,
     mean_queries: f64,
     /// Frames whose image differs from `none` in any pixel.
     frames_with_differing_pixels: Option<u64>,
+    /// Pixels differing from `none`, per frame on average and at worst.
+    mean_differing_pixels: Option<f64>,
     worst_differing_pixels: Option<u64>,
 }
 
@@ -80,6 +84,7 @@ fn mode_frame(stats: &FrameStats, differing_pixels: Option<u64>) -> ModeFrame {
         gpu_ms: stats.gpu_ms,
         triangles_drawn: stats.triangles_drawn,
         chunks_drawn: stats.chunks_drawn,
+        draw_calls: stats.draw_calls,
         queries: stats.queries,
         rounds: stats.rounds,
         occlusion_enabled: stats.occlusion.enabled,
@@ -100,9 +105,12 @@ fn mode_totals<'a>(culling: Culling, frames: impl Iterator<Item = &'a ModeFrame>
         median_frame_ms: percentile(&mut ms, 0.5),
         p95_frame_ms: percentile(&mut ms, 0.95),
         mean_triangles_drawn: frames.iter().map(|f| f.triangles_drawn as f64).sum::<f64>() / n,
+        mean_draw_calls: frames.iter().map(|f| f.draw_calls as f64).sum::<f64>() / n,
         mean_queries: frames.iter().map(|f| f.queries as f64).sum::<f64>() / n,
         frames_with_differing_pixels: compared
             .then(|| differing.iter().filter(|&&d| d > 0).count() as u64),
+        mean_differing_pixels: compared
+            .then(|| differing.iter().sum::<u64>() as f64 / differing.len().max(1) as f64),
         worst_differing_pixels: compared.then(|| differing.iter().copied().max().unwrap_or(0)),
     }
 }

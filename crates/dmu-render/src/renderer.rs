@@ -220,6 +220,8 @@ pub(crate) struct RoundResult {
     pub not_resident: u64,
     pub triangles: u64,
     pub chunks: u64,
+    /// Draw calls recorded (chunks per pass, and boxes).
+    pub draw_calls: u64,
     pub gpu_ms: f64,
     pub gpu_draw_ms: f64,
 }
@@ -923,6 +925,7 @@ impl Renderer {
                     slot.first_vertex as i32,
                     entry..entry + 1,
                 );
+                result.draw_calls += 1;
                 if wrapped {
                     pass.end_occlusion_query();
                 }
@@ -934,6 +937,7 @@ impl Renderer {
                     let b = b as u32;
                     pass.begin_occlusion_query(q);
                     pass.draw(0..36, b..b + 1);
+                    result.draw_calls += 1;
                     pass.end_occlusion_query();
                     q += 1;
                 }

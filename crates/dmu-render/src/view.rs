@@ -96,6 +96,9 @@ pub struct FrameStats {
     pub passes: u32,
     /// Chunk instances drawn.
     pub chunks_drawn: u64,
+    /// Draw calls recorded (a chunk instance per pass it is drawn in, and
+    /// each query box).
+    pub draw_calls: u64,
     /// Triangles drawn.
     pub triangles_drawn: u64,
     /// Triangles of the chunk instances that passed frustum and coverage culling.
