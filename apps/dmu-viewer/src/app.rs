@@ -53,6 +53,8 @@ pub struct Options {
     pub compose: bool,
     /// Pixels of error a chunk's simplified level may show (0: exact).
     pub lod_error_px: f64,
+    /// A frame-time budget for the 3D view, ms.
+    pub target_ms: Option<f64>,
 }
 
 impl Options {
@@ -172,6 +174,7 @@ impl App {
             options.culling,
         );
         main.view.options.lod_error_px = options.lod_error_px;
+        main.view.options.target_ms = options.target_ms;
         let ui = UiState::new(review.source.as_deref());
         let runner = Runner {
             actions: options.script.clone(),
@@ -810,6 +813,8 @@ impl App {
                     "triangles_drawn": main.triangles_drawn,
                     "chunks_drawn": main.chunks_drawn,
                     "draw_calls": main.draw_calls,
+                    "lod_error_px": main.lod_error_px,
+                    "min_pixels": main.min_pixels,
                     "queries": main.queries,
                     "move_us": self.review.timings.move_us,
                     "check_ms": self.review.timings.check_ms,

@@ -92,6 +92,12 @@ struct Cli {
     /// most this many pixels (0: every chunk whole, the exact image).
     #[arg(long, default_value_t = 1.0, value_parser = dmu_app::units::number_in(0.0, 1e6))]
     lod_error_px: f64,
+    /// A frame-time budget for the 3D view, ms (e.g. 100 for 10 frames a
+    /// second): each frame then chooses its LOD error (from 0, exact) and
+    /// coverage threshold after the last frame's time; the stats overlay shows
+    /// the choice.
+    #[arg(long, value_parser = dmu_app::units::number_in(1.0, 1e6))]
+    target_ms: Option<f64>,
 }
 
 fn run(cli: &Cli) -> anyhow::Result<()> {
@@ -134,6 +140,7 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
         vsync: !(cli.no_vsync || automated),
         compose: !cli.paint_whole,
         lod_error_px: cli.lod_error_px,
+        target_ms: cli.target_ms,
     };
     let event_loop = winit::event_loop::EventLoop::new()
         .context("opening the display (is DISPLAY or WAYLAND_DISPLAY set?)")?;

@@ -828,7 +828,7 @@ fn stats_overlay(painter: &egui::Painter, rect: Rect, o: &Overlay, review: &Revi
          ui {:.1} · 3D {:.1} · paint {:.1} ms ({})\n\
          3D: cpu {:.1} ms · gpu {:.1} ms\n\
          triangles {} drawn / {} in frustum / {} model\n\
-         chunks {} drawn · {} queries in {} rounds\n\
+         chunks {} drawn · {} queries in {} rounds · LOD {:.2} px · min {:.1} px\n\
          culled: frustum {} · coverage {} · occlusion {} · hidden {}\n\
          occlusion {} (cost {:.2} ms, saves {:.2} ms)\n\
          GPU geometry {:.1} MiB\n\
@@ -852,6 +852,8 @@ fn stats_overlay(painter: &egui::Painter, rect: Rect, o: &Overlay, review: &Revi
         s.chunks_drawn,
         s.queries,
         s.rounds,
+        s.lod_error_px,
+        s.min_pixels,
         s.culled_frustum,
         s.culled_coverage,
         s.culled_occlusion,

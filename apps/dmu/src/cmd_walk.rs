@@ -64,6 +64,12 @@ pub struct Args {
     /// --render. With --compare, `none` stays exact: the reference.
     #[arg(long, default_value_t = 1.0, value_parser = number_in(0.0, 1e6))]
     lod_error_px: f64,
+    /// With --render: a frame-time budget, ms. Each frame then chooses its LOD
+    /// error (from 0, exact, up to 8 px) and coverage threshold after the last
+    /// frame's time, and the report gives the choice per frame (the --compare
+    /// reference stays exact).
+    #[arg(long, value_parser = number_in(1.0, 1e6))]
+    target_ms: Option<f64>,
     /// Turn off prefetching along the predicted path.
     #[arg(long)]
     no_prefetch: bool,
@@ -226,6 +232,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         let culling_options = CullingOptions {
             requery_interval: args.requery_interval,
             lod_error_px: args.lod_error_px,
+            target_ms: args.target_ms,
             ..CullingOptions::default()
         };
         let report = if args.compare {

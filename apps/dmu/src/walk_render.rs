@@ -32,6 +32,9 @@ struct ModeFrame {
     draw_calls: u64,
     queries: u64,
     rounds: u32,
+    /// The LOD error bound and coverage threshold drawn with, pixels.
+    lod_error_px: f64,
+    min_pixels: f64,
     occlusion_enabled: bool,
     /// Pixels differing from the `none` image (with `--compare`).
     differing_pixels: Option<u64>,
@@ -57,6 +60,10 @@ struct ModeTotals {
     mean_triangles_drawn: f64,
     mean_draw_calls: f64,
     mean_queries: f64,
+    /// The LOD error bound drawn with, pixels, on average.
+    mean_lod_error_px: f64,
+    /// With a frame-time budget: the share of frames within 110 % of it.
+    frames_within_110_percent_of_target: Option<f64>,
     /// Frames whose image differs from `none` in any pixel.
     frames_with_differing_pixels: Option<u64>,
     /// Pixels differing from `none`, per frame on average and at worst.
@@ -86,14 +93,21 @@ fn mode_frame(stats: &FrameStats, differing_pixels: Option<u64>) -> ModeFrame {
         chunks_drawn: stats.chunks_drawn,
         draw_calls: stats.draw_calls,
         queries: stats.queries,
+        lod_error_px: stats.lod_error_px,
+        min_pixels: stats.min_pixels,
         rounds: stats.rounds,
         occlusion_enabled: stats.occlusion.enabled,
         differing_pixels,
     }
 }
 
-/// Frame-time and drawing totals of one mode over its frames.
-fn mode_totals<'a>(culling: Culling, frames: impl Iterator<Item = &'a ModeFrame>) -> ModeTotals {
+/// Frame-time and drawing totals of one mode over its frames, drawn under
+/// `target_ms` if any.
+fn mode_totals<'a>(
+    culling: Culling,
+    target_ms: Option<f64>,
+    frames: impl Iterator<Item = &'a ModeFrame>,
+) -> ModeTotals {
     let frames: Vec<&ModeFrame> = frames.collect();
     let mut ms: Vec<f64> = frames.iter().map(|f| f.frame_ms).collect();
     let n = frames.len().max(1) as f64;
@@ -101,6 +115,9 @@ fn mode_totals<'a>(culling: Culling, frames: impl Iterator<Item = &'a ModeFrame>
     let compared = !differing.is_empty();
     ModeTotals {
         culling: culling_name(culling),
+        mean_lod_error_px: frames.iter().map(|f| f.lod_error_px).sum::<f64>() / n,
+        frames_within_110_percent_of_target: target_ms
+            .map(|t| frames.iter().filter(|f| f.frame_ms <= 1.1 * t).count() as f64 / n),
         mean_frame_ms: ms.iter().sum::<f64>() / n,
         median_frame_ms: percentile(&mut ms, 0.5),
         p95_frame_ms: percentile(&mut ms, 0.95),
@@ -119,7 +136,7 @@ fn mode_totals<'a>(culling: Culling, frames: impl Iterator<Item = &'a ModeFrame>
 /// levels when the views may draw them.
 fn lod_options(culling: &CullingOptions) -> RendererOptions {
     RendererOptions {
-        lod_levels: culling.lod_error_px > 0.0,
+        lod_levels: culling.lod_error_px > 0.0 || culling.target_ms.is_some(),
         ..Default::default()
     }
 }
@@ -149,6 +166,7 @@ pub fn run(
             if compare && i == 0 {
                 // The reference is exact.
                 view.options.lod_error_px = 0.0;
+                view.options.target_ms = None;
             }
             view
         })
@@ -217,7 +235,10 @@ pub fn run(
     let totals: Vec<ModeTotals> = modes
         .iter()
         .enumerate()
-        .map(|(i, &m)| mode_totals(m, frames.iter().map(|f| &f.modes[i])))
+        .map(|(i, &m)| {
+            let target = views[i].options.target_ms;
+            mode_totals(m, target, frames.iter().map(|f| &f.modes[i]))
+        })
         .collect();
     let mean_of = |name: &str| {
         totals
@@ -243,6 +264,7 @@ pub fn run(
         "scene_triangles": scene.triangle_count(),
         "requery_interval": culling.requery_interval,
         "lod_error_px": culling.lod_error_px,
+        "target_ms": culling.target_ms,
         "max_rounds": culling.max_rounds,
         "totals": totals,
         "frustum_over_chc_frame_time": ratio("frustum", "chc"),
@@ -301,7 +323,7 @@ pub fn run_resident(
         "adapter": adapter.name,
         "walk": report,
         "render": {
-            "totals": mode_totals(culling, rendered.iter()),
+            "totals": mode_totals(culling, culling_options.target_ms, rendered.iter()),
             "gpu_pool_bytes": renderer.geometry_pool().resident_bytes(),
             "per_frame": rendered,
         },

@@ -8,7 +8,6 @@ use dmu_scene::Scene;
 use dmu_tree::{EntryVisibility, Tree};
 use glam::{DAffine3, DVec3};
 
-use crate::RenderError;
 use crate::capture::{Capture, IdImage};
 use crate::geometry::GeometrySource;
 use crate::gpu::QueryBox;
@@ -16,6 +15,7 @@ use crate::hierarchy::{Hierarchy, NodeKind};
 use crate::renderer::{Draw, FrameTarget, LodPick, Renderer, RoundResult, RoundTarget, Shading};
 use crate::stereo::StereoCamera;
 use crate::view::{Culling, EntryState, FrameStats, View};
+use crate::{KnobsInEffect, RenderError};
 
 /// Per-frame culling context of one view, or of a stereo pair culled once.
 struct Cull {
@@ -35,8 +35,9 @@ struct Cull {
 }
 
 impl Cull {
-    /// The context of `view`'s camera, or with `ipd` of the stereo pair around it.
-    fn new(view: &View, ipd: Option<f64>) -> Self {
+    /// The context of `view`'s camera, or with `ipd` of the stereo pair
+    /// around it, drawing with `knobs`.
+    fn new(view: &View, ipd: Option<f64>, knobs: KnobsInEffect) -> Self {
         let c = &view.camera;
         let t = (c.fov_y_rad * 0.5).tan();
         let a = view.aspect();
@@ -62,9 +63,9 @@ impl Cull {
             frustum,
             eye_views,
             eye_count,
-            min_pixels: view.options.min_pixels,
+            min_pixels: knobs.min_pixels,
             near_reach: c.near * (1.0 + t * t * (1.0 + a * a)).sqrt(),
-            lod_error_px: view.options.lod_error_px,
+            lod_error_px: knobs.lod_error_px,
         }
     }
 
@@ -170,7 +171,13 @@ impl Renderer {
             frame: view.frame,
             ..FrameStats::default()
         };
-        let cull = Cull::new(view, ipd);
+        let knobs = match view.options.target_ms {
+            Some(_) => view.knobs.unwrap_or(KnobsInEffect::of(&view.options)),
+            None => KnobsInEffect::of(&view.options),
+        };
+        stats.lod_error_px = knobs.lod_error_px;
+        stats.min_pixels = knobs.min_pixels;
+        let cull = Cull::new(view, ipd, knobs);
         let cell_distance = self.cell_distances(cull.eye());
         let use_queries = view.culling == Culling::Occlusion && view.decision.enabled;
         let mut gpu_state = self.prepare_view(view, scene, cull.eye_views());
@@ -217,6 +224,7 @@ impl Renderer {
         view.gpu = Some(gpu_state);
         outcome?;
         stats.cpu_ms = start.elapsed().as_secs_f64() * 1e3;
+        view.knobs = Some(knobs.next(&view.options, stats.cpu_ms));
         self.decide(view, &mut stats);
         view.last = stats;
         Ok(stats)
@@ -252,7 +260,7 @@ impl Renderer {
         self.hierarchy.sync(tree);
         let cull = Cull {
             min_pixels: 0.0,
-            ..Cull::new(view, None)
+            ..Cull::new(view, None, KnobsInEffect::default())
         };
         let cell_distance = self.cell_distances(cull.eye());
         let mut gpu_state = self.prepare_view(view, scene, cull.eye_views());

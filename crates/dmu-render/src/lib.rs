@@ -75,6 +75,7 @@
 //! ```
 
 mod adapt;
+mod budget;
 mod capture;
 mod cull;
 mod device;
@@ -86,6 +87,7 @@ mod renderer;
 mod stereo;
 mod view;
 
+pub use budget::{KnobsInEffect, MAX_LOD_ERROR_PX, MAX_MIN_PIXELS};
 pub use capture::{CAPTURE_FORMAT, Capture, DEPTH_FORMAT, ID_FORMAT, IdImage, save_png};
 pub use device::headless_device;
 pub use dmu_geom::Camera;

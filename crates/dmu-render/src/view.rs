@@ -39,6 +39,11 @@ pub struct CullingOptions {
     /// box); 0 draws every chunk whole (images stay exact). Needs a renderer
     /// made with [`crate::RendererOptions::lod_levels`].
     pub lod_error_px: f64,
+    /// A frame-time budget, ms: each frame then picks its LOD error (from 0,
+    /// exact) and coverage threshold (from `min_pixels`) after the last
+    /// frame's time ([`crate::KnobsInEffect::next`]); `None`: the two knobs
+    /// are fixed as set.
+    pub target_ms: Option<f64>,
 }
 
 impl Default for CullingOptions {
@@ -50,6 +55,7 @@ impl Default for CullingOptions {
             expand_levels: 2,
             adaptive: true,
             lod_error_px: 0.0,
+            target_ms: None,
         }
     }
 }
@@ -96,6 +102,11 @@ pub struct FrameStats {
     pub passes: u32,
     /// Chunk instances drawn.
     pub chunks_drawn: u64,
+    /// The LOD error bound the frame drew with, pixels (chosen by the budget
+    /// under [`CullingOptions::target_ms`]).
+    pub lod_error_px: f64,
+    /// The coverage threshold the frame drew with, pixels.
+    pub min_pixels: f64,
     /// Draw calls recorded (a chunk instance per pass it is drawn in, and
     /// each query box).
     pub draw_calls: u64,
@@ -147,6 +158,9 @@ pub struct View {
     /// Average non-drawing time of frames without queries, ms.
     pub(crate) baseline_overhead_ms: f64,
     pub(crate) last: FrameStats,
+    /// The knobs the next frame draws with under a budget (`None` before the
+    /// first frame).
+    pub(crate) knobs: Option<crate::KnobsInEffect>,
     /// Chunk instances drawn in the last frame, in draw order.
     pub(crate) drawn: Vec<u32>,
     /// GPU resources, made by the renderer on the first frame.
@@ -172,6 +186,7 @@ impl View {
             probe_frames: 0,
             baseline_overhead_ms: 0.0,
             last: FrameStats::default(),
+            knobs: None,
             drawn: Vec::new(),
             gpu: None,
         }

@@ -305,3 +305,52 @@ fn lod_levels_trade_triangles_for_bounded_pixel_error() {
         "1 px saves a tenth of the triangles somewhere"
     );
 }
+
+/// A frame-time budget on a real renderer: one no frame can meet raises the
+/// LOD error to its ceiling and then the coverage threshold, frame after
+/// frame, drawing fewer triangles; one every frame meets gives the error back
+/// down to 0, and the image is then the exact one.
+#[test]
+fn a_frame_budget_trades_error_for_time_and_back() {
+    let (scene, tree) = small_plant();
+    let size = (480, 270);
+    let options = dmu_render::RendererOptions {
+        lod_levels: true,
+        ..Default::default()
+    };
+    let Some(mut rig) = Rig::with_options(&scene, &tree, size, options) else {
+        return;
+    };
+    let cam = viewpoints()[3];
+    let exact = rig.shot(cam, Culling::Frustum, &scene, &tree);
+    let mut view = View::new(cam, size, Culling::Frustum);
+    view.options.lod_error_px = 1.0;
+    view.options.target_ms = Some(0.001);
+    let mut chosen = Vec::new();
+    for _ in 0..12 {
+        let s = rig.frame(&mut view, &scene, &tree);
+        chosen.push((s.lod_error_px, s.min_pixels, s.triangles_drawn));
+    }
+    println!("impossible budget: {chosen:?}");
+    assert!(
+        chosen
+            .windows(2)
+            .all(|w| w[1].0 >= w[0].0 && w[1].1 >= w[0].1 && w[1].2 <= w[0].2)
+    );
+    let last = chosen.last().unwrap();
+    assert_eq!(last.0, dmu_render::MAX_LOD_ERROR_PX);
+    assert!(last.1 > 1.0 && last.2 < chosen[0].2 / 2, "{chosen:?}");
+
+    view.options.target_ms = Some(1e7);
+    let mut stats = Vec::new();
+    for _ in 0..40 {
+        stats.push(rig.frame(&mut view, &scene, &tree));
+    }
+    let s = stats.last().unwrap();
+    assert_eq!((s.lod_error_px, s.min_pixels), (0.0, 0.0));
+    assert_eq!(
+        differing(&exact, &rig.image()).len(),
+        0,
+        "time to spare: exact"
+    );
+}
