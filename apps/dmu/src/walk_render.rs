@@ -38,6 +38,10 @@ struct ModeFrame {
     occlusion_enabled: bool,
     /// Pixels differing from the `none` image (with `--compare`).
     differing_pixels: Option<u64>,
+    /// Of those, pixels differing by more than `dmu_render::SURFACE_CHANGE`
+    /// in a channel: showing another surface, not the same one shaded a
+    /// little differently.
+    surface_differing_pixels: Option<u64>,
 }
 
 /// One frame of the path.
@@ -68,6 +72,8 @@ struct ModeTotals {
     frames_with_differing_pixels: Option<u64>,
     /// Pixels differing from `none`, per frame on average and at worst.
     mean_differing_pixels: Option<f64>,
+    /// Pixels showing another surface than `none`'s, per frame on average.
+    mean_surface_differing_pixels: Option<f64>,
     worst_differing_pixels: Option<u64>,
 }
 
@@ -85,7 +91,7 @@ fn camera(frame: &CameraFrame, tree: &Tree) -> Camera {
     frame.camera((tree.bounds().extent().length() * 1e-4).max(1e-6))
 }
 
-fn mode_frame(stats: &FrameStats, differing_pixels: Option<u64>) -> ModeFrame {
+fn mode_frame(stats: &FrameStats, differing: Option<(u64, u64)>) -> ModeFrame {
     ModeFrame {
         frame_ms: stats.cpu_ms,
         gpu_ms: stats.gpu_ms,
@@ -97,7 +103,8 @@ fn mode_frame(stats: &FrameStats, differing_pixels: Option<u64>) -> ModeFrame {
         min_pixels: stats.min_pixels,
         rounds: stats.rounds,
         occlusion_enabled: stats.occlusion.enabled,
-        differing_pixels,
+        differing_pixels: differing.map(|d| d.0),
+        surface_differing_pixels: differing.map(|d| d.1),
     }
 }
 
@@ -128,6 +135,13 @@ fn mode_totals<'a>(
             .then(|| differing.iter().filter(|&&d| d > 0).count() as u64),
         mean_differing_pixels: compared
             .then(|| differing.iter().sum::<u64>() as f64 / differing.len().max(1) as f64),
+        mean_surface_differing_pixels: compared.then(|| {
+            frames
+                .iter()
+                .filter_map(|f| f.surface_differing_pixels)
+                .sum::<u64>() as f64
+                / differing.len().max(1) as f64
+        }),
         worst_differing_pixels: compared.then(|| differing.iter().copied().max().unwrap_or(0)),
     }
 }
@@ -184,24 +198,19 @@ pub fn run(
             view.camera = camera(frame);
             let stats: FrameStats =
                 renderer.render(view, scene, tree, scene, captures[i].frame_target())?;
-            let differing_pixels = if compare {
+            let differing = if compare {
                 let image = captures[i].read_color(&device, &queue)?;
                 match &reference {
                     None => {
                         reference = Some(image.into_raw());
-                        Some(0)
+                        Some((0, 0))
                     }
-                    Some(r) => Some(
-                        r.chunks_exact(4)
-                            .zip(image.as_raw().chunks_exact(4))
-                            .filter(|(a, b)| a != b)
-                            .count() as u64,
-                    ),
+                    Some(r) => Some(dmu_render::count_differing(r, image.as_raw())),
                 }
             } else {
                 None
             };
-            modes_out.push(mode_frame(&stats, differing_pixels));
+            modes_out.push(mode_frame(&stats, differing));
         }
         let (exact_visible_triangles, chc_missing_chunks) = match (compare, chc) {
             (true, Some(c)) => {

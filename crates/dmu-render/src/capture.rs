@@ -288,3 +288,43 @@ pub(crate) fn attachment_texture(
         view_formats: &[],
     })
 }
+
+/// A channel difference above which a pixel shows another surface (or none)
+/// rather than the same one shaded a little differently (as a simplified
+/// level shades it).
+pub const SURFACE_CHANGE: u8 = 24;
+
+/// Pixels of two same-sized RGBA8 images that differ at all, and those that
+/// differ by more than [`SURFACE_CHANGE`] in a channel.
+pub fn count_differing(a: &[u8], b: &[u8]) -> (u64, u64) {
+    assert_eq!(a.len(), b.len(), "images of different sizes");
+    let (mut any, mut surface) = (0, 0);
+    for (p, q) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+        if p != q {
+            any += 1;
+            surface += u64::from(
+                p.iter()
+                    .zip(q)
+                    .any(|(x, y)| x.abs_diff(*y) > SURFACE_CHANGE),
+            );
+        }
+    }
+    (any, surface)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn differing_pixels_are_counted_and_surface_changes_apart() {
+        let a = [
+            10, 10, 10, 255, 10, 10, 10, 255, 10, 10, 10, 255, 0, 0, 0, 255,
+        ];
+        // Same; shaded 24 brighter in red (not another surface); alpha only;
+        // 25 darker in blue (another surface).
+        let b = [
+            10, 10, 10, 255, 34, 10, 10, 255, 10, 10, 10, 0, 0, 0, 25, 255,
+        ];
+        assert_eq!(super::count_differing(&a, &b), (3, 2));
+        assert_eq!(super::count_differing(&a, &a), (0, 0));
+    }
+}

@@ -265,15 +265,11 @@ fn lod_levels_trade_triangles_for_bounded_pixel_error() {
             view.options.lod_error_px = tau;
             let stats = rig.frame(&mut view, &scene, &tree);
             let image = rig.image();
-            let share = differing(&exact, &image).len() as f64 / pixels;
             // Shading drifts a little where triangles change; a pixel that
-            // changes by more than this shows another surface (or none).
-            let far = exact
-                .pixels()
-                .zip(image.pixels())
-                .filter(|(a, b)| a.0.iter().zip(b.0).any(|(&x, y)| x.abs_diff(y) > 24))
-                .count() as f64
-                / pixels;
+            // changes by more than SURFACE_CHANGE shows another surface.
+            let (any, surface) = dmu_render::count_differing(exact.as_raw(), image.as_raw());
+            assert_eq!(any as usize, differing(&exact, &image).len());
+            let (share, far) = (any as f64 / pixels, surface as f64 / pixels);
             println!(
                 "view {i} tau {tau}: {} triangles, {:.3} % of pixels differ, {:.3} % by more than 24",
                 stats.triangles_drawn,
