@@ -4,6 +4,7 @@
 mod collide;
 mod hostile;
 mod pick_rays;
+mod tradeoffs;
 
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
