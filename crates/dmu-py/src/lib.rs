@@ -305,8 +305,9 @@ impl Model {
     /// `record` is a path to a JSON Lines record (docs/record-format.md) or a
     /// list of its lines as dicts (`t`, `part`, `translation`, `rotation`).
     /// `clearance` (model units) reports closer pairs as `soft`; `continuous`
-    /// sweeps each move; `allow` lists pairs of parts that may touch. Every
-    /// part the record moved is put back afterwards.
+    /// sweeps each move (without it no move is swept, as `dmu collide
+    /// --discrete`); `allow` lists pairs of parts that may touch. Every part
+    /// the record moved is put back afterwards.
     #[pyo3(signature = (record, clearance = 5.0, continuous = false, allow = Vec::new()))]
     fn collide<'py>(
         &mut self,

@@ -220,6 +220,17 @@ pub fn write_report(run: &Run, out: &Path) -> anyhow::Result<std::path::PathBuf>
         }
         writeln!(w)?;
     }
+    writeln!(w, "## Choices the program makes by measurement\n")?;
+    writeln!(
+        w,
+        "- Occlusion queries on or off, per view: off where they cost more than the drawing \
+         they save, tried again later; `dmu render --explain`, `dmu walk --render --explain` \
+         and the viewer's *Why* section print each switch with its figures.\n\
+         - A continuous (swept) collision check where a step moves a part farther than its \
+         own thickness (the *auto step* knob above); `dmu collide --explain` prints each \
+         swept step with the distance and the thickness.\n\
+         - Not yet: coverage under frame pressure and far fields, which the renderer does not have.\n"
+    )?;
     writeln!(w, "## Knobs not in the code yet\n")?;
     for (name, when) in super::render::PLANNED {
         writeln!(w, "- {name}: {when}")?;
