@@ -27,8 +27,7 @@ use crate::tradeoffs::{Bench, Machine, Run, Scale, run_sections, write_report};
 /// release build; --quick (small models, few points) is what CI runs.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Model file (.glb, .gltf, .dmu); the built-in plant of 300k triangles
-    /// when omitted.
+    /// Model file (.glb, .gltf, .dmu); the built-in plant when omitted.
     file: Option<PathBuf>,
     /// Small models and few points: a few minutes on two cores, for CI.
     #[arg(long)]
@@ -36,7 +35,8 @@ pub struct Args {
     /// Folder for the report (README.md) and its plots.
     #[arg(long, default_value = "docs/tradeoffs")]
     out: PathBuf,
-    /// Size of the built-in plant instead of the default (10k to 1G).
+    /// Size of the built-in plant (10k to 1G; default 2M, as the other
+    /// commands').
     #[arg(long, value_parser = crate::units::count_in(crate::units::MIN_PLANT_TRIANGLES, crate::units::MAX_TRIANGLES))]
     plant_triangles: Option<u64>,
     /// Print the figures as one JSON document: `{"report", "knobs": [{"name",
@@ -48,6 +48,9 @@ pub struct Args {
 
 pub fn run(args: &Args) -> anyhow::Result<()> {
     let start = Instant::now();
+    // Before the model is made: a bad --out fails at once.
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
     let scale = Scale::new(args.quick, args.plant_triangles);
     let model_args = ModelArgs {
         file: args.file.clone(),
@@ -64,8 +67,6 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         ),
     };
     // Stores the sweeps write, beside the report (the same file system).
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
     let scratch = tempfile::Builder::new()
         .prefix(".tradeoffs-scratch-")
         .tempdir_in(&args.out)

@@ -131,10 +131,11 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
         "a continuous (swept) check at {FINE_STEP} mm steps, which meets all {} boxes of the row",
         n - 1
     );
-    let knob = |name: &str, unit: &str, exact: Option<f64>, log_x: bool, points| Knob {
+    let knob = |name: &str, note: &str, exact: Option<f64>, log_x: bool, points| Knob {
         section: "collision",
         name: name.to_owned(),
-        unit: unit.to_owned(),
+        unit: "mm".to_owned(),
+        note: note.to_owned(),
         reference: reference_name.clone(),
         time: "check time of the drag".to_owned(),
         error_unit: "boxes missed".to_owned(),
@@ -166,7 +167,13 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
         // Swept checks meet every box at any step; discrete ones at steps
         // shorter than the 8 mm overlap window.
         let exact = (mode != SweepMode::Off).then_some(step_settings[0]);
-        knobs.push(knob(name, "mm a step", exact, false, points));
+        knobs.push(knob(
+            name,
+            "length of the drag's steps",
+            exact,
+            false,
+            points,
+        ));
     }
     let steps = drag(part, n, 1.0);
     let points = clearances
@@ -183,7 +190,7 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
         .collect();
     knobs.push(knob(
         "clearance",
-        "mm, 1 mm discrete steps",
+        "1 mm discrete steps",
         Some(0.0),
         false,
         points,
@@ -215,7 +222,8 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
     knobs.push(Knob {
         section: "collision",
         name: "contact tolerance".to_owned(),
-        unit: format!("relative to the part's size, {FINE_STEP} mm discrete steps"),
+        unit: "x part size".to_owned(),
+        note: format!("{FINE_STEP} mm discrete steps, clearance 0"),
         reference: format!("the default tolerance {DEFAULT_CONTACT_TOLERANCE:e}"),
         time: "check time of the drag".to_owned(),
         error_unit: "findings of another kind".to_owned(),

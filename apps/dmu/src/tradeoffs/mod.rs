@@ -32,6 +32,9 @@ use serde::Serialize;
 
 pub use report::{Machine, Run, reading, write_report};
 
+/// The built-in plant's size, as the other commands' default (`--plant-triangles 2M`).
+pub const DEFAULT_PLANT_TRIANGLES: u64 = 2_000_000;
+
 /// How big the sweeps are: `--quick` for CI (small models, few points), the
 /// full run for the committed report.
 #[derive(Clone, Copy, Debug)]
@@ -58,9 +61,9 @@ pub struct Scale {
 impl Scale {
     /// The two runs share the model, the image size, the camera path and the
     /// collision grid, so a knob measured in both agrees within noise; the
-    /// full run has more settings, rays, moves and repetitions.
+    /// full run has more settings, rays and repetitions.
     pub fn new(quick: bool, plant_triangles: Option<u64>) -> Self {
-        let plant_triangles = plant_triangles.unwrap_or(300_000);
+        let plant_triangles = plant_triangles.unwrap_or(DEFAULT_PLANT_TRIANGLES);
         if quick {
             Self {
                 quick,
@@ -69,7 +72,7 @@ impl Scale {
                 render_frames: 8,
                 walk_frames: 600,
                 rays: 100,
-                moves: 300,
+                moves: 1000,
                 collide_grid: 6,
                 numerics_reps: 200,
             }
@@ -81,7 +84,7 @@ impl Scale {
                 render_frames: 8,
                 walk_frames: 600,
                 rays: 1000,
-                moves: 3000,
+                moves: 1000,
                 collide_grid: 6,
                 numerics_reps: 20_000,
             }
@@ -143,8 +146,11 @@ pub struct Knob {
     /// Section of the report: rendering, loading, tree, collision, numerics.
     pub section: &'static str,
     pub name: String,
-    /// Unit of the setting.
+    /// Unit of the setting (empty for categories).
     pub unit: String,
+    /// What else the reader must know of the settings (what 0 means, the
+    /// conditions held fixed); may be empty.
+    pub note: String,
     /// What the error is measured against.
     pub reference: String,
     /// What `time_ms` measures.

@@ -183,10 +183,12 @@ pub fn steps() -> u64 {
 
 pub fn run(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
     let reps = bench.scale.numerics_reps;
-    let knob = |name: &str, reference: &str, time: &str, error: &str, points| Knob {
+    let knob = |name: &str, reference: &str, time: &str, error: &str, points| {
+        Knob {
         section: "numerics",
         name: name.to_owned(),
-        unit: "mm from the origin".to_owned(),
+        unit: "mm".to_owned(),
+        note: "offset from the origin; the error is the f32 path's (world coordinates in f32), the f64 path's is in the table".to_owned(),
         reference: reference.to_owned(),
         time: time.to_owned(),
         error_unit: error.to_owned(),
@@ -194,27 +196,23 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
         log_x: true,
         log_error: true,
         points,
+    }
     };
     let mut knobs = Vec::new();
     let points = offsets()
         .map(|o| {
             let (scene, tree, ray) = pick_case(o);
             let (e32, e64) = pick_errors(o);
-            Point::new(
-                o,
-                per_call(reps, || tree.pick(&scene, &ray)),
-                e32,
-                "mm, f32 path",
-            )
-            .extra("f64 error, mm", e64)
-            .extra("f32 ms", per_call(reps, || pick_f32(&scene, &ray)))
+            Point::new(o, per_call(reps, || tree.pick(&scene, &ray)), e32, "mm")
+                .extra("f64 error, mm", e64)
+                .extra("f32 ms", per_call(reps, || pick_f32(&scene, &ray)))
         })
         .collect();
     knobs.push(knob(
         "pick distance",
         &format!("the exact distance, {PICK_DISTANCE} mm"),
         "pick (f64)",
-        "mm, f32 path",
+        "mm",
         points,
     ));
     bench.progress.inc(1);
@@ -232,7 +230,7 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
                     checker.check(&scene, &tree, &[a], &settings, &mut report);
                 }),
                 e32,
-                "mm, f32 path",
+                "mm",
             )
             .extra("f64 error, mm", e64)
         })
@@ -241,14 +239,14 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
         "clearance",
         &format!("the exact gap, {GAP} mm"),
         "clearance check (f64)",
-        "mm, f32 path",
+        "mm",
         points,
     ));
     bench.progress.inc(1);
     let points = offsets()
         .map(|o| {
             let e = transform_error(o);
-            Point::new(o, per_call(reps, || transformed(o).0), e, "mm, f32 path")
+            Point::new(o, per_call(reps, || transformed(o).0), e, "mm")
                 .extra("f32 and f64 ms", per_call(reps, || transformed(o)))
         })
         .collect();
@@ -256,7 +254,7 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
         "transform",
         "the f64 transform",
         "f64 transform",
-        "mm, f32 path",
+        "mm",
         points,
     ));
     bench.progress.inc(1);
@@ -272,7 +270,7 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
                 f64::from(u8::from(quantize)),
                 ms,
                 position_error(bench.scene, &loaded),
-                "mm",
+                "mm, largest",
             )
             .label(if quantize { "u16" } else { "f32" })
             .extra("file MB", summary.file_bytes as f64 / 1e6),
@@ -281,10 +279,11 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
     knobs.push(Knob {
         section: "numerics",
         name: "store quantization".to_owned(),
-        unit: "positions stored as".to_owned(),
+        unit: String::new(),
+        note: "positions stored as f32, or as u16 within each chunk's box".to_owned(),
         reference: "the model's f32 positions".to_owned(),
         time: "open and load".to_owned(),
-        error_unit: "mm, largest position error".to_owned(),
+        error_unit: "mm, largest".to_owned(),
         exact_setting: Some(0.0),
         log_x: false,
         log_error: false,

@@ -88,12 +88,11 @@ fn draw(k: &Knob, out: &mut String) -> Result<(), Box<dyn std::error::Error>> {
         .right_y_label_area_size(72)
         .build_cartesian_2d(xr.clone(), tr)?
         .set_secondary_coord(xr, er);
-    let x_desc = format!(
-        "{} ({}{})",
-        k.name,
-        k.unit,
-        if k.log_x { ", log" } else { "" }
-    );
+    let x_desc = match (k.unit.is_empty(), k.log_x) {
+        (true, _) => k.name.clone(),
+        (false, false) => format!("{} ({})", k.name, k.unit),
+        (false, true) => format!("{} ({}, log)", k.name, k.unit),
+    };
     let time_label = |v: &f64| number(*v);
     let error_label = |v: &f64| axis_label(*v, k.log_error);
     let mut mesh = chart.configure_mesh();

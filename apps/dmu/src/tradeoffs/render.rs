@@ -20,6 +20,7 @@ use super::{Bench, Knob, Point};
 struct RenderKnob {
     name: &'static str,
     unit: &'static str,
+    note: &'static str,
     quick: &'static [f64],
     full: &'static [f64],
     /// The culling mode and options of a setting.
@@ -38,10 +39,13 @@ fn chc(options: CullingOptions) -> (Culling, CullingOptions) {
     )
 }
 
+const OCCLUSION_NOTE: &str = "0 is no occlusion queries (frustum culling); the adaptive switch is off, so the knob itself is measured";
+
 const KNOBS: &[RenderKnob] = &[
     RenderKnob {
         name: "coverage threshold",
         unit: "px",
+        note: "frustum and coverage culling: nodes smaller on screen are dropped",
         quick: &[0.0, 2.0, 8.0],
         full: &[0.0, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0],
         setup: |px| {
@@ -56,7 +60,8 @@ const KNOBS: &[RenderKnob] = &[
     },
     RenderKnob {
         name: "occlusion re-check interval",
-        unit: "frames, 0 = no occlusion queries",
+        unit: "frames",
+        note: OCCLUSION_NOTE,
         quick: &[0.0, 1.0, 4.0],
         full: &[0.0, 1.0, 2.0, 4.0, 8.0, 16.0],
         setup: |n| {
@@ -72,7 +77,8 @@ const KNOBS: &[RenderKnob] = &[
     },
     RenderKnob {
         name: "occlusion rounds",
-        unit: "rounds a frame, 0 = no occlusion queries",
+        unit: "rounds a frame",
+        note: OCCLUSION_NOTE,
         quick: &[0.0, 1.0, 6.0],
         full: &[0.0, 1.0, 2.0, 3.0, 6.0, 12.0],
         setup: |n| {
@@ -202,6 +208,7 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<(Vec<Knob>, String)> {
             section: "rendering",
             name: k.name.to_owned(),
             unit: k.unit.to_owned(),
+            note: k.note.to_owned(),
             reference: "culling none, every chunk drawn".to_owned(),
             time: "median frame time".to_owned(),
             error_unit: "differing pixels a frame".to_owned(),

@@ -225,6 +225,7 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
             section: "tree",
             name: "cell size, pick".to_owned(),
             unit: "triangles a cell".to_owned(),
+            note: format!("{} rays aimed at random triangles", rays.len()),
             reference: pick_reference.to_owned(),
             time: "median pick".to_owned(),
             error_unit: "picks wrong".to_owned(),
@@ -237,6 +238,10 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
             section: "tree",
             name: "cell size, move".to_owned(),
             unit: "triangles a cell".to_owned(),
+            note: format!(
+                "{} random moves of up to 1% of the model's size",
+                bench.scale.moves
+            ),
             reference: "a fresh SAH build of the moved scene".to_owned(),
             time: "median move".to_owned(),
             error_unit: SAH_EXCESS.to_owned(),
@@ -249,6 +254,7 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
             section: "tree",
             name: "chunk size".to_owned(),
             unit: "triangles a chunk".to_owned(),
+            note: "set at import; build and move times in the table".to_owned(),
             reference: pick_reference.to_owned(),
             time: "median pick".to_owned(),
             error_unit: "picks wrong".to_owned(),
