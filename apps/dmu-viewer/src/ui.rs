@@ -175,7 +175,10 @@ pub fn show(
         .show(ui, |ui| structure_panel(ui, state, review));
     egui::Panel::right("properties")
         .default_size(320.0)
-        .show(ui, |ui| properties_panel(ui, state, review));
+        .show(ui, |ui| {
+            why_section(ui, panes.panes);
+            properties_panel(ui, state, review);
+        });
     egui::Panel::bottom("status").show(ui, |ui| {
         ui.horizontal(|ui| {
             ui.label(&state.status);
@@ -476,6 +479,23 @@ fn node_ui(ui: &mut egui::Ui, review: &mut Review, node: NodeId, reveal: Option<
 
 fn vec_text(v: DVec3) -> String {
     format!("{:.3}, {:.3}, {:.3}", v.x, v.y, v.z)
+}
+
+/// "Why": the choices made by measurement in each pane, with the figures
+/// behind them (the same words as `dmu render --explain`).
+fn why_section(ui: &mut egui::Ui, panes: &[Pane]) {
+    egui::CollapsingHeader::new("Why")
+        .default_open(false)
+        .show(ui, |ui| {
+            for (i, pane) in panes.iter().enumerate() {
+                let view = &pane.view;
+                ui.label(format!(
+                    "pane {}: {}",
+                    i + 1,
+                    dmu_app::explain::occlusion_now(view.culling, &view.last_stats().occlusion)
+                ));
+            }
+        });
 }
 
 fn properties_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) {

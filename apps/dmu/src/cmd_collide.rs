@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::{Context as _, bail};
-use dmu_collide::{AllowList, Finding, Settings, StepOutcome, Summary, read_record};
+use dmu_collide::{AllowList, Finding, Settings, StepOutcome, Summary, SweepMode, read_record};
 use dmu_scene::Scene;
 use serde_json::json;
 
@@ -46,10 +46,19 @@ pub struct Args {
     /// 0 reports hard clashes and contacts only.
     #[arg(long, default_value_t = 5.0, value_parser = crate::units::number_in(0.0, crate::units::MAX_LENGTH))]
     clearance: f64,
-    /// Also sweep every move from the part's pose before it and report the time
-    /// of first impact, so a fast move cannot pass through a thin plate.
+    /// Sweep every move from the part's pose before it and report the time of
+    /// first impact, so a fast move cannot pass through a thin plate (default:
+    /// only moves farther than the part's own thickness are swept).
     #[arg(long)]
     continuous: bool,
+    /// Never sweep: check each step at its end poses only, even where a part
+    /// jumps farther than its thickness (the fastest, and blind to tunnelling).
+    #[arg(long, conflicts_with = "continuous")]
+    discrete: bool,
+    /// Print the choices made by measurement and the figures behind them (which
+    /// steps were swept and why); with --json, an "explain" array.
+    #[arg(long)]
+    explain: bool,
     /// Two parts that may touch, `A,B` (names, paths or #ids); repeatable.
     #[arg(long, value_name = "A,B")]
     allow: Vec<String>,
@@ -206,6 +215,18 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
         |jobs| jobs as usize,
     );
 
+    let sweep = if args.continuous {
+        SweepMode::Always
+    } else if args.discrete {
+        SweepMode::Off
+    } else {
+        SweepMode::Auto
+    };
+    let sweep_name = match sweep {
+        SweepMode::Off => "never",
+        SweepMode::Auto => "auto",
+        SweepMode::Always => "always",
+    };
     let start = Instant::now();
     let mut reports = Vec::new();
     let mut totals = Summary::default();
@@ -220,6 +241,7 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
             findings,
             summary,
             tree_build_ms,
+            explain,
         } = checked;
         totals.steps += summary.steps;
         totals.part_pairs_tested += summary.part_pairs_tested;
@@ -235,6 +257,7 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
                 "record": record,
                 "clearance": args.clearance,
                 "continuous": args.continuous,
+                "sweep": sweep_name,
                 "clashes": findings,
                 "summary": {
                     "steps": summary.steps,
@@ -247,6 +270,9 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
                     "tree_build_ms": tree_build_ms,
                 },
             }));
+            if args.explain {
+                reports.last_mut().expect("just pushed")["explain"] = json!(explain);
+            }
         } else if args.csv {
             let record_field = if batch {
                 format!("{},", csv_field(&record))
@@ -262,6 +288,11 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
                 String::new()
             };
             eprintln!("{record_name}{}", summary_line(&summary));
+            if args.explain {
+                for line in &explain {
+                    eprintln!("{record_name}explain: {line}");
+                }
+            }
         } else {
             if batch {
                 writeln!(out, "record {record}")?;
@@ -270,6 +301,22 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
                 writeln!(out, "{}", text_line(f))?;
             }
             writeln!(out, "{}", summary_line(&summary))?;
+            if args.explain {
+                if explain.is_empty() {
+                    writeln!(
+                        out,
+                        "explain: no step moved a part farther than its thickness{}",
+                        match sweep {
+                            SweepMode::Auto => ": discrete checks only",
+                            SweepMode::Always => " (every step swept: --continuous)",
+                            SweepMode::Off => " (never swept: --discrete)",
+                        }
+                    )?;
+                }
+                for line in &explain {
+                    writeln!(out, "explain: {line}")?;
+                }
+            }
         }
         Ok(())
     };
@@ -290,15 +337,7 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
             normal: f.normal,
         }));
     };
-    let workers = check_records(
-        scene,
-        &records,
-        &settings,
-        args.continuous,
-        jobs,
-        collect,
-        emit,
-    )?;
+    let workers = check_records(scene, &records, &settings, sweep, jobs, collect, emit)?;
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
 
     if args.json {

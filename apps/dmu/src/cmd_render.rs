@@ -77,6 +77,11 @@ pub struct Args {
     /// drawn ones.
     #[arg(long)]
     oracle: bool,
+    /// Print the choices made by measurement and the figures behind them
+    /// (with chc: where occlusion queries were switched on or off, what they
+    /// cost and saved); with --json, an "explain" array.
+    #[arg(long)]
+    explain: bool,
 }
 
 fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
@@ -304,6 +309,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         None => (&single_frames, view.drawn_entries().collect(), vec![camera]),
     };
     let last = frames.last().expect("at least one frame");
+    let explain = dmu_app::explain::occlusion_changes(culling, frames);
     let oracle = if args.oracle {
         Some(oracle_json(
             &mut renderer,
@@ -348,6 +354,10 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             "stereo": stereo_json,
             "frames": frames.iter().map(stats_json).collect::<Vec<_>>(),
         });
+        let mut out = out;
+        if args.explain {
+            out["explain"] = json!(explain);
+        }
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {
         let written = match &stereo {
@@ -378,6 +388,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         }
         if let Some(o) = oracle {
             println!("oracle: {o}");
+        }
+        if args.explain {
+            for line in &explain {
+                println!("explain: {line}");
+            }
         }
     }
     Ok(())

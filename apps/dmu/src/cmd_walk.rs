@@ -101,10 +101,19 @@ pub struct Args {
     /// over-draw when the view moves fast).
     #[arg(long, default_value_t = CullingOptions::default().requery_interval, value_parser = clap::value_parser!(u32).range(1..))]
     requery_interval: u32,
+    /// Print the choices made by measurement and the figures behind them
+    /// (with --render and chc: where occlusion queries were switched on or off,
+    /// what they cost and saved); with --json, an "explain" array.
+    #[arg(long)]
+    explain: bool,
     /// Print one JSON object instead of text.
     #[arg(long)]
     json: bool,
 }
+
+/// What --explain says of a walk without --render: nothing in it is chosen by
+/// measurement.
+const WALK_EXPLAIN: &str = "no choice made by measurement: the budget, load order and coverage are as given (occlusion is chosen per view with --render --culling chc)";
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
 enum Order {
@@ -268,7 +277,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         reports.push(report);
     }
     if args.json {
-        let value = serde_json::json!({
+        let mut value = serde_json::json!({
             "file": args.file.display().to_string(),
             "geometry_resident_bytes": info.geometry_resident_bytes,
             "geometry_file_bytes": info.geometry_file_bytes,
@@ -276,16 +285,26 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             "frames": path.len(),
             "walks": reports,
         });
+        if args.explain {
+            value["explain"] = serde_json::json!([WALK_EXPLAIN]);
+        }
         println!("{}", serde_json::to_string_pretty(&value)?);
         return Ok(());
     }
     print_text(args, &info, budget_bytes, &reports);
+    if args.explain {
+        println!("explain: {WALK_EXPLAIN}");
+    }
     Ok(())
 }
 
 fn print_render(args: &Args, report: &serde_json::Value) -> anyhow::Result<()> {
     if args.json {
-        println!("{}", serde_json::to_string_pretty(report)?);
+        let mut report = report.clone();
+        if let (false, Some(object)) = (args.explain, report.as_object_mut()) {
+            object.remove("explain");
+        }
+        println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
     let walk = &report["walk"]["total"];
@@ -345,6 +364,11 @@ fn print_render(args: &Args, report: &serde_json::Value) -> anyhow::Result<()> {
     ] {
         if !report[key].is_null() {
             println!("  {key}: {}", report[key]);
+        }
+    }
+    if args.explain {
+        for line in report["explain"].as_array().into_iter().flatten() {
+            println!("explain: {}", line.as_str().unwrap_or_default());
         }
     }
     Ok(())

@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc;
 use std::time::Instant;
 
-use dmu_collide::{Checker, Settings, Step, StepOutcome, Summary, replay};
+use dmu_collide::{Checker, Settings, Step, StepOutcome, Summary, SweepMode, replay};
 use dmu_scene::{PartId, Scene};
 use dmu_tree::{Tree, TreeOptions};
 use glam::DAffine3;
@@ -22,6 +22,9 @@ pub struct Checked<T> {
     /// Wall time to build the cell tree of the worker that replayed it (each
     /// worker builds one and reuses it for its records), milliseconds.
     pub tree_build_ms: f64,
+    /// The choices made by measurement, one line each: the steps swept because
+    /// a part moved more than its thickness.
+    pub explain: Vec<String>,
 }
 
 /// Replays every record from the scene's own poses on up to `jobs` workers.
@@ -40,7 +43,7 @@ pub fn check_records<T: Send>(
     scene: Scene,
     records: &[Vec<Step>],
     settings: &Settings,
-    continuous: bool,
+    sweep: SweepMode,
     jobs: usize,
     collect: impl Fn(&StepOutcome<'_>, &mut Vec<T>) + Sync,
     mut emit: impl FnMut(usize, Checked<T>) -> anyhow::Result<()>,
@@ -67,14 +70,25 @@ pub fn check_records<T: Send>(
                         break;
                     };
                     let mut findings = Vec::new();
+                    let mut explain = Vec::new();
                     let summary = replay(
                         &mut scene,
                         &mut tree,
                         &mut checker,
                         steps,
                         settings,
-                        continuous,
-                        |o| collect(o, &mut findings),
+                        sweep,
+                        |o| {
+                            collect(o, &mut findings);
+                            explain.extend(o.swept_because.iter().map(|d| {
+                                format!(
+                                    "step {} (t={}): {}",
+                                    o.index,
+                                    o.step.t,
+                                    d.describe(o.scene)
+                                )
+                            }));
+                        },
                     );
                     moved.clear();
                     moved.extend(steps.iter().flat_map(|s| s.moves.iter().map(|m| m.part)));
@@ -91,6 +105,7 @@ pub fn check_records<T: Send>(
                         findings,
                         summary,
                         tree_build_ms,
+                        explain,
                     };
                     if sender.send((index, checked)).is_err() {
                         break; // the caller stopped on an error

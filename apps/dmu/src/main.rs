@@ -9,8 +9,10 @@ mod cmd_info;
 mod cmd_move;
 mod cmd_pick;
 mod cmd_render;
+mod cmd_tradeoffs;
 mod cmd_walk;
 mod collide_batch;
+mod tradeoffs;
 mod walk_render;
 
 use std::process::ExitCode;
@@ -42,6 +44,7 @@ enum Command {
     Render(cmd_render::Args),
     Walk(cmd_walk::Args),
     Bench(cmd_bench::Args),
+    Tradeoffs(cmd_tradeoffs::Args),
 }
 
 /// Ends the process quietly, as Unix tools do, when the reader of stdout goes
@@ -79,6 +82,7 @@ fn main() -> ExitCode {
         Command::Render(args) => cmd_render::run(&args),
         Command::Walk(args) => cmd_walk::run(&args),
         Command::Bench(args) => cmd_bench::run(&args),
+        Command::Tradeoffs(args) => cmd_tradeoffs::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

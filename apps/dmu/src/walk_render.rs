@@ -91,6 +91,15 @@ fn camera(frame: &CameraFrame, tree: &Tree) -> Camera {
     frame.camera((tree.bounds().extent().length() * 1e-4).max(1e-6))
 }
 
+/// The choices one mode made by measurement over its frames, each line
+/// naming the mode.
+fn explain(culling: Culling, frames: &[FrameStats]) -> Vec<String> {
+    dmu_app::explain::occlusion_changes(culling, frames)
+        .into_iter()
+        .map(|line| format!("{}: {line}", culling_name(culling)))
+        .collect()
+}
+
 fn mode_frame(stats: &FrameStats, differing: Option<(u64, u64)>) -> ModeFrame {
     ModeFrame {
         frame_ms: stats.cpu_ms,
@@ -190,6 +199,7 @@ pub fn run(
     let mut frames = Vec::with_capacity(path.len());
     let mut missing_before: BTreeSet<EntryId> = BTreeSet::new();
     let mut late_chunks = 0u64;
+    let mut stats_of: Vec<Vec<FrameStats>> = modes.iter().map(|_| Vec::new()).collect();
     let progress = indicatif::ProgressBar::new(path.len() as u64);
     for frame in path {
         let mut reference: Option<Vec<u8>> = None;
@@ -211,6 +221,7 @@ pub fn run(
                 None
             };
             modes_out.push(mode_frame(&stats, differing));
+            stats_of[i].push(stats);
         }
         let (exact_visible_triangles, chc_missing_chunks) = match (compare, chc) {
             (true, Some(c)) => {
@@ -282,6 +293,11 @@ pub fn run(
             .then(|| over_exact.iter().sum::<f64>() / over_exact.len() as f64),
         "chc_over_exact_triangles_worst": over_exact.iter().copied().reduce(f64::max),
         "chc_chunks_more_than_one_frame_late": compare.then_some(late_chunks),
+        "explain": modes
+            .iter()
+            .zip(&stats_of)
+            .flat_map(|(&m, stats)| explain(m, stats))
+            .collect::<Vec<_>>(),
         "per_frame": frames,
     }))
 }
@@ -308,6 +324,7 @@ pub fn run_resident(
     let mut view = View::new(camera(&path[0]), size, culling);
     view.options = culling_options;
     let mut rendered = Vec::with_capacity(path.len());
+    let mut stats_all = Vec::with_capacity(path.len());
     let progress = indicatif::ProgressBar::new(path.len() as u64);
     let report = dmu_store::walk_with(store, tree, path, options, &mut |i, _, residency| {
         for c in residency.take_evicted() {
@@ -317,6 +334,7 @@ pub fn run_resident(
         let source = ResidentSource::new(residency, scene.chunks().len());
         let stats = renderer.render(&mut view, scene, tree, &source, capture.frame_target())?;
         rendered.push(mode_frame(&stats, None));
+        stats_all.push(stats);
         progress.inc(1);
         Ok(Drawn {
             missing_chunks: stats.not_resident,
@@ -336,5 +354,6 @@ pub fn run_resident(
             "gpu_pool_bytes": renderer.geometry_pool().resident_bytes(),
             "per_frame": rendered,
         },
+        "explain": explain(culling, &stats_all),
     }))
 }

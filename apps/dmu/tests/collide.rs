@@ -129,14 +129,68 @@ fn collide_reports_clashes_with_exit_1_and_clear_runs_with_exit_0() {
 }
 
 #[test]
-fn collide_finds_a_jump_through_a_part_only_when_continuous() {
+fn collide_sweeps_a_jump_through_a_part_and_explains_why() {
     let dir = tempfile::tempdir().unwrap();
     let model = grid(dir.path());
-    // From x = 0 to x = 20 in one step: through box_1_0_0, clear at both ends.
-    let jump = at(1.0, "box_0_0_0", 20.0);
-    let moves = record(dir.path(), "jump.jsonl", &[&jump]);
-    let out = dmu(&["collide", &model, "--record", &moves, "--clearance", "1"]);
+    // Two short steps (1 mm, less than the box's 4 mm), then one from x = -2
+    // to x = 20 in one step: through box_1_0_0, clear at both ends.
+    let lines = [
+        at(0.0, "box_0_0_0", -1.0),
+        at(1.0, "box_0_0_0", -2.0),
+        at(2.0, "box_0_0_0", 20.0),
+    ];
+    let lines: Vec<&str> = lines.iter().map(String::as_str).collect();
+    let moves = record(dir.path(), "jump.jsonl", &lines);
+    // Never swept: the jump is missed.
+    let out = dmu(&[
+        "collide",
+        &model,
+        "--record",
+        &moves,
+        "--clearance",
+        "1",
+        "--discrete",
+    ]);
     assert_exit(&out, 0);
+    // By default the large step, and only it, is swept, and --explain says why.
+    let out = dmu(&[
+        "collide",
+        &model,
+        "--record",
+        &moves,
+        "--clearance",
+        "1",
+        "--explain",
+        "--json",
+    ]);
+    assert_exit(&out, 1);
+    let v = parse(&out);
+    assert_eq!(v["sweep"], "auto");
+    assert_eq!(v["summary"]["impacts"], 1);
+    assert_eq!(v["clashes"][0]["b"], "box_1_0_0");
+    let explain = v["explain"].as_array().expect("an explain array");
+    assert_eq!(explain.len(), 1, "{explain:?}");
+    assert_eq!(
+        explain[0],
+        "step 2 (t=2): part box_0_0_0 moved 22 model units, more than its thickness 4: \
+         continuous (swept) check"
+    );
+    let out = dmu(&[
+        "collide",
+        &model,
+        "--record",
+        &moves,
+        "--clearance",
+        "1",
+        "--explain",
+    ]);
+    assert_exit(&out, 1);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("explain: step 2 (t=2): part box_0_0_0 moved 22 model units"),
+        "{text}"
+    );
+    // Every step swept: the same impact, found 6 of the 22 mm into the jump.
     let out = dmu(&[
         "collide",
         &model,
@@ -152,9 +206,9 @@ fn collide_finds_a_jump_through_a_part_only_when_continuous() {
     let impact = &v["clashes"][0];
     assert_eq!(impact["kind"], "impact");
     assert_eq!(impact["b"], "box_1_0_0");
-    // The faces (x = 2 and x = 8) meet after 6 of the 20 mm travelled.
+    // The faces (x = 2 and x = 8) meet after 8 of the 22 mm travelled from x = -2.
     assert!(
-        (impact["toi"].as_f64().unwrap() - 0.3).abs() < 1e-6,
+        (impact["toi"].as_f64().unwrap() - 8.0 / 22.0).abs() < 1e-6,
         "{impact}"
     );
     assert_eq!(v["summary"]["impacts"], 1);

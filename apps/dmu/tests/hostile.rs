@@ -9,7 +9,7 @@ use std::process::Output;
 
 use serde_json::{Value, json};
 
-use super::{dmu, json, path};
+use super::{dmu, json, path, render};
 
 /// A refusal: exit code 2 (never 101, a panic, or a signal), one error on stderr
 /// that says `needle`.
@@ -336,7 +336,9 @@ fn misnamed_files_and_marks_read_and_errors_say_things_once() {
     let record = path(dir.path(), "r.jsonl");
     std::fs::write(
         &record,
-        "\u{feff}{\"t\": 0, \"part\": \"box_0_0_0\", \"translation\": [0, 0, 100], \"rotation\": [0, 0, 0, 1]}\n",
+        // Down, away from the grid: the 100 mm jump is swept (longer than
+        // the box) and meets nothing.
+        "\u{feff}{\"t\": 0, \"part\": \"box_0_0_0\", \"translation\": [0, 0, -100], \"rotation\": [0, 0, 0, 1]}\n",
     )
     .unwrap();
     let out = dmu(&["collide", &store, "--record", &record, "--json"]);
@@ -356,29 +358,6 @@ fn misnamed_files_and_marks_read_and_errors_say_things_once() {
     );
     assert_eq!(err.matches("No such file").count(), 1, "{err}");
     assert_eq!(err.lines().count(), 1, "{err}");
-}
-
-/// `dmu render ARGS` as on a user's machine (without the `NODEVICE_SELECT` that
-/// the test script sets for in-process GPU tests), or `None` after printing
-/// SKIPPED when there is no Vulkan adapter outside CI (under `CI=true` that fails).
-fn render(test: &str, args: &[&str]) -> Option<Output> {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_dmu"))
-        .env_remove("NODEVICE_SELECT")
-        .arg("render")
-        .args(args)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    if !out.status.success() && err.contains("adapter") {
-        assert_ne!(
-            std::env::var("CI").as_deref(),
-            Ok("true"),
-            "{test}: lavapipe is missing under CI: {err}"
-        );
-        eprintln!("SKIPPED {test}: no Vulkan adapter ({err})");
-        return None;
-    }
-    Some(out)
 }
 
 /// A headless render prints nothing on stderr (Mesa's device-select layer used

@@ -2,8 +2,10 @@
 //! modules below take one command each (collide, bulk picks) or hostile input.
 
 mod collide;
+mod explain;
 mod hostile;
 mod pick_rays;
+mod tradeoffs;
 
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
@@ -28,6 +30,29 @@ fn json(out: &Output) -> Value {
 
 fn path(dir: &Path, name: &str) -> String {
     dir.join(name).to_string_lossy().into_owned()
+}
+
+/// `dmu render ARGS` as on a user's machine (without the `NODEVICE_SELECT` that
+/// the test script sets for in-process GPU tests), or `None` after printing
+/// SKIPPED when there is no Vulkan adapter outside CI (under `CI=true` that fails).
+fn render(test: &str, args: &[&str]) -> Option<Output> {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_dmu"))
+        .env_remove("NODEVICE_SELECT")
+        .arg("render")
+        .args(args)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    if !out.status.success() && err.contains("adapter") {
+        assert_ne!(
+            std::env::var("CI").as_deref(),
+            Ok("true"),
+            "{test}: lavapipe is missing under CI: {err}"
+        );
+        eprintln!("SKIPPED {test}: no Vulkan adapter ({err})");
+        return None;
+    }
+    Some(out)
 }
 
 #[test]

@@ -2,7 +2,8 @@
 //! window) share: opening a model (a glTF file, a store or the built-in plant)
 //! from the same command-line arguments, parsing the numbers people type,
 //! reporting pick hits and progress, and streaming a store's chunks into the
-//! renderer ([`resident::ResidentSource`]).
+//! renderer ([`resident::ResidentSource`]), and putting the choices made by
+//! measurement into words ([`explain`]).
 //!
 //! Design choices:
 //! - The `dmu` command line and the `dmu-viewer` window open models through one
@@ -27,6 +28,7 @@
 //! # Ok::<(), anyhow::Error>(())
 //! ```
 
+pub mod explain;
 pub mod hits;
 pub mod load;
 pub mod progress;

@@ -48,7 +48,10 @@
 //!   the parts inside its box. Open meshes never contain.
 //! - **Continuous check by conservative advancement** on the same f64 distance
 //!   ([`Checker::sweep`]): exact for rotations as for translations, so a thin
-//!   plate crossed in one step is found.
+//!   plate crossed in one step is found. [`replay`] sweeps by default only
+//!   the steps where a part moves more than its own thickness
+//!   ([`SweepMode::Auto`]), the steps a discrete check can jump across, and
+//!   says so ([`SweepDecision`]), so short steps keep the discrete check's speed.
 //! - **No allocation per check once warm**: a [`Checker`] keeps its scratch
 //!   buffers and the caller keeps its [`Report`].
 //!
@@ -104,5 +107,5 @@ pub use record::{
     RecordError, RecordLine, RecordedMove, Step, StepOutcome, Summary, parse_record, read_record,
     record_part_name, replay, write_record,
 };
-pub use sweep::{MAX_ADVANCEMENT_STEPS, Motion};
+pub use sweep::{MAX_ADVANCEMENT_STEPS, Motion, SweepDecision, SweepMode};
 pub use triangle::{TriangleClash, triangle_clash, triangle_distance};

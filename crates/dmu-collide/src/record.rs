@@ -12,7 +12,7 @@ use glam::{DAffine3, DQuat, DVec3};
 use serde::{Deserialize, Serialize};
 
 use crate::check::{Checker, Report, Settings};
-use crate::sweep::Motion;
+use crate::sweep::{Motion, SweepDecision, SweepMode};
 
 /// How far a rotation's length may stray from 1 before the line is refused:
 /// loose enough for quaternions printed with 6 digits, tight enough to catch a
@@ -257,9 +257,12 @@ pub struct StepOutcome<'a> {
     pub step: &'a Step,
     /// The scene at the step's poses (for names and paths).
     pub scene: &'a Scene,
-    /// What the checks found at the step's poses (and, when continuous, along
-    /// the motions into them).
+    /// What the checks found at the step's poses (and, when swept, along the
+    /// motions into them).
     pub report: &'a Report,
+    /// Why the step was swept under [`SweepMode::Auto`]: the parts that moved
+    /// more than their thickness (empty when not swept, or swept always).
+    pub swept_because: &'a [SweepDecision],
 }
 
 /// Totals of a replay.
@@ -280,7 +283,7 @@ pub struct Summary {
 }
 
 /// Replays steps: each step's parts move through the tree to their poses, then
-/// the moved parts are checked there, and with `continuous` also along their
+/// the moved parts are checked there, and, as `sweep` says, also along their
 /// motions from the poses before (the first motion of a part starts at its
 /// pose in the model). `on_step` sees every step's report.
 pub fn replay(
@@ -289,13 +292,14 @@ pub fn replay(
     checker: &mut Checker,
     steps: &[Step],
     settings: &Settings,
-    continuous: bool,
+    sweep: SweepMode,
     mut on_step: impl FnMut(&StepOutcome<'_>),
 ) -> Summary {
     let mut summary = Summary::default();
     let mut report = Report::default();
     let mut motions: Vec<Motion> = Vec::new();
     let mut moved: Vec<PartId> = Vec::new();
+    let mut because: Vec<SweepDecision> = Vec::new();
     for (index, step) in steps.iter().enumerate() {
         let start = Instant::now();
         motions.clear();
@@ -306,11 +310,15 @@ pub fn replay(
         }));
         moved.clear();
         moved.extend(step.moves.iter().map(|m| m.part));
+        because.clear();
+        if sweep == SweepMode::Auto {
+            because.extend(motions.iter().filter_map(|m| SweepDecision::of(scene, m)));
+        }
         for m in &step.moves {
             tree.move_part(scene, m.part, m.world);
         }
         checker.check(scene, tree, &moved, settings, &mut report);
-        if continuous {
+        if sweep == SweepMode::Always || !because.is_empty() {
             checker.sweep(scene, tree, &motions, settings, &mut report);
         }
         summary.seconds += start.elapsed().as_secs_f64();
@@ -324,6 +332,7 @@ pub fn replay(
             step,
             scene,
             report: &report,
+            swept_because: &because,
         });
     }
     summary

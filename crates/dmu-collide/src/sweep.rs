@@ -86,6 +86,73 @@ fn frame(m: &DMat3) -> DMat3 {
     DMat3::from_cols(x, y, z)
 }
 
+/// When [`replay`](crate::replay) sweeps a step's motions.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SweepMode {
+    /// Never: each step is checked at its end poses only (a fast move can
+    /// pass through a thin part unseen).
+    Off,
+    /// Where a part moves more than its own thickness in one step, the only
+    /// case where a discrete check can jump over a part as thick as itself;
+    /// each such choice is reported as a [`SweepDecision`].
+    #[default]
+    Auto,
+    /// Every motion of every step.
+    Always,
+}
+
+/// Why a step's motions were swept: a part moved farther than it is thick.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SweepDecision {
+    /// The part that moved.
+    pub part: PartId,
+    /// How far its farthest point may have travelled: its box centre's travel
+    /// plus the turn's arc at its radius, model units.
+    pub moved: f64,
+    /// Its thickness: the smallest side of its own box, scaled to the world,
+    /// model units.
+    pub thickness: f64,
+}
+
+impl SweepDecision {
+    /// The decision for one motion, or `None` when the part moved no more than
+    /// its thickness (a discrete check at the end pose suffices).
+    pub fn of(scene: &Scene, motion: &Motion) -> Option<Self> {
+        let local = scene.part_mesh(motion.part).bounds;
+        if local.is_empty() {
+            return None;
+        }
+        let path = Path::new(scene, motion);
+        let moved = path.reach(path.radius(&local));
+        let m = &motion.to.matrix3;
+        let scale = DVec3::new(m.x_axis.length(), m.y_axis.length(), m.z_axis.length());
+        let thickness = (local.extent().as_dvec3() * scale).min_element();
+        (moved > thickness).then_some(Self {
+            part: motion.part,
+            moved,
+            thickness,
+        })
+    }
+
+    /// The decision in words, with the part's name: "part P moved 412 mm, more
+    /// than its thickness 20 mm: continuous (swept) check".
+    pub fn describe(&self, scene: &Scene) -> String {
+        format!(
+            "part {} moved {} model units, more than its thickness {}: continuous (swept) check",
+            scene.part_name(self.part),
+            round3(self.moved),
+            round3(self.thickness)
+        )
+    }
+}
+
+/// A length shown to three decimals without trailing zeros.
+fn round3(v: f64) -> String {
+    let s = format!("{v:.3}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    s.to_owned()
+}
+
 impl Path {
     pub(crate) fn new(scene: &Scene, motion: &Motion) -> Self {
         let pivot = scene.part_mesh(motion.part).bounds.center().as_dvec3();

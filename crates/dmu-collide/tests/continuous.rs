@@ -1,6 +1,8 @@
 //! The continuous check: tunnelling, rotations, two moving parts.
 
-use dmu_collide::{Checker, Motion, RecordedMove, Report, Settings, Step, replay};
+use dmu_collide::{
+    Checker, Motion, RecordedMove, Report, Settings, Step, SweepDecision, SweepMode, replay,
+};
 use dmu_scene::{PartId, Scene};
 use dmu_tree::{Tree, TreeOptions};
 use glam::{DAffine3, DVec3, Vec3};
@@ -53,30 +55,52 @@ fn a_thin_plate_crossed_in_one_step_is_found_only_when_continuous() {
             }],
         }];
         let settings = Settings::with_clearance(5.0);
-        let run = |scene: &mut Scene, continuous: bool| {
+        let run = |scene: &mut Scene, mode: SweepMode| {
             let mut tree = Tree::build(scene, TreeOptions::default());
             let mut checker = Checker::new(scene);
             let mut seen = Vec::new();
+            let mut because = Vec::new();
             let summary = replay(
                 scene,
                 &mut tree,
                 &mut checker,
                 &steps,
                 &settings,
-                continuous,
+                mode,
                 |o| {
                     seen.push(o.report.clone());
+                    because.extend_from_slice(o.swept_because);
                 },
             );
-            (summary, seen)
+            (summary, seen, because)
         };
         // Discrete: the cube ends 39.5 mm below the plate, beyond the clearance.
-        let (summary, seen) = run(&mut scene.clone(), false);
+        let (summary, seen, because) = run(&mut scene.clone(), SweepMode::Off);
         assert_eq!((summary.steps, summary.clashes, summary.impacts), (1, 0, 0));
-        assert!(seen[0].is_clear());
-        // Continuous: it met the plate 39.5 mm into its 100 mm fall.
-        let (summary, seen) = run(&mut scene, true);
+        assert!(seen[0].is_clear() && because.is_empty());
+        // Auto: the cube fell 100 mm, more than its 20 mm: swept, and said why.
+        let (summary, _, because) = run(&mut scene.clone(), SweepMode::Auto);
         assert_eq!((summary.clashes, summary.impacts), (0, 1));
+        let expected = SweepDecision {
+            part: cube,
+            moved: 100.0,
+            thickness: 20.0,
+        };
+        assert_eq!(because.len(), 1);
+        assert_eq!(because[0].part, expected.part);
+        assert!(
+            (because[0].moved - expected.moved).abs() < 1e-9,
+            "{because:?}"
+        );
+        assert!((because[0].thickness - expected.thickness).abs() < 1e-9);
+        assert_eq!(
+            because[0].describe(&scene),
+            "part cube moved 100 model units, more than its thickness 20: continuous (swept) check"
+        );
+        // Always: it met the plate 39.5 mm into its 100 mm fall.
+        let (summary, seen, because) = run(&mut scene, SweepMode::Always);
+        assert_eq!((summary.clashes, summary.impacts), (0, 1));
+        assert!(because.is_empty(), "swept always, not by choice");
         let impact = seen[0].impacts[0];
         assert_eq!((impact.a, impact.b), (cube, PartId(0)));
         assert!((impact.toi - 0.395).abs() < 1e-6, "toi {}", impact.toi);

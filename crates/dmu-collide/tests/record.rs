@@ -2,7 +2,7 @@
 //! replay on the grid.
 
 use dmu_collide::{
-    Checker, ClashKind, RecordError, RecordedMove, Settings, Step, parse_record, replay,
+    Checker, ClashKind, RecordError, RecordedMove, Settings, Step, SweepMode, parse_record, replay,
     write_record,
 };
 use dmu_samples::{Rng, grid};
@@ -94,7 +94,7 @@ fn replay_moves_through_the_tree_and_reports_each_step() {
         &mut checker,
         &steps,
         &Settings::with_clearance(5.0),
-        false,
+        SweepMode::Off,
         |o| {
             seen.push((
                 o.index,

@@ -37,7 +37,9 @@
 
 use std::path::PathBuf;
 
-use dmu_collide::{AllowList, Checker, Settings, Step, parse_record, read_record, replay};
+use dmu_collide::{
+    AllowList, Checker, Settings, Step, SweepMode, parse_record, read_record, replay,
+};
 use dmu_geom::Ray3d;
 use dmu_scene::limits::{MAX_CHUNK_TRIANGLES, MAX_LENGTH, MAX_TRIANGLES, MIN_PLANT_TRIANGLES};
 use dmu_scene::{ImportOptions, PartId, Scene};
@@ -303,8 +305,9 @@ impl Model {
     /// `record` is a path to a JSON Lines record (docs/record-format.md) or a
     /// list of its lines as dicts (`t`, `part`, `translation`, `rotation`).
     /// `clearance` (model units) reports closer pairs as `soft`; `continuous`
-    /// sweeps each move; `allow` lists pairs of parts that may touch. Every
-    /// part the record moved is put back afterwards.
+    /// sweeps each move (without it no move is swept, as `dmu collide
+    /// --discrete`); `allow` lists pairs of parts that may touch. Every part
+    /// the record moved is put back afterwards.
     #[pyo3(signature = (record, clearance = 5.0, continuous = false, allow = Vec::new()))]
     fn collide<'py>(
         &mut self,
@@ -350,8 +353,14 @@ impl Model {
                     before.push((m.part, scene.part_world(m.part)));
                 }
             }
+            // Python keeps its explicit choice: swept with continuous=True only.
+            let sweep = if continuous {
+                SweepMode::Always
+            } else {
+                SweepMode::Off
+            };
             let mut findings = Vec::new();
-            replay(scene, tree, checker, &steps, &settings, continuous, |o| {
+            replay(scene, tree, checker, &steps, &settings, sweep, |o| {
                 findings.extend(
                     o.findings()
                         .map(|f| serde_json::to_value(f).expect("a finding serializes")),

@@ -91,9 +91,10 @@ def make_records(model, directory, count, steps=4, seed=7):
 
 
 def cli_collide(dmu_bin, model_path, record, clearance=5.0, continuous=False):
-    """`dmu collide MODEL --record R --json`'s clash list."""
+    """`dmu collide MODEL --record R --json`'s clash list, swept as `Model.collide`
+    sweeps: every step with `continuous`, none without (the command line's
+    default, sweeping only steps longer than the part, is its own choice)."""
     args = ["collide", model_path, "--record", record, "--clearance", clearance, "--json"]
-    if continuous:
-        args.append("--continuous")
+    args.append("--continuous" if continuous else "--discrete")
     _, out = run_cli(dmu_bin, *args)
     return json.loads(out)["clashes"]

@@ -1,0 +1,103 @@
+//! The choices the renderer makes by measurement, in words with the figures
+//! behind them: what `--explain` prints on `dmu render` and `dmu walk`, and what
+//! the viewer's "Why" section lists. (The collision sweep's choice speaks for
+//! itself: `dmu_collide::SweepDecision::describe`, which `dmu collide
+//! --explain` prints.)
+
+use dmu_render::{Culling, FrameStats, OcclusionDecision};
+
+/// A view's occlusion decision now, in one sentence.
+pub fn occlusion_now(culling: Culling, d: &OcclusionDecision) -> String {
+    if culling != Culling::Occlusion {
+        return format!(
+            "occlusion queries not asked for (culling {}): nothing chosen by measurement",
+            culling_name(culling)
+        );
+    }
+    if d.enabled && d.cost_ms == 0.0 && d.saved_ms == 0.0 {
+        return "occlusion queries on: measuring (the first frames build visibility)".to_owned();
+    }
+    if d.enabled {
+        format!(
+            "occlusion queries on: they save {:.3} ms a frame of drawing for {:.3} ms of queries and waits",
+            d.saved_ms, d.cost_ms
+        )
+    } else {
+        format!(
+            "occlusion queries off: they cost {:.3} ms a frame in queries and waits and saved only {:.3} ms of drawing; tried again in {} frames",
+            d.cost_ms, d.saved_ms, d.retry_in_frames
+        )
+    }
+}
+
+/// The occlusion decisions over a run of frames: the first frame's, each
+/// frame where queries were switched on or off, and the last frame's, one
+/// line each, `frame N: ...`.
+pub fn occlusion_changes(culling: Culling, frames: &[FrameStats]) -> Vec<String> {
+    let mut lines = Vec::new();
+    let mut before: Option<bool> = None;
+    for (i, s) in frames.iter().enumerate() {
+        let last = i + 1 == frames.len();
+        if before != Some(s.occlusion.enabled) || last {
+            lines.push(format!(
+                "frame {}: {}",
+                i + 1,
+                occlusion_now(culling, &s.occlusion)
+            ));
+        }
+        before = Some(s.occlusion.enabled);
+        if culling != Culling::Occlusion {
+            break;
+        }
+    }
+    lines
+}
+
+fn culling_name(c: Culling) -> &'static str {
+    match c {
+        Culling::None => "none",
+        Culling::Frustum => "frustum",
+        Culling::Occlusion => "chc",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame(enabled: bool, cost_ms: f64, saved_ms: f64) -> FrameStats {
+        FrameStats {
+            occlusion: OcclusionDecision {
+                enabled,
+                cost_ms,
+                saved_ms,
+                retry_in_frames: if enabled { 0 } else { 60 },
+            },
+            ..FrameStats::default()
+        }
+    }
+
+    #[test]
+    fn changes_name_the_frames_and_the_figures() {
+        let frames = [
+            frame(true, 0.0, 0.0),
+            frame(true, 2.0, 0.5),
+            frame(false, 2.0, 0.5),
+            frame(false, 2.0, 0.5),
+        ];
+        let lines = occlusion_changes(Culling::Occlusion, &frames);
+        assert_eq!(lines.len(), 3, "{lines:?}");
+        assert!(lines[0].starts_with("frame 1: occlusion queries on: measuring"));
+        assert!(
+            lines[1].starts_with("frame 3: occlusion queries off: they cost 2.000 ms")
+                && lines[1].contains("saved only 0.500 ms")
+                && lines[1].contains("60 frames"),
+            "{}",
+            lines[1]
+        );
+        assert!(lines[2].starts_with("frame 4: occlusion queries off"));
+        let frustum = occlusion_changes(Culling::Frustum, &frames);
+        assert_eq!(frustum.len(), 1);
+        assert!(frustum[0].contains("not asked for (culling frustum)"));
+    }
+}
