@@ -91,11 +91,13 @@ fn camera(frame: &CameraFrame, tree: &Tree) -> Camera {
     frame.camera((tree.bounds().extent().length() * 1e-4).max(1e-6))
 }
 
-/// The choices one mode made by measurement over its frames, each line
-/// naming the mode.
-fn explain(culling: Culling, frames: &[FrameStats]) -> Vec<String> {
+/// The choices one mode made by measurement over its frames (occlusion on or
+/// off, and under `target_ms` the LOD error and coverage threshold), each
+/// line naming the mode.
+fn explain(culling: Culling, target_ms: Option<f64>, frames: &[FrameStats]) -> Vec<String> {
     dmu_app::explain::occlusion_changes(culling, frames)
         .into_iter()
+        .chain(dmu_app::explain::budget_changes(target_ms, frames))
         .map(|line| format!("{}: {line}", culling_name(culling)))
         .collect()
 }
@@ -296,7 +298,8 @@ pub fn run(
         "explain": modes
             .iter()
             .zip(&stats_of)
-            .flat_map(|(&m, stats)| explain(m, stats))
+            .zip(&views)
+            .flat_map(|((&m, stats), view)| explain(m, view.options.target_ms, stats))
             .collect::<Vec<_>>(),
         "per_frame": frames,
     }))
@@ -354,6 +357,6 @@ pub fn run_resident(
             "gpu_pool_bytes": renderer.geometry_pool().resident_bytes(),
             "per_frame": rendered,
         },
-        "explain": explain(culling, &stats_all),
+        "explain": explain(culling, culling_options.target_ms, &stats_all),
     }))
 }

@@ -53,6 +53,41 @@ pub fn occlusion_changes(culling: Culling, frames: &[FrameStats]) -> Vec<String>
     lines
 }
 
+/// A frame-time budget's choices over a run of frames: each frame whose LOD
+/// error or coverage threshold differs from the frame before, with the time
+/// of the frame that made the budget choose, `frame N: ...`. Nothing without
+/// a budget.
+pub fn budget_changes(target_ms: Option<f64>, frames: &[FrameStats]) -> Vec<String> {
+    let Some(target) = target_ms else {
+        return Vec::new();
+    };
+    frames
+        .windows(2)
+        .enumerate()
+        .filter(|(_, w)| {
+            (w[0].lod_error_px, w[0].min_pixels) != (w[1].lod_error_px, w[1].min_pixels)
+        })
+        .map(|(i, w)| {
+            let (a, b) = (&w[0], &w[1]);
+            format!(
+                "frame {}: the frame before took {:.1} ms against the {target} ms budget \
+                 ({}): LOD error {:.2} -> {:.2} px, coverage threshold {:.2} -> {:.2} px",
+                i + 2,
+                a.cpu_ms,
+                if a.cpu_ms > target {
+                    "over: less accuracy"
+                } else {
+                    "time to spare: more accuracy"
+                },
+                a.lod_error_px,
+                b.lod_error_px,
+                a.min_pixels,
+                b.min_pixels
+            )
+        })
+        .collect()
+}
+
 fn culling_name(c: Culling) -> &'static str {
     match c {
         Culling::None => "none",
@@ -99,5 +134,40 @@ mod tests {
         let frustum = occlusion_changes(Culling::Frustum, &frames);
         assert_eq!(frustum.len(), 1);
         assert!(frustum[0].contains("not asked for (culling frustum)"));
+    }
+
+    #[test]
+    fn a_budget_explains_each_change_with_the_time_behind_it() {
+        let frame = |cpu_ms: f64, lod_error_px: f64, min_pixels: f64| FrameStats {
+            cpu_ms,
+            lod_error_px,
+            min_pixels,
+            ..FrameStats::default()
+        };
+        let frames = [
+            frame(250.0, 1.0, 0.0),
+            frame(150.0, 2.5, 0.0),
+            frame(90.0, 2.5, 0.0),
+            frame(40.0, 2.5, 0.0),
+            frame(60.0, 2.0, 0.0),
+        ];
+        let lines = budget_changes(Some(100.0), &frames);
+        assert_eq!(lines.len(), 2, "{lines:?}");
+        assert!(
+            lines[0].starts_with("frame 2: the frame before took 250.0 ms"),
+            "{}",
+            lines[0]
+        );
+        assert!(
+            lines[0].contains("over") && lines[0].contains("1.00 -> 2.50"),
+            "{}",
+            lines[0]
+        );
+        assert!(
+            lines[1].starts_with("frame 5:") && lines[1].contains("time to spare"),
+            "{}",
+            lines[1]
+        );
+        assert!(budget_changes(None, &frames).is_empty());
     }
 }
