@@ -336,21 +336,14 @@ impl Gfx {
             });
         let target = frame.texture.create_view(&Default::default());
         let view_textures: Vec<egui::TextureId> = self.views.iter().map(|v| v.texture).collect();
-        let (mut commands, painted_whole) = match self.panels.as_mut() {
-            None => {
-                let commands = self.egui.update_buffers(
-                    &self.device,
-                    &self.queue,
-                    &mut encoder,
-                    &jobs,
-                    &screen,
-                );
-                paint(&self.egui, &mut encoder, &target, true, &jobs, &screen);
-                (commands, true)
-            }
+        let size = frame.texture.size();
+        // The views' images to copy: set when the panels' last paint is
+        // reused, and then only what lies over the views is painted.
+        let mut copies = None;
+        let (jobs, panels) = match self.panels.as_mut() {
+            None => (jobs, None),
             Some(panels) => {
                 let split = crate::compose::split(&jobs, &view_textures, pixels_per_point);
-                let size = frame.texture.size();
                 if panels.texture.as_ref().map(wgpu::Texture::size) != Some(size) {
                     panels.texture = Some(self.device.create_texture(&wgpu::TextureDescriptor {
                         label: Some("dmu-viewer panels"),
@@ -365,54 +358,61 @@ impl Gfx {
                     }));
                     panels.painted_from = None;
                 }
-                let texture = panels.texture.as_ref().expect("made above");
-                let copies = split
+                let found = split
                     .as_ref()
                     .and_then(|s| image_copies(&self.views, &s.images, pixels_per_point, size));
                 let reuse = !textures_changed
-                    && copies.is_some()
+                    && found.is_some()
                     && split.as_ref().map(|s| &s.panels) == panels.painted_from.as_ref();
-                let (jobs, whole) = match split {
-                    Some(split) if reuse => (split.over_views, false),
+                let jobs = match split {
+                    Some(split) if reuse => {
+                        copies = found;
+                        split.over_views
+                    }
                     split => {
                         panels.painted_from = split.map(|s| s.panels);
-                        (jobs, true)
+                        jobs
                     }
                 };
-                let commands = self.egui.update_buffers(
-                    &self.device,
-                    &self.queue,
-                    &mut encoder,
-                    &jobs,
-                    &screen,
-                );
-                if whole {
-                    let view = texture.create_view(&Default::default());
-                    paint(&self.egui, &mut encoder, &view, true, &jobs, &screen);
-                }
+                (jobs, panels.texture.as_ref())
+            }
+        };
+        let mut commands =
+            self.egui
+                .update_buffers(&self.device, &self.queue, &mut encoder, &jobs, &screen);
+        let painted_whole = copies.is_none();
+        match (panels, copies) {
+            (None, _) => paint(&self.egui, &mut encoder, &target, true, &jobs, &screen),
+            (Some(texture), None) => {
+                let view = texture.create_view(&Default::default());
+                paint(&self.egui, &mut encoder, &view, true, &jobs, &screen);
                 encoder.copy_texture_to_texture(
                     texture.as_image_copy(),
                     frame.texture.as_image_copy(),
                     size,
                 );
-                if !whole {
-                    for (view, origin) in copies.into_iter().flatten() {
-                        encoder.copy_texture_to_texture(
-                            view.as_image_copy(),
-                            wgpu::TexelCopyTextureInfo {
-                                texture: &frame.texture,
-                                mip_level: 0,
-                                origin,
-                                aspect: wgpu::TextureAspect::All,
-                            },
-                            view.size(),
-                        );
-                    }
-                    paint(&self.egui, &mut encoder, &target, false, &jobs, &screen);
-                }
-                (commands, whole)
             }
-        };
+            (Some(texture), Some(copies)) => {
+                encoder.copy_texture_to_texture(
+                    texture.as_image_copy(),
+                    frame.texture.as_image_copy(),
+                    size,
+                );
+                for (view, origin) in copies {
+                    encoder.copy_texture_to_texture(
+                        view.as_image_copy(),
+                        wgpu::TexelCopyTextureInfo {
+                            texture: &frame.texture,
+                            mip_level: 0,
+                            origin,
+                            aspect: wgpu::TextureAspect::All,
+                        },
+                        view.size(),
+                    );
+                }
+                paint(&self.egui, &mut encoder, &target, false, &jobs, &screen);
+            }
+        }
         let readback = (read_back && self.can_read_back).then(|| {
             let (w, h) = (frame.texture.width(), frame.texture.height());
             let row = (4 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);

@@ -399,9 +399,9 @@ fn coplanar_overlap(a: &[DVec3; 3], b: &[DVec3; 3], n: DVec3) -> f64 {
     overlap
 }
 
-/// The point of triangle `t` nearest to `p` (Ericson, Real-Time Collision
-/// Detection 5.1.5); degenerate triangles (`has_normal` false: see
-/// [`unit_normal`]) fall back to their edges.
+/// The point of triangle `t` nearest to `p`
+/// ([`dmu_geom::closest_point_on_triangle`]); degenerate triangles
+/// (`has_normal` false: see [`unit_normal`]) fall back to their edges.
 fn closest_on_triangle(p: DVec3, t: &[DVec3; 3], has_normal: bool) -> DVec3 {
     let [a, b, c] = *t;
     if !has_normal {
@@ -411,35 +411,7 @@ fn closest_on_triangle(p: DVec3, t: &[DVec3; 3], has_normal: bool) -> DVec3 {
             .min_by(|x, y| x.distance_squared(p).total_cmp(&y.distance_squared(p)))
             .unwrap_or(a);
     }
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return a;
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return b;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return a + ab * (d1 / (d1 - d3));
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return a + ac * (d2 / (d2 - d6));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
-        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    }
-    let denom = 1.0 / (va + vb + vc);
-    a + ab * (vb * denom) + ac * (vc * denom)
+    dmu_geom::closest_point_on_triangle(p, [a, b, c])
 }
 
 /// The point of segment `s..e` nearest to `p`.

@@ -65,5 +65,6 @@ pub use plane::Plane;
 pub use ray::{Ray3d, Ray3f};
 pub use ray_box::{RayBoxTest3d, RayBoxTest3f};
 pub use triangle::{
-    RayTriTest3d, RayTriTest3f, TriHit, is_degenerate, triangle_area, triangle_normal,
+    RayTriTest3d, RayTriTest3f, TriHit, closest_point_on_triangle, is_degenerate, triangle_area,
+    triangle_normal,
 };

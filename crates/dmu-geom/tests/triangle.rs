@@ -4,7 +4,8 @@
 
 use dmu_geom::glam::{DAffine3, DQuat, DVec3, Vec3};
 use dmu_geom::{
-    Ray3d, Ray3f, RayTriTest3d, RayTriTest3f, TriHit, is_degenerate, triangle_area, triangle_normal,
+    Ray3d, Ray3f, RayTriTest3d, RayTriTest3f, TriHit, closest_point_on_triangle, is_degenerate,
+    triangle_area, triangle_normal,
 };
 use proptest::prelude::*;
 
@@ -457,5 +458,39 @@ proptest! {
         prop_assert!((f64::from(hit.t) - 2.0).abs() < 1e-4, "t {}", hit.t);
         prop_assert!((f64::from(hit.u) - bary.0).abs() < 1e-4 && (f64::from(hit.v) - bary.1).abs() < 1e-4);
         prop_assert!((ray.at(f64::from(hit.t)) - world_target).length() < 1e-2);
+    }
+}
+
+proptest! {
+    /// The nearest point of a triangle against brute force: no point of a
+    /// fine barycentric grid over the triangle is nearer, and the answer lies
+    /// in the triangle (its barycentric coordinates are within [0, 1]).
+    #[test]
+    fn the_nearest_point_of_a_triangle_beats_a_grid_of_its_points(
+        v in prop::array::uniform3(prop::array::uniform3(-100.0f64..100.0)),
+        p in prop::array::uniform3(-200.0f64..200.0),
+    ) {
+        let [a, b, c] = v.map(DVec3::from_array);
+        let p = DVec3::from_array(p);
+        let n = (b - a).cross(c - a);
+        prop_assume!(n.length() > 1e-3 * (b - a).length() * (c - a).length());
+        let q = closest_point_on_triangle(p, [a, b, c]);
+        let d = q.distance(p);
+        let steps = 60;
+        for i in 0..=steps {
+            for j in 0..=steps - i {
+                let (u, w) = (f64::from(i) / f64::from(steps), f64::from(j) / f64::from(steps));
+                let g = a + (b - a) * u + (c - a) * w;
+                prop_assert!(d <= g.distance(p) + 1e-9 * (1.0 + d), "{q} at {d}, {g} nearer");
+            }
+        }
+        // Barycentric coordinates of q.
+        let (v0, v1, v2) = (b - a, c - a, q - a);
+        let (d00, d01, d11, d20, d21) = (v0.dot(v0), v0.dot(v1), v1.dot(v1), v2.dot(v0), v2.dot(v1));
+        let den = d00 * d11 - d01 * d01;
+        let (bv, bw) = ((d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den);
+        let eps = 1e-9;
+        prop_assert!(bv >= -eps && bw >= -eps && bv + bw <= 1.0 + eps, "({bv}, {bw})");
+        prop_assert!((q - a).dot(n).abs() <= 1e-9 * n.length() * (1.0 + (q - a).length()));
     }
 }

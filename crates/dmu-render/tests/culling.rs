@@ -244,11 +244,7 @@ fn occlusion_culling_survives_geometry_that_is_not_resident() {
 fn lod_levels_trade_triangles_for_bounded_pixel_error() {
     let (scene, tree) = small_plant();
     let size = (480, 270);
-    let options = dmu_render::RendererOptions {
-        lod_levels: true,
-        ..Default::default()
-    };
-    let Some(mut rig) = Rig::with_options(&scene, &tree, size, options) else {
+    let Some(mut rig) = Rig::with_lods(&scene, &tree, size) else {
         return;
     };
     let Some(mut exact_rig) = Rig::new(&scene, &tree, size) else {
@@ -310,11 +306,7 @@ fn lod_levels_trade_triangles_for_bounded_pixel_error() {
 fn a_frame_budget_trades_error_for_time_and_back() {
     let (scene, tree) = small_plant();
     let size = (480, 270);
-    let options = dmu_render::RendererOptions {
-        lod_levels: true,
-        ..Default::default()
-    };
-    let Some(mut rig) = Rig::with_options(&scene, &tree, size, options) else {
+    let Some(mut rig) = Rig::with_lods(&scene, &tree, size) else {
         return;
     };
     let cam = viewpoints()[3];

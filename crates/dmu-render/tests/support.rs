@@ -61,6 +61,15 @@ impl Rig {
         Self::with_options(scene, tree, size, Default::default())
     }
 
+    /// A rig whose chunks get their simplified levels.
+    pub fn with_lods(scene: &Scene, tree: &Tree, size: (u32, u32)) -> Option<Rig> {
+        let options = RendererOptions {
+            lod_levels: true,
+            ..Default::default()
+        };
+        Self::with_options(scene, tree, size, options)
+    }
+
     pub fn with_options(
         scene: &Scene,
         tree: &Tree,

@@ -111,41 +111,6 @@ mod tests {
         (positions, indices)
     }
 
-    /// The point of triangle `abc` nearest the origin (Ericson, Real-Time
-    /// Collision Detection, 5.1.5).
-    fn nearest_to_origin(a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
-        let p = Vec3::ZERO;
-        let (ab, ac, ap) = (b - a, c - a, p - a);
-        let (d1, d2) = (ab.dot(ap), ac.dot(ap));
-        if d1 <= 0.0 && d2 <= 0.0 {
-            return a;
-        }
-        let bp = p - b;
-        let (d3, d4) = (ab.dot(bp), ac.dot(bp));
-        if d3 >= 0.0 && d4 <= d3 {
-            return b;
-        }
-        let vc = d1 * d4 - d3 * d2;
-        if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-            return a + ab * (d1 / (d1 - d3));
-        }
-        let cp = p - c;
-        let (d5, d6) = (ab.dot(cp), ac.dot(cp));
-        if d6 >= 0.0 && d5 <= d6 {
-            return c;
-        }
-        let vb = d5 * d2 - d1 * d6;
-        if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-            return a + ac * (d2 / (d2 - d6));
-        }
-        let va = d3 * d6 - d5 * d4;
-        if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-            return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-        }
-        let denom = 1.0 / (va + vb + vc);
-        a + ab * (vb * denom) + ac * (vc * denom)
-    }
-
     /// How far inside the sphere of `radius` about the origin the surface of
     /// `indices` reaches: its vertices lie on the sphere, so this is the
     /// largest distance between the surface and the sphere (analytic).
@@ -153,8 +118,9 @@ mod tests {
         indices
             .chunks_exact(3)
             .map(|t| {
-                let [a, b, c] = [0, 1, 2].map(|k| positions[t[k] as usize]);
-                radius - nearest_to_origin(a, b, c).length()
+                let corners = [0, 1, 2].map(|k| positions[t[k] as usize].as_dvec3());
+                let nearest = dmu_geom::closest_point_on_triangle(glam::DVec3::ZERO, corners);
+                radius - nearest.length() as f32
             })
             .fold(0.0, f32::max)
     }
