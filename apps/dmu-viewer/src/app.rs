@@ -892,12 +892,12 @@ fn camera_json(nav: &Navigator) -> Value {
     })
 }
 
-/// A window rectangle (x, y, width, height) in the report.
 /// Milliseconds since `start`.
 fn ms_since(start: Instant) -> f64 {
     start.elapsed().as_secs_f64() * 1e3
 }
 
+/// A window rectangle (x, y, width, height) in the report.
 fn rect_json(r: (u32, u32, u32, u32)) -> Value {
     json!({ "x": r.0, "y": r.1, "width": r.2, "height": r.3 })
 }
@@ -950,8 +950,11 @@ impl ApplicationHandler for App {
                     &self.review.tree,
                     dmu_render::RendererOptions {
                         color_format: gfx.view_format,
-                        // The LOD setting can be raised from 0 in the panel.
-                        lod_levels: true,
+                        // Levels cost upload time and memory: built when the
+                        // view may draw them (a LOD error raised from 0 in the
+                        // panel later draws chunks whole).
+                        lod_levels: self.options.lod_error_px > 0.0
+                            || self.options.target_ms.is_some(),
                         ..Default::default()
                     },
                 );

@@ -17,7 +17,7 @@
 //! vertex), so nothing a widget does can be missed.
 
 use egui::epaint::{ClippedPrimitive, Mesh, Primitive};
-use egui::{Pos2, Rect, TextureId};
+use egui::{Rect, TextureId};
 
 /// A frame's primitives, split.
 #[derive(Debug, Default)]
@@ -26,8 +26,9 @@ pub struct Split {
     /// (with its clip rectangle): the panels are painted from these, and a
     /// later frame with equal ones can reuse that paint.
     pub panels: Vec<(Rect, Mesh)>,
-    /// Each view's image: its texture and its rectangle, on whole pixels.
-    pub images: Vec<(TextureId, Rect)>,
+    /// Each view's image: its texture and its rectangle in whole pixels
+    /// (x, y, width, height).
+    pub images: Vec<(TextureId, [u32; 4])>,
     /// What to paint each frame over the copied panels and images: every
     /// primitive after a view's image that reaches into it, clipped to the
     /// view.
@@ -56,11 +57,9 @@ pub fn split(
         if view_textures.contains(&mesh.texture_id) && footprint.is_positive() {
             // An image edge inside a pixel blends with what lies under it,
             // which a copy of the last paint would show stale.
-            if whole_pixels_inside(footprint, pixels_per_point) != footprint {
-                return None;
-            }
+            let pixels = pixel_rect(footprint, pixels_per_point)?;
             regions.push(footprint);
-            out.images.push((mesh.texture_id, footprint));
+            out.images.push((mesh.texture_id, pixels));
             continue;
         }
         let mut inside_one = false;
@@ -90,22 +89,27 @@ fn bounds(mesh: &Mesh) -> Rect {
     r
 }
 
-/// The largest rectangle of whole pixels inside `r` (in points): `r` itself
-/// when its edges lie on pixel boundaries.
-fn whole_pixels_inside(r: Rect, pixels_per_point: f32) -> Rect {
-    let to = |p: Pos2, f: fn(f32) -> f32| {
-        Pos2::new(
-            f(p.x * pixels_per_point) / pixels_per_point,
-            f(p.y * pixels_per_point) / pixels_per_point,
-        )
+/// `r` (points) in whole pixels, `[x, y, width, height]`, when each edge lies
+/// on a pixel boundary (within 1/1000 of a pixel: `116.99999` is 117 at a
+/// scale of 1.3); `None` otherwise.
+pub fn pixel_rect(r: Rect, pixels_per_point: f32) -> Option<[u32; 4]> {
+    let whole = |v: f32| {
+        let px = v * pixels_per_point;
+        ((px - px.round()).abs() < 1e-3 && px.round() >= 0.0).then_some(px.round() as u32)
     };
-    Rect::from_min_max(to(r.min, f32::ceil), to(r.max, f32::floor))
+    let (x0, y0, x1, y1) = (
+        whole(r.min.x)?,
+        whole(r.min.y)?,
+        whole(r.max.x)?,
+        whole(r.max.y)?,
+    );
+    Some([x0, y0, x1.checked_sub(x0)?, y1.checked_sub(y0)?])
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use egui::Color32;
+    use egui::{Color32, Pos2};
 
     fn quad(texture: TextureId, r: Rect, colour: Color32) -> Mesh {
         let mut mesh = Mesh::with_texture(texture);
@@ -165,7 +169,7 @@ mod tests {
         // Each frame: the image, then the overlay and the popup's part in
         // the view.
         let view = rect(100.0, 0.0, 400.0, 300.0);
-        assert_eq!(s.images, [(VIEW, view)]);
+        assert_eq!(s.images, [(VIEW, [100, 0, 300, 300])]);
         let painted: Vec<(Rect, Color32)> = s
             .over_views
             .iter()
@@ -203,7 +207,15 @@ mod tests {
         // At 2 pixels per point it is on whole pixels.
         let s = split(&jobs, &[VIEW], 2.0).unwrap();
         assert!(s.panels.is_empty() && s.over_views.is_empty());
-        assert_eq!(s.images, [(VIEW, view)]);
+        assert_eq!(s.images, [(VIEW, [201, 1, 598, 599])]);
+        // Edges a float rounding away from whole pixels are whole.
+        let scaled = rect(90.0, 10.0, 390.0, 310.0);
+        assert_eq!(
+            pixel_rect(scaled, 1.3),
+            Some([117, 13, 390, 390]),
+            "{:?}",
+            scaled.min.x * 1.3
+        );
     }
 
     #[test]

@@ -113,10 +113,17 @@ pub struct Gfx {
 /// The window's panels as last painted and what they were painted from.
 struct Panels {
     texture: Option<wgpu::Texture>,
-    /// The primitives outside the views it was painted from (`None`: it
-    /// cannot be reused).
-    painted_from: Option<Vec<(egui::Rect, egui::epaint::Mesh)>>,
+    /// The primitives outside the views it was painted from, and where the
+    /// views were (`None`: it cannot be reused).
+    painted_from: Option<PaintedFrom>,
 }
+
+/// What the panels were painted from: the primitives outside the views, and
+/// each view's texture and pixel rectangle.
+type PaintedFrom = (
+    Vec<(egui::Rect, egui::epaint::Mesh)>,
+    Vec<(egui::TextureId, [u32; 4])>,
+);
 
 /// What [`Gfx::present`] did.
 #[derive(Debug, Default)]
@@ -178,7 +185,16 @@ impl Gfx {
             .or_else(|| caps.formats.first().copied())
             .context("the surface offers no format")?;
         let can_read_back = caps.usages.contains(wgpu::TextureUsages::COPY_SRC);
-        let can_compose = caps.usages.contains(wgpu::TextureUsages::COPY_DST);
+        // The views are drawn in the surface's format, sRGB-encoding, and
+        // copied into frames; a surface without an sRGB twin (10-bit, float)
+        // gets the views in the capture format, shown through egui only.
+        let view_format = if format.add_srgb_suffix() == format.remove_srgb_suffix() {
+            dmu_render::CAPTURE_FORMAT
+        } else {
+            format.add_srgb_suffix()
+        };
+        let can_compose = caps.usages.contains(wgpu::TextureUsages::COPY_DST)
+            && view_format.remove_srgb_suffix() == format.remove_srgb_suffix();
         let size = window.inner_size();
         let config = wgpu::SurfaceConfiguration {
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT
@@ -211,7 +227,7 @@ impl Gfx {
             device,
             queue,
             adapter: info.name,
-            view_format: format.add_srgb_suffix(),
+            view_format,
             surface,
             config,
             can_read_back,
@@ -292,8 +308,12 @@ impl Gfx {
         output: egui::FullOutput,
         read_back: bool,
     ) -> anyhow::Result<Presented> {
-        // A new glyph or image changes how unchanged primitives look.
+        // A new glyph or image changes how unchanged primitives look: the
+        // kept panels are stale even if this frame is never shown.
         let textures_changed = !output.textures_delta.set.is_empty();
+        if let Some(panels) = self.panels.as_mut().filter(|_| textures_changed) {
+            panels.painted_from = None;
+        }
         // Texture updates go first: egui counts them applied whatever happens next.
         for (id, deltas) in &output.textures_delta.set {
             for delta in deltas {
@@ -360,17 +380,18 @@ impl Gfx {
                 }
                 let found = split
                     .as_ref()
-                    .and_then(|s| image_copies(&self.views, &s.images, pixels_per_point, size));
+                    .and_then(|s| image_copies(&self.views, &s.images, size));
                 let reuse = !textures_changed
                     && found.is_some()
-                    && split.as_ref().map(|s| &s.panels) == panels.painted_from.as_ref();
+                    && split.as_ref().map(|s| (&s.panels, &s.images))
+                        == panels.painted_from.as_ref().map(|(p, i)| (p, i));
                 let jobs = match split {
                     Some(split) if reuse => {
                         copies = found;
                         split.over_views
                     }
                     split => {
-                        panels.painted_from = split.map(|s| s.panels);
+                        panels.painted_from = split.map(|s| (s.panels, s.images));
                         jobs
                     }
                 };
@@ -534,36 +555,21 @@ fn paint(
 
 /// Where each view's image goes in a frame of `frame` size: its colour
 /// texture and the pixel it starts at. `None` when an image is not exactly
-/// its view's texture on whole pixels inside the frame (a pane being resized),
-/// which only a paint can show.
+/// its view's texture inside the frame (a pane being resized), which only a
+/// paint can show.
 fn image_copies<'a>(
     views: &'a [ViewTarget],
-    images: &[(egui::TextureId, egui::Rect)],
-    pixels_per_point: f32,
+    images: &[(egui::TextureId, [u32; 4])],
     frame: wgpu::Extent3d,
 ) -> Option<Vec<(&'a wgpu::Texture, wgpu::Origin3d)>> {
     images
         .iter()
-        .map(|&(id, rect)| {
+        .map(|&(id, [x, y, w, h])| {
             let view = views.iter().find(|v| v.texture == id)?;
-            let (x, y) = (rect.min.x * pixels_per_point, rect.min.y * pixels_per_point);
-            let (w, h) = (
-                rect.width() * pixels_per_point,
-                rect.height() * pixels_per_point,
-            );
-            let fits = x >= 0.0
-                && y >= 0.0
-                && (w, h) == (view.size.0 as f32, view.size.1 as f32)
-                && x + w <= frame.width as f32
-                && y + h <= frame.height as f32;
-            fits.then_some((
-                &view.color,
-                wgpu::Origin3d {
-                    x: x as u32,
-                    y: y as u32,
-                    z: 0,
-                },
-            ))
+            let fits = (w, h) == view.size
+                && x.checked_add(w)? <= frame.width
+                && y.checked_add(h)? <= frame.height;
+            fits.then_some((&view.color, wgpu::Origin3d { x, y, z: 0 }))
         })
         .collect()
 }

@@ -88,8 +88,8 @@ struct Cli {
     /// rasterizer; for comparison).
     #[arg(long)]
     paint_whole: bool,
-    /// Draw each chunk's coarsest simplified level whose error projects to at
-    /// most this many pixels (0: every chunk whole, the exact image).
+    /// Draw each chunk's coarsest simplified level whose estimated error
+    /// projects to at most this many pixels (0: every chunk whole, the exact image).
     #[arg(long, default_value_t = 1.0, value_parser = dmu_app::units::number_in(0.0, 1e6))]
     lod_error_px: f64,
     /// A frame-time budget for the 3D view, ms (e.g. 100 for 10 frames a

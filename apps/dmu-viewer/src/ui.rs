@@ -82,7 +82,7 @@ pub struct Overlay {
     pub frame_ms_avg: f64,
     /// Of the last frame: running the panels (egui), ms.
     pub ui_ms: f64,
-    /// Drawing the 3D views (CPU side, until submitted), ms.
+    /// Drawing the 3D views, waiting for the GPU included, ms.
     pub view_ms: f64,
     /// Painting the panels and views into the window and presenting, ms.
     pub paint_ms: f64,

@@ -383,6 +383,10 @@ fn composed_frames_equal_whole_paints_under_xvfb() {
     // The 15 frames up to the first screenshot, then 4 painted whole.
     let (composing, painting) = whole.split_at(whole.len() - 4);
     assert!(painting.iter().all(|&w| w), "{whole:?}");
+    assert!(
+        !composing.last().unwrap(),
+        "the first screenshot's frame is composed: {whole:?}"
+    );
     let reused = composing.iter().filter(|&&w| !w).count();
     assert!(
         reused * 2 >= composing.len(),

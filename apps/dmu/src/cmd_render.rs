@@ -46,8 +46,8 @@ pub struct Args {
     /// Nodes covering fewer pixels across than this are dropped (0: none).
     #[arg(long, default_value_t = 0.0, value_parser = number_in(0.0, 1e6))]
     min_pixels: f64,
-    /// Draw each chunk's coarsest simplified level whose error projects to at
-    /// most this many pixels (0: every chunk whole, the exact image).
+    /// Draw each chunk's coarsest simplified level whose estimated error
+    /// projects to at most this many pixels (0: every chunk whole, the exact image).
     #[arg(long, default_value_t = 1.0, value_parser = number_in(0.0, 1e6))]
     lod_error_px: f64,
     /// Frames rendered from the viewpoint (occlusion culling converges over a
@@ -180,6 +180,7 @@ fn stats_json(s: &FrameStats) -> serde_json::Value {
         "passes": s.passes,
         "chunks_drawn": s.chunks_drawn,
         "draw_calls": s.draw_calls,
+        "upload_ms": s.upload_ms,
         "triangles_drawn": s.triangles_drawn,
         "triangles_in_frustum": s.triangles_in_frustum,
         "newly_visible": s.newly_visible,

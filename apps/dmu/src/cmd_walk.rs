@@ -59,8 +59,8 @@ pub struct Args {
     /// Screen-coverage threshold: chunks whose box spans fewer pixels are not drawn.
     #[arg(long, default_value_t = 1.0, value_parser = number_in(0.0, 1e6))]
     min_pixels: f64,
-    /// Draw each chunk's coarsest simplified level whose error projects to at
-    /// most this many pixels (0: every chunk whole, the exact image); with
+    /// Draw each chunk's coarsest simplified level whose estimated error
+    /// projects to at most this many pixels (0: every chunk whole, the exact image); with
     /// --render. With --compare, `none` stays exact: the reference.
     #[arg(long, default_value_t = 1.0, value_parser = number_in(0.0, 1e6))]
     lod_error_px: f64,

@@ -4,11 +4,15 @@
 //! there is time, frame rate when there is not.
 //!
 //! The choice follows the measured frame time (the renderer's own, GPU wait
-//! included): over budget, the LOD error grows (in proportion to the overrun,
-//! up to [`MAX_LOD_ERROR_PX`]), then the coverage threshold; well under budget,
-//! the threshold comes back down first, then the error, to exact. A feedback
-//! loop rather than a cost model: it needs no calibration per machine, and its
-//! lag is one frame, which the walk measures (frames over budget).
+//! included, chunk uploads excluded: the knobs do not change them): over
+//! budget, the LOD error grows (in proportion to the overrun, up to
+//! [`MAX_LOD_ERROR_PX`]), then the coverage threshold; after
+//! [`CALM_FRAMES`] frames in a row well under budget, the threshold comes
+//! back down first, then the error, to exact. The wait keeps a relaxing step
+//! that overruns from alternating with the tightening one every other frame.
+//! A feedback loop rather than a cost model: it needs no calibration per
+//! machine, and its lag is one frame, which the walk measures (frames over
+//! budget).
 
 use crate::view::CullingOptions;
 
@@ -21,6 +25,8 @@ const SLACK: f64 = 0.7;
 /// How much one frame may tighten a knob, and the least it relaxes one.
 const MAX_STEP: f64 = 3.0;
 const RELAX: f64 = 1.25;
+/// Frames in a row well under budget before a knob relaxes.
+pub const CALM_FRAMES: u32 = 4;
 
 /// The knobs a frame draws with.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -29,6 +35,8 @@ pub struct KnobsInEffect {
     pub lod_error_px: f64,
     /// Coverage threshold, pixels.
     pub min_pixels: f64,
+    /// Frames in a row well under budget so far.
+    pub calm_frames: u32,
 }
 
 impl KnobsInEffect {
@@ -37,7 +45,15 @@ impl KnobsInEffect {
         Self {
             lod_error_px: options.lod_error_px,
             min_pixels: options.min_pixels,
+            calm_frames: 0,
         }
+    }
+
+    /// The knobs with the coverage threshold at least `options.min_pixels`
+    /// (the user may raise it while a budget runs).
+    pub fn within(mut self, options: &CullingOptions) -> Self {
+        self.min_pixels = self.min_pixels.max(options.min_pixels);
+        self
     }
 
     /// The knobs for the next frame after one of `frame_ms` with `self`,
@@ -48,19 +64,21 @@ impl KnobsInEffect {
         let Some(target) = options.target_ms.filter(|t| *t > 0.0) else {
             return Self::of(options);
         };
-        let mut k = self;
+        let mut k = self.within(options);
         let ratio = frame_ms / target;
         if !ratio.is_finite() {
             return k;
         }
+        k.calm_frames = if ratio < SLACK { k.calm_frames + 1 } else { 0 };
         if ratio > 1.0 {
             let step = ratio.clamp(RELAX, MAX_STEP);
             if k.lod_error_px < MAX_LOD_ERROR_PX {
                 k.lod_error_px = (k.lod_error_px.max(0.25) * step).min(MAX_LOD_ERROR_PX);
             } else {
-                k.min_pixels = (k.min_pixels.max(0.5) * step).min(MAX_MIN_PIXELS);
+                let ceiling = MAX_MIN_PIXELS.max(options.min_pixels);
+                k.min_pixels = (k.min_pixels.max(0.5) * step).min(ceiling);
             }
-        } else if ratio < SLACK {
+        } else if k.calm_frames >= CALM_FRAMES {
             // Far under budget, give back faster (at most halving a knob).
             let step = (SLACK / ratio.max(1e-9)).clamp(RELAX, 2.0);
             if k.min_pixels > options.min_pixels {
@@ -104,6 +122,7 @@ mod tests {
         let k = KnobsInEffect {
             lod_error_px: 5.0,
             min_pixels: 9.0,
+            ..KnobsInEffect::default()
         };
         assert_eq!(k.next(&o, 1e9), KnobsInEffect::of(&o));
     }
@@ -121,11 +140,12 @@ mod tests {
                 assert!((0.0..=MAX_LOD_ERROR_PX).contains(&k.lod_error_px));
                 assert!((o.min_pixels..=MAX_MIN_PIXELS).contains(&k.min_pixels));
             }
-            let settled = &times[20..];
+            let settled = &times[30..];
             let reachable = frame_ms(
                 KnobsInEffect {
                     lod_error_px: MAX_LOD_ERROR_PX,
                     min_pixels: MAX_MIN_PIXELS,
+                    ..KnobsInEffect::default()
                 },
                 scale,
             ) <= target;
@@ -155,10 +175,47 @@ mod tests {
         let mut k = KnobsInEffect {
             lod_error_px: 8.0,
             min_pixels: 20.0,
+            ..KnobsInEffect::default()
         };
-        for _ in 0..80 {
+        for _ in 0..200 {
             k = k.next(&o, frame_ms(k, 1.0));
         }
-        assert_eq!(k, KnobsInEffect::default());
+        assert_eq!((k.lod_error_px, k.min_pixels), (0.0, 0.0));
+    }
+
+    /// Levels change cost in steps: a relaxing step that overruns must not
+    /// alternate with the tightening one every other frame.
+    #[test]
+    fn a_step_in_cost_does_not_make_every_other_frame_late() {
+        // Triangles halve per level: cost doubles each time τ halves.
+        let step_cost = |k: KnobsInEffect| {
+            30.0 + 400.0 / 2f64.powf(k.lod_error_px.max(0.0).log2().ceil().max(0.0) + 1.0)
+        };
+        let o = options(Some(200.0));
+        let mut k = KnobsInEffect::of(&o);
+        let mut late = 0;
+        for frame in 0..200 {
+            let t = step_cost(k);
+            if frame >= 20 && t > 200.0 * 1.1 {
+                late += 1;
+            }
+            k = k.next(&o, t);
+        }
+        assert!(late * 4 <= 180, "{late} of 180 frames late");
+    }
+
+    #[test]
+    fn the_users_coverage_threshold_is_a_floor_even_above_the_ceiling() {
+        let mut o = options(Some(10.0));
+        o.min_pixels = 50.0;
+        let mut k = KnobsInEffect::of(&o);
+        for _ in 0..20 {
+            k = k.next(&o, 1e6);
+            assert!(k.min_pixels >= 50.0, "{k:?}");
+        }
+        // Raised while a budget runs: the next frame draws with it.
+        o.min_pixels = 60.0;
+        assert!(k.next(&o, 1.0).min_pixels >= 60.0);
+        assert!(k.within(&o).min_pixels >= 60.0);
     }
 }

@@ -172,7 +172,10 @@ impl Renderer {
             ..FrameStats::default()
         };
         let knobs = match view.options.target_ms {
-            Some(_) => view.knobs.unwrap_or(KnobsInEffect::of(&view.options)),
+            Some(_) => view
+                .knobs
+                .unwrap_or(KnobsInEffect::of(&view.options))
+                .within(&view.options),
             None => KnobsInEffect::of(&view.options),
         };
         stats.lod_error_px = knobs.lod_error_px;
@@ -224,7 +227,7 @@ impl Renderer {
         view.gpu = Some(gpu_state);
         outcome?;
         stats.cpu_ms = start.elapsed().as_secs_f64() * 1e3;
-        view.knobs = Some(knobs.next(&view.options, stats.cpu_ms));
+        view.knobs = Some(knobs.next(&view.options, stats.cpu_ms - stats.upload_ms));
         self.decide(view, &mut stats);
         view.last = stats;
         Ok(stats)
@@ -632,6 +635,7 @@ fn add_round(stats: &mut FrameStats, r: &RoundResult) {
     stats.not_resident += r.not_resident;
     stats.chunks_drawn += r.chunks;
     stats.draw_calls += r.draw_calls;
+    stats.upload_ms += r.upload_ms;
     stats.triangles_drawn += r.triangles;
     stats.gpu_ms += r.gpu_ms;
     stats.gpu_draw_ms += r.gpu_draw_ms;

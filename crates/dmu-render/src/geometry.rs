@@ -145,6 +145,8 @@ pub struct GeometryPool {
     scratch: Vec<u8>,
     /// Whether chunks get simplified levels when uploaded.
     lods: bool,
+    /// Time spent uploading (and simplifying) chunks so far.
+    pub(crate) upload_time: std::time::Duration,
 }
 
 impl GeometryPool {
@@ -160,6 +162,7 @@ impl GeometryPool {
             resident_bytes: 0,
             scratch: Vec::new(),
             lods,
+            upload_time: std::time::Duration::ZERO,
         }
     }
 
@@ -199,6 +202,7 @@ impl GeometryPool {
             return Some(slot);
         }
         let geometry = source.chunk_geometry(chunk)?;
+        let start = std::time::Instant::now();
         let lods = if self.lods {
             dmu_scene::lod_levels(&geometry)
         } else {
@@ -288,6 +292,7 @@ impl GeometryPool {
         }
         self.resident_bytes += vertex_bytes + index_bytes;
         self.slots[chunk.index()] = Some(slot);
+        self.upload_time += start.elapsed();
         Some(slot)
     }
 

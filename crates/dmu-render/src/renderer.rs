@@ -222,6 +222,8 @@ pub(crate) struct RoundResult {
     pub chunks: u64,
     /// Draw calls recorded (chunks per pass, and boxes).
     pub draw_calls: u64,
+    /// Time the pool spent uploading chunks, ms.
+    pub upload_ms: f64,
     pub gpu_ms: f64,
     pub gpu_draw_ms: f64,
 }
@@ -776,6 +778,7 @@ impl Renderer {
         self.slots.clear();
         let mut queried = Vec::with_capacity(draws.len());
         let mut resident = Vec::with_capacity(draws.len());
+        let uploaded_before = self.pool.upload_time;
         for d in draws {
             let entry = &tree.entries()[d.entry as usize];
             let slot = self
@@ -796,6 +799,7 @@ impl Renderer {
                 None => result.not_resident += 1,
             }
         }
+        result.upload_ms = (self.pool.upload_time - uploaded_before).as_secs_f64() * 1e3;
         if !boxes.is_empty() {
             self.ensure_capacity(gpu, 0, boxes.len());
             self.queue

@@ -110,6 +110,9 @@ pub struct FrameStats {
     /// Draw calls recorded (a chunk instance per pass it is drawn in, and
     /// each query box).
     pub draw_calls: u64,
+    /// Time spent uploading chunks to the GPU pool (with their simplified
+    /// levels), ms; part of `cpu_ms`.
+    pub upload_ms: f64,
     /// Triangles drawn.
     pub triangles_drawn: u64,
     /// Triangles of the chunk instances that passed frustum and coverage culling.
