@@ -953,8 +953,7 @@ impl ApplicationHandler for App {
                         // Levels cost upload time and memory: built when the
                         // view may draw them (a LOD error raised from 0 in the
                         // panel later draws chunks whole).
-                        lod_levels: self.options.lod_error_px > 0.0
-                            || self.options.target_ms.is_some(),
+                        lod_levels: self.panes[0].view.options.may_draw_lods(),
                         ..Default::default()
                     },
                 );

@@ -402,23 +402,23 @@ impl Gfx {
             self.egui
                 .update_buffers(&self.device, &self.queue, &mut encoder, &jobs, &screen);
         let painted_whole = copies.is_none();
-        match (panels, copies) {
-            (None, _) => paint(&self.egui, &mut encoder, &target, true, &jobs, &screen),
-            (Some(texture), None) => {
+        // The panels, painted anew where they changed, then copied in.
+        if let Some(texture) = panels {
+            if painted_whole {
                 let view = texture.create_view(&Default::default());
                 paint(&self.egui, &mut encoder, &view, true, &jobs, &screen);
-                encoder.copy_texture_to_texture(
-                    texture.as_image_copy(),
-                    frame.texture.as_image_copy(),
-                    size,
-                );
             }
-            (Some(texture), Some(copies)) => {
-                encoder.copy_texture_to_texture(
-                    texture.as_image_copy(),
-                    frame.texture.as_image_copy(),
-                    size,
-                );
+            encoder.copy_texture_to_texture(
+                texture.as_image_copy(),
+                frame.texture.as_image_copy(),
+                size,
+            );
+        }
+        match (panels, copies) {
+            (None, _) => paint(&self.egui, &mut encoder, &target, true, &jobs, &screen),
+            (Some(_), None) => {}
+            (Some(_), Some(copies)) => {
+                // The views' images, then what lies over them.
                 for (view, origin) in copies {
                     encoder.copy_texture_to_texture(
                         view.as_image_copy(),

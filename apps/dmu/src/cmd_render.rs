@@ -7,8 +7,8 @@ use std::path::Path;
 
 use anyhow::{Context as _, bail};
 use dmu_render::{
-    Camera, Capture, Culling, FrameStats, Renderer, RendererOptions, StereoCamera, StereoMode,
-    StereoView, View, headless_device,
+    Camera, Capture, Culling, CullingOptions, FrameStats, Renderer, RendererOptions, StereoCamera,
+    StereoMode, StereoView, View, headless_device,
 };
 use dmu_scene::Scene;
 use dmu_tree::{EntryId, Tree, TreeOptions};
@@ -255,9 +255,14 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         _ => StereoMode::Auto,
     };
     let (device, queue, adapter) = headless_device().context("opening a GPU device")?;
+    let culling_options = CullingOptions {
+        min_pixels: args.min_pixels,
+        lod_error_px: args.lod_error_px,
+        ..CullingOptions::default()
+    };
     let options = RendererOptions {
         stereo: stereo_mode,
-        lod_levels: args.lod_error_px > 0.0,
+        lod_levels: culling_options.may_draw_lods(),
         ..Default::default()
     };
     let mut renderer = Renderer::new(&device, &queue, scene, &tree, options);
@@ -273,16 +278,14 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     };
     let capture = Capture::new(&device, size);
     let mut view = View::new(single_camera, size, culling);
-    view.options.min_pixels = args.min_pixels;
-    view.options.lod_error_px = args.lod_error_px;
+    view.options = culling_options;
     let single_frames = render_frames(args.frames, || {
         renderer.render(&mut view, scene, &tree, scene, capture.frame_target())
     })?;
     let stereo = if args.stereo {
         let capture = Capture::stereo(&device, size);
         let mut pair = StereoView::new(stereo_camera, size, culling);
-        pair.view.options.min_pixels = args.min_pixels;
-        pair.view.options.lod_error_px = args.lod_error_px;
+        pair.view.options = culling_options;
         let frames = render_frames(args.frames, || {
             renderer.render_stereo(&mut pair, scene, &tree, scene, capture.stereo_target())
         })?;

@@ -161,7 +161,7 @@ fn mode_totals<'a>(
 /// levels when the views may draw them.
 fn lod_options(culling: &CullingOptions) -> RendererOptions {
     RendererOptions {
-        lod_levels: culling.lod_error_px > 0.0 || culling.target_ms.is_some(),
+        lod_levels: culling.may_draw_lods(),
         ..Default::default()
     }
 }

@@ -46,6 +46,15 @@ pub struct CullingOptions {
     pub target_ms: Option<f64>,
 }
 
+impl CullingOptions {
+    /// Whether views culled with these options may draw simplified levels (a
+    /// LOD error above 0, or a budget that may raise it): their renderer
+    /// wants [`crate::RendererOptions::lod_levels`].
+    pub fn may_draw_lods(&self) -> bool {
+        self.lod_error_px > 0.0 || self.target_ms.is_some()
+    }
+}
+
 impl Default for CullingOptions {
     fn default() -> Self {
         Self {
