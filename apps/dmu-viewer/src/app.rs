@@ -88,7 +88,7 @@ struct Tints {
 
 /// Tells the renderer (through `set`) which parts gain or lose a tint to go
 /// from `now` to `want`; `now` becomes `want`.
-fn retint(now: &mut Vec<PartId>, want: Vec<PartId>, mut set: impl FnMut(PartId, bool)) {
+pub(crate) fn retint(now: &mut Vec<PartId>, want: Vec<PartId>, mut set: impl FnMut(PartId, bool)) {
     for &p in now.iter().filter(|p| !want.contains(p)) {
         set(p, false);
     }
@@ -599,21 +599,7 @@ impl App {
 
     /// The selection's transform and clashes, for the report.
     fn selection_facts(&self) -> Value {
-        let Some(part) = self.review.selected else {
-            return json!({ "part_id": null });
-        };
-        let scene = &self.review.scene;
-        let world = scene.part_world(part);
-        json!({
-            "part_id": part.0,
-            "part": scene.part_name(part),
-            "path": scene.part_path(part),
-            "translation": world.translation.to_array(),
-            "matrix3": world.matrix3.to_cols_array(),
-            "clashes": clashes_json(&self.review.report),
-            "move_us": self.review.timings.move_us,
-            "check_ms": self.review.timings.check_ms,
-        })
+        selection_json(&self.review)
     }
 
     fn script_done(&self) -> bool {
@@ -869,8 +855,28 @@ fn shortcuts(ui: &mut egui::Ui, review: &mut Review) {
     }
 }
 
+/// The selection's transform and clashes, and the last step's timings, for
+/// reports (the desktop's script steps and `--xr`'s grab alike).
+pub(crate) fn selection_json(review: &Review) -> Value {
+    let Some(part) = review.selected else {
+        return json!({ "part_id": null });
+    };
+    let scene = &review.scene;
+    let world = scene.part_world(part);
+    json!({
+        "part_id": part.0,
+        "part": scene.part_name(part),
+        "path": scene.part_path(part),
+        "translation": world.translation.to_array(),
+        "matrix3": world.matrix3.to_cols_array(),
+        "clashes": clashes_json(&review.report),
+        "move_us": review.timings.move_us,
+        "check_ms": review.timings.check_ms,
+    })
+}
+
 /// The clashes of a report: part ids, kind, distance.
-fn clashes_json(report: &Report) -> Value {
+pub(crate) fn clashes_json(report: &Report) -> Value {
     json!(
         report
             .clashes
@@ -903,7 +909,7 @@ fn rect_json(r: (u32, u32, u32, u32)) -> Value {
 }
 
 /// Count, mean, median, 95th percentile and maximum of `values`.
-fn summary(values: &[f64]) -> Value {
+pub(crate) fn summary(values: &[f64]) -> Value {
     if values.is_empty() {
         return json!({ "count": 0 });
     }

@@ -6,3 +6,4 @@
 pub mod nav;
 pub mod script;
 pub mod settings;
+pub mod xr_script;

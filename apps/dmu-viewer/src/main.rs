@@ -35,6 +35,7 @@ mod panes;
 mod record;
 mod review;
 mod ui;
+mod xr;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -98,6 +99,27 @@ struct Cli {
     /// the choice.
     #[arg(long, value_parser = dmu_app::units::number_in(1.0, 1e6))]
     target_ms: Option<f64>,
+    /// Show the model in a headset through the active OpenXR runtime
+    /// (XR_RUNTIME_JSON) instead of a window: both eyes drawn with the
+    /// runtime's poses and fields of view, until --frames are submitted (and
+    /// --xr-script has run) or the runtime ends the session. docs/xr.md.
+    #[arg(long)]
+    xr: bool,
+    /// With --xr: where the tracking space stands in the model and what the
+    /// hand does (aim, grab, undo), a JSON file (docs/xr.md).
+    #[arg(long, requires = "xr", value_name = "FILE.json")]
+    xr_script: Option<PathBuf>,
+    /// With --xr: save the last frame's eye images as DIR/left.png and
+    /// DIR/right.png.
+    #[arg(long, requires = "xr", value_name = "DIR")]
+    save_eyes: Option<PathBuf>,
+    /// With --xr: the longest side of each eye's image, pixels (the
+    /// runtime's recommended aspect, within its maximum size).
+    #[arg(long, requires = "xr", default_value_t = 1024, value_parser = clap::value_parser!(u32).range(16..=8192))]
+    eye_px: u32,
+    /// With --xr: print the report as one JSON object (else one line).
+    #[arg(long, requires = "xr")]
+    json: bool,
 }
 
 fn run(cli: &Cli) -> anyhow::Result<()> {
@@ -130,6 +152,35 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
             "cells": review.tree.cell_count(),
         },
     });
+    if cli.xr {
+        anyhow::ensure!(
+            cli.script.is_none() && cli.screenshot.is_none(),
+            "--xr takes --xr-script and --save-eyes, not the window's --script and --screenshot"
+        );
+        let args = xr::XrArgs {
+            script: cli
+                .xr_script
+                .as_deref()
+                .map(dmu_viewer::xr_script::read)
+                .transpose()?
+                .unwrap_or_default(),
+            frames: cli.frames,
+            save_eyes: cli.save_eyes.clone(),
+            eye_px: cli.eye_px,
+            culling: script::culling_from_name(&cli.culling)?,
+            culling_options: dmu_render::CullingOptions {
+                lod_error_px: cli.lod_error_px,
+                ..Default::default()
+            },
+        };
+        let report = xr::run(review, args, facts)?;
+        if cli.json {
+            println!("{}", serde_json::to_string_pretty(&report)?);
+        } else {
+            println!("{}", xr::summary_line(&report));
+        }
+        return Ok(());
+    }
     let automated = cli.frames.is_some() || !script.is_empty();
     let options = app::Options {
         size: (cli.width, cli.height),

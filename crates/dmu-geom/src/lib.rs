@@ -51,6 +51,7 @@
 
 mod aabb;
 mod camera;
+mod fov;
 mod frustum;
 mod plane;
 mod ray;
@@ -59,6 +60,7 @@ mod triangle;
 
 pub use aabb::{Aabb3d, Aabb3f};
 pub use camera::{Camera, Coverage, look_at, reverse_z_perspective};
+pub use fov::Fov;
 pub use frustum::{Containment, Frustum};
 pub use glam;
 pub use plane::Plane;

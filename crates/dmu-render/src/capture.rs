@@ -77,6 +77,12 @@ impl Capture {
         }
     }
 
+    /// The colour texture (one layer per eye of a stereo capture), to copy
+    /// frames elsewhere: an XR swapchain image of the same size and format.
+    pub fn color_texture(&self) -> &wgpu::Texture {
+        &self.color
+    }
+
     /// Size in pixels.
     pub fn size(&self) -> (u32, u32) {
         self.size

@@ -39,12 +39,15 @@ impl Cull {
     /// around it, drawing with `knobs`.
     fn new(view: &View, ipd: Option<f64>, knobs: KnobsInEffect) -> Self {
         let c = &view.camera;
-        let t = (c.fov_y_rad * 0.5).tan();
         let a = view.aspect();
         let eye_view = |c: &crate::Camera| DAffine3::from_mat4(c.view_matrix());
         let (frustum, eye_views, eye_count, eye_spread) = match ipd {
-            None => (c.frustum(a), [eye_view(c); 2], 1, 0.0),
+            None => (view.frustum(), [eye_view(c); 2], 1, 0.0),
             Some(ipd) => {
+                assert!(
+                    view.fov.is_none(),
+                    "a stereo pair's eyes share the centre camera's symmetric projection"
+                );
                 let stereo = StereoCamera { center: *c, ipd };
                 let eyes = stereo.eyes();
                 (
@@ -58,13 +61,13 @@ impl Cull {
         Self {
             coverage: Coverage {
                 eye_spread,
-                ..c.coverage(view.size.1)
+                ..view.coverage()
             },
             frustum,
             eye_views,
             eye_count,
             min_pixels: knobs.min_pixels,
-            near_reach: c.near * (1.0 + t * t * (1.0 + a * a)).sqrt(),
+            near_reach: view.near_reach(),
             lod_error_px: knobs.lod_error_px,
         }
     }

@@ -563,7 +563,7 @@ impl Renderer {
         scene: &Scene,
         eye_views: &[glam::DAffine3],
     ) -> ViewGpu {
-        let proj = view.camera.projection(view.aspect());
+        let proj = view.projection();
         let parts = scene.parts().len();
         let mut g = view
             .gpu

@@ -160,6 +160,12 @@ pub struct View {
     pub culling: Culling,
     /// Culling knobs.
     pub options: CullingOptions,
+    /// An off-centre field of view (a head-mounted display's eye) that
+    /// replaces the camera's symmetric `fov_y_rad` for projection, culling
+    /// and coverage; `None` draws the camera as it is. Its aspect should be
+    /// the viewport's, or pixels are not square. Single views only: a
+    /// stereo pair's eyes share the centre camera's symmetric projection.
+    pub fov: Option<dmu_geom::Fov>,
     pub(crate) frame: u64,
     pub(crate) entries: Vec<EntryState>,
     pub(crate) decision: OcclusionDecision,
@@ -188,6 +194,7 @@ impl View {
             size,
             culling,
             options: CullingOptions::default(),
+            fov: None,
             frame: 0,
             entries: Vec::new(),
             decision: OcclusionDecision {
@@ -207,6 +214,39 @@ impl View {
     /// Width over height.
     pub fn aspect(&self) -> f64 {
         f64::from(self.size.0) / f64::from(self.size.1)
+    }
+
+    /// View to clip: the camera's projection, or its off-centre
+    /// [`View::fov`].
+    pub fn projection(&self) -> glam::DMat4 {
+        match &self.fov {
+            Some(fov) => fov.projection(self.camera.near),
+            None => self.camera.projection(self.aspect()),
+        }
+    }
+
+    /// The world-space culling frustum of [`View::projection`].
+    pub fn frustum(&self) -> dmu_geom::Frustum {
+        match &self.fov {
+            Some(fov) => fov.frustum(&self.camera),
+            None => self.camera.frustum(self.aspect()),
+        }
+    }
+
+    /// The screen-coverage metric of this view's eye and projection.
+    pub fn coverage(&self) -> dmu_geom::Coverage {
+        match &self.fov {
+            Some(fov) => fov.coverage(&self.camera, self.size.1),
+            None => self.camera.coverage(self.size.1),
+        }
+    }
+
+    /// How far the near plane's corners lie from the eye.
+    pub(crate) fn near_reach(&self) -> f64 {
+        let fov = self
+            .fov
+            .unwrap_or_else(|| dmu_geom::Fov::symmetric(self.camera.fov_y_rad, self.aspect()));
+        fov.near_reach(self.camera.near)
     }
 
     /// The stats of the last frame.

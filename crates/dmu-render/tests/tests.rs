@@ -1,4 +1,5 @@
 mod culling;
+mod fov;
 mod hierarchy;
 mod images;
 mod stereo;

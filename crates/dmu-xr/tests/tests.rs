@@ -1,0 +1,3 @@
+//! The one test binary of dmu-xr.
+
+mod pose;
