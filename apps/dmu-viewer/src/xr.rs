@@ -35,7 +35,10 @@ const NEAR_M: f64 = 0.05;
 const HAND_IN_HEAD_M: DVec3 = DVec3::new(0.2, -0.3, -0.25);
 /// The grid of image points whose world hits are reported with their
 /// analytic disparity (columns, rows).
-const KNOWN_POINT_GRID: (u32, u32) = (7, 5);
+const KNOWN_POINT_GRID: (u32, u32) = (12, 9);
+/// Half the side of the square around each known point whose depth range is
+/// reported (a patch an image comparison can match), pixels.
+const KNOWN_POINT_PATCH_PX: f64 = 7.0;
 
 /// What `--xr` was asked to do.
 #[derive(Debug)]
@@ -337,21 +340,26 @@ fn hand_position(
 }
 
 /// World points seen at a grid of the left eye's image points (rays from the
-/// eyes' midpoint), with where each lands in both eyes and the analytic
-/// disparity (left x minus right x, pixels): what the saved images must show.
+/// eyes' midpoint, parallel to the left eye's), with where each lands in both
+/// eyes, the analytic disparity (left x minus right x, pixels) and the range
+/// of distances seen across a patch around it (`patch_px` either way; a miss
+/// counts as infinitely far): what the saved images must show, and where a
+/// patch has one depth, so one disparity.
 fn known_points(review: &Review, eyes: &[(dmu_geom::Camera, Eye); 2], size: (u32, u32)) -> Value {
     let (left, right) = (&eyes[0], &eyes[1]);
     let mid = (left.0.eye + right.0.eye) * 0.5;
+    let hit_at = |x: f64, y: f64| {
+        let through = dmu_xr::eye_ray(&left.0, &left.1.fov, size, x, y);
+        let ray = Ray3d::new(mid, through.dir);
+        review.pick(&ray)
+    };
     let (cols, rows) = KNOWN_POINT_GRID;
     let mut points = Vec::new();
     for j in 0..rows {
         for i in 0..cols {
             let x = f64::from(size.0) * (f64::from(i) + 1.0) / f64::from(cols + 1);
             let y = f64::from(size.1) * (f64::from(j) + 1.0) / f64::from(rows + 1);
-            let through = dmu_xr::eye_ray(&left.0, &left.1.fov, size, x, y);
-            // Parallel to the left eye's ray, from between the eyes.
-            let ray = Ray3d::new(mid, through.dir);
-            let Some(hit) = review.pick(&ray) else {
+            let Some(hit) = hit_at(x, y) else {
                 continue;
             };
             let p = hit.point;
@@ -361,6 +369,18 @@ fn known_points(review: &Review, eyes: &[(dmu_geom::Camera, Eye); 2], size: (u32
             ) else {
                 continue;
             };
+            let (mut near, mut far) = (f64::INFINITY, 0.0f64);
+            let k = KNOWN_POINT_PATCH_PX;
+            for dy in [-k, -k / 2.0, 0.0, k / 2.0, k] {
+                for dx in [-k, -k / 2.0, 0.0, k / 2.0, k] {
+                    let d =
+                        hit_at(l.0 + dx, l.1 + dy).map_or(f64::INFINITY, |h| h.point.distance(mid));
+                    near = near.min(d);
+                    far = far.max(d);
+                }
+            }
+            // JSON has no infinity: a patch reaching the background says null.
+            let patch_distance = [near, far].map(|d| d.is_finite().then_some(d));
             points.push(json!({
                 "world": p.to_array(),
                 "distance": p.distance(mid),
@@ -368,6 +388,8 @@ fn known_points(review: &Review, eyes: &[(dmu_geom::Camera, Eye); 2], size: (u32
                 "left_px": [l.0, l.1],
                 "right_px": [r.0, r.1],
                 "disparity_px": l.0 - r.0,
+                "patch_px": k,
+                "patch_distance": patch_distance,
             }));
         }
     }

@@ -6,4 +6,5 @@ mod fuzz_replay;
 mod fuzz_script_parse;
 mod session;
 mod support;
+mod xr;
 mod xvfb;

@@ -1,0 +1,82 @@
+//! `dmu-viewer --xr` on a real OpenXR runtime: `scripts/xr-check.sh` runs
+//! Monado (null compositor, simulated headset) in the trixie chroot that
+//! `scripts/xr-setup.sh` makes and checks the session (FOCUSED, 120 frames, a
+//! clean exit), both eye images (the plant, the analytic parallax), and the
+//! scripted grab against the same drag in the desktop viewer.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde_json::Value;
+
+/// The chroot, as the setup script places it.
+fn xr_root() -> PathBuf {
+    std::env::var_os("DMU_XR_ROOT")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("/var/lib/dmu-xr/trixie"))
+}
+
+#[test]
+fn xr_session_on_monado_passes_the_check() {
+    let test = "xr_session_on_monado_passes_the_check";
+    let root = xr_root();
+    let ready = root.join(".dmu-xr-ready");
+    if !ready.exists() {
+        let why = format!(
+            "no Monado chroot at {} (scripts/xr-setup.sh makes it; scripts/test.sh runs it)",
+            root.display()
+        );
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "{test}: {why} (CI=true: a missing prerequisite is a failure)"
+        );
+        eprintln!("SKIPPED {test}: {why}");
+        return;
+    }
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let out = tempfile::tempdir().unwrap();
+    let run = Command::new(repo.join("scripts/xr-check.sh"))
+        .arg(out.path())
+        .env("DMU_VIEWER", env!("CARGO_BIN_EXE_dmu-viewer"))
+        .output()
+        .expect("run scripts/xr-check.sh");
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    eprintln!("{stdout}{stderr}");
+    assert!(run.status.success(), "xr-check.sh failed: {stderr}");
+    let check: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.path().join("check.json")).unwrap())
+            .unwrap();
+    assert_eq!(check["ok"], true, "{check:#}");
+    for name in [
+        "focused",
+        "frames",
+        "clean_exit",
+        "left_shows_plant",
+        "right_shows_plant",
+        "parallax",
+        "grab_equals_desktop",
+        "undo_restores",
+    ] {
+        assert_eq!(check["checks"][name]["ok"], true, "{name}: {check:#}");
+    }
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.path().join("report.json")).unwrap())
+            .unwrap();
+    // The report carries what the issue asks of it.
+    for field in [
+        "runtime",
+        "max_session_state",
+        "frames_submitted",
+        "eye_fov",
+        "grabbed_part",
+        "clashes",
+        "exit",
+    ] {
+        assert!(!report[field].is_null(), "report lacks {field}: {report:#}");
+    }
+    assert!(report["runtime"].as_str().unwrap().contains("Monado"));
+    // The simulated headset's eyes are about 63 mm apart.
+    let ipd = report["ipd_m"].as_f64().unwrap();
+    assert!((0.055..0.075).contains(&ipd), "ipd {ipd} m");
+}
