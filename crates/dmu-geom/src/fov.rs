@@ -74,11 +74,31 @@ impl Fov {
     /// When the field of view is not [`Fov::is_valid`] or `near` is not
     /// positive and finite.
     pub fn projection(&self, near: f64) -> DMat4 {
+        self.projection_to(near, None)
+    }
+
+    /// [`Fov::projection`] with a far plane: `z = -far` maps to depth 0 and
+    /// beyond it is clipped (`None`: at infinity).
+    ///
+    /// # Panics
+    /// As [`Fov::projection`], and when `far` is not beyond `near`.
+    pub fn projection_to(&self, near: f64, far: Option<f64>) -> DMat4 {
         assert!(self.is_valid(), "invalid field of view {self:?}");
         assert!(
             near > 0.0 && near.is_finite(),
             "near plane must be positive, got {near}"
         );
+        // Clip z = a z + b with w = -z: depth 1 at -near, 0 at -far.
+        let (a, b) = match far {
+            Some(far) => {
+                assert!(
+                    far > near,
+                    "far plane {far} must lie beyond near plane {near}"
+                );
+                (near / (far - near), near * far / (far - near))
+            }
+            None => (0.0, near),
+        };
         let [l, r, d, u] = self.tangents();
         // x_ndc = (2 x / -z - (r + l)) / (r - l); with w = -z the offset term
         // becomes (r + l) / (r - l) * z.
@@ -93,19 +113,22 @@ impl Fov {
             0.0,
             (r + l) / (r - l),
             (u + d) / (u - d),
-            0.0,
+            a,
             -1.0,
             0.0,
             0.0,
-            near,
+            b,
             0.0,
         ])
     }
 
     /// The world-space culling frustum of `camera`'s pose (eye, target, up and
-    /// near; its `fov_y_rad` is not used) with this field of view.
-    pub fn frustum(&self, camera: &Camera) -> Frustum {
-        Frustum::from_view_proj_reverse_z(&(self.projection(camera.near) * camera.view_matrix()))
+    /// near; its `fov_y_rad` is not used) with this field of view, out to
+    /// `far` (`None`: infinity).
+    pub fn frustum(&self, camera: &Camera, far: Option<f64>) -> Frustum {
+        Frustum::from_view_proj_reverse_z(
+            &(self.projection_to(camera.near, far) * camera.view_matrix()),
+        )
     }
 
     /// The screen-coverage metric of `camera`'s eye with this field of view on

@@ -55,7 +55,7 @@ fn symmetric_is_the_cameras_projection() {
         fov.coverage(&camera, 720).focal_px,
         camera.coverage(720).focal_px
     );
-    let (fa, fb) = (fov.frustum(&camera), camera.frustum(aspect));
+    let (fa, fb) = (fov.frustum(&camera, None), camera.frustum(aspect));
     for (pa, pb) in fa.planes.iter().zip(&fb.planes) {
         assert!(pa.normal.abs_diff_eq(pb.normal, 1e-9), "{pa:?} vs {pb:?}");
     }
@@ -74,6 +74,36 @@ fn symmetric_is_the_cameras_projection() {
         }
         .is_valid()
     );
+}
+
+/// With a far plane: the symmetric case is `reverse_z_perspective`'s finite
+/// projection, and the far plane's depth is 0.
+#[test]
+fn far_planes_map_to_depth_zero() {
+    let fov = Fov::symmetric(1.1, 1.25);
+    let (near, far) = (0.5, 800.0);
+    let a = fov.projection_to(near, Some(far));
+    let b = dmu_geom::reverse_z_perspective(1.1, 1.25, near, Some(far));
+    assert!(a.abs_diff_eq(b, 1e-12), "{a} vs {b}");
+    let off = Fov {
+        left: -0.9,
+        right: 0.3,
+        down: -0.5,
+        up: 0.7,
+    };
+    let p = off.projection_to(near, Some(far));
+    for (z, depth) in [
+        (near, 1.0),
+        (far, 0.0),
+        (2.0 * near * far / (near + far), 0.5),
+    ] {
+        let clip = p * DVec4::new(0.1 * z, -0.2 * z, -z, 1.0);
+        assert!(
+            (clip.z / clip.w - depth).abs() < 1e-12,
+            "z {z}: {}",
+            clip.z / clip.w
+        );
+    }
 }
 
 /// The near plane's farthest corner, against the corners themselves.

@@ -247,7 +247,7 @@ impl Renderer {
         geometry: &dyn GeometrySource,
         target: FrameTarget<'_>,
     ) -> Result<FrameStats, RenderError> {
-        let target = RoundTarget::single(target);
+        let target = RoundTarget::single(target).keeping_color(view.keep_color);
         self.render_frame(view, None, scene, tree, geometry, target)
     }
 

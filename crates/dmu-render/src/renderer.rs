@@ -47,6 +47,8 @@ pub(crate) struct RoundTarget<'a> {
     /// A stereo pair's geometry goes to both layers in one multiview pass
     /// (else one pass per layer).
     multiview: bool,
+    /// The first pass keeps the colour there (clears depth only).
+    keep_color: bool,
 }
 
 impl<'a> RoundTarget<'a> {
@@ -56,7 +58,15 @@ impl<'a> RoundTarget<'a> {
             all: target,
             eyes: &[],
             multiview: false,
+            keep_color: false,
         }
+    }
+
+    /// The same target, its colour kept by the first pass ([`View::keep_color`]).
+    ///
+    /// [`View::keep_color`]: crate::View::keep_color
+    pub fn keeping_color(self, keep_color: bool) -> Self {
+        Self { keep_color, ..self }
     }
 
     /// A stereo pair's target, drawn with multiview or a pass per layer.
@@ -68,6 +78,7 @@ impl<'a> RoundTarget<'a> {
             },
             eyes: &target.eyes,
             multiview,
+            keep_color: false,
         }
     }
 
@@ -862,7 +873,9 @@ impl Renderer {
                     depth_slice: None,
                     resolve_target: None,
                     ops: wgpu::Operations {
-                        load: if pass_plan.clear {
+                        load: if pass_plan.clear
+                            && !(target.keep_color && shading == Shading::Color)
+                        {
                             wgpu::LoadOp::Clear(match shading {
                                 Shading::Color => self.options.clear_color,
                                 Shading::Ids => wgpu::Color::TRANSPARENT,

@@ -230,13 +230,14 @@ impl Renderer {
         }
         let multiview = self.stereo_mode() == StereoMode::Multiview;
         view.view.camera = view.camera.center;
+        let keep_color = view.view.keep_color;
         self.render_frame(
             &mut view.view,
             Some(view.camera.ipd),
             scene,
             tree,
             geometry,
-            RoundTarget::stereo(&target, multiview),
+            RoundTarget::stereo(&target, multiview).keeping_color(keep_color),
         )
     }
 }

@@ -166,6 +166,14 @@ pub struct View {
     /// the viewport's, or pixels are not square. Single views only: a
     /// stereo pair's eyes share the centre camera's symmetric projection.
     pub fov: Option<dmu_geom::Fov>,
+    /// A far plane, world units along the view axis (`None`: at infinity):
+    /// what lies beyond is clipped and culled. With `camera.near` it selects
+    /// a depth range, for drawing a scene's near and far parts apart.
+    pub far: Option<f64>,
+    /// Draw over the colour already in the target (its depth is cleared
+    /// still) instead of clearing it to the background: a near part over a
+    /// far part drawn before.
+    pub keep_color: bool,
     pub(crate) frame: u64,
     pub(crate) entries: Vec<EntryState>,
     pub(crate) decision: OcclusionDecision,
@@ -195,6 +203,8 @@ impl View {
             culling,
             options: CullingOptions::default(),
             fov: None,
+            far: None,
+            keep_color: false,
             frame: 0,
             entries: Vec::new(),
             decision: OcclusionDecision {
@@ -216,20 +226,28 @@ impl View {
         f64::from(self.size.0) / f64::from(self.size.1)
     }
 
+    /// The field of view: [`View::fov`], or the camera's symmetric one.
+    fn fov_or_camera(&self) -> dmu_geom::Fov {
+        self.fov
+            .unwrap_or_else(|| dmu_geom::Fov::symmetric(self.camera.fov_y_rad, self.aspect()))
+    }
+
     /// View to clip: the camera's projection, or its off-centre
-    /// [`View::fov`].
+    /// [`View::fov`], to [`View::far`].
     pub fn projection(&self) -> glam::DMat4 {
-        match &self.fov {
-            Some(fov) => fov.projection(self.camera.near),
-            None => self.camera.projection(self.aspect()),
+        match (&self.fov, self.far) {
+            (None, None) => self.camera.projection(self.aspect()),
+            _ => self
+                .fov_or_camera()
+                .projection_to(self.camera.near, self.far),
         }
     }
 
     /// The world-space culling frustum of [`View::projection`].
     pub fn frustum(&self) -> dmu_geom::Frustum {
-        match &self.fov {
-            Some(fov) => fov.frustum(&self.camera),
-            None => self.camera.frustum(self.aspect()),
+        match (&self.fov, self.far) {
+            (None, None) => self.camera.frustum(self.aspect()),
+            _ => self.fov_or_camera().frustum(&self.camera, self.far),
         }
     }
 
@@ -243,10 +261,7 @@ impl View {
 
     /// How far the near plane's corners lie from the eye.
     pub(crate) fn near_reach(&self) -> f64 {
-        let fov = self
-            .fov
-            .unwrap_or_else(|| dmu_geom::Fov::symmetric(self.camera.fov_y_rad, self.aspect()));
-        fov.near_reach(self.camera.near)
+        self.fov_or_camera().near_reach(self.camera.near)
     }
 
     /// The stats of the last frame.

@@ -1,4 +1,5 @@
 mod culling;
+mod depth_split;
 mod fov;
 mod hierarchy;
 mod images;
