@@ -69,6 +69,25 @@ pub struct Args {
     /// draws it correctly), multiview, or layers (a pass per eye).
     #[arg(long, default_value = "auto", value_parser = ["auto", "multiview", "layers"], requires = "stereo")]
     stereo_mode: String,
+    /// With --stereo: the left eye's field of view as `left,right,down,up`
+    /// angles in degrees (left and down negative), as a headset gives it; the
+    /// right eye's is its mirror image. Default: --fov, symmetric. Used by
+    /// --shared-far-px.
+    #[arg(
+        long,
+        requires = "stereo",
+        allow_hyphen_values = true,
+        value_name = "L,R,D,U"
+    )]
+    eye_fov: Option<String>,
+    /// With --stereo: also draw the pair with its far part shared (drawn once
+    /// beyond the depth where the eyes' disparity is below this many pixels,
+    /// less the eye windows' grid offset, and copied into both eyes; the near
+    /// part per eye over it), and report its frame time against one eye and
+    /// against the pair drawn in full, and the image difference
+    /// (OUTPUT-shared-left.png, OUTPUT-shared-right.png).
+    #[arg(long, requires = "stereo", value_parser = number_in(1e-3, 1e3))]
+    shared_far_px: Option<f64>,
     /// Print stats as JSON.
     #[arg(long)]
     json: bool,
@@ -218,6 +237,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     if args.stereo && !(args.ipd >= 0.0 && args.ipd.is_finite()) {
         bail!("--ipd {}: must be finite and not negative", args.ipd);
     }
+    let eye_fovs = args
+        .eye_fov
+        .as_deref()
+        .map(crate::stereo_far::parse_eye_fov)
+        .transpose()?;
     let loaded = load(&args.model)?;
     let scene = &loaded.scene;
     let tree = Tree::build(scene, TreeOptions::default());
@@ -327,6 +351,38 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     } else {
         None
     };
+    let shared_far = match args.shared_far_px {
+        Some(error_px) => {
+            let fovs = eye_fovs.unwrap_or_else(|| {
+                let aspect = f64::from(size.0) / f64::from(size.1);
+                [dmu_geom::Fov::symmetric(camera.fov_y_rad, aspect); 2]
+            });
+            let setup = crate::stereo_far::Setup {
+                center: camera,
+                ipd: args.ipd,
+                fovs,
+                size,
+                error_px,
+                culling,
+                options: culling_options,
+                frames: args.frames,
+                scene,
+                tree: &tree,
+            };
+            let outputs = [
+                eye_path(&args.output, "shared-left"),
+                eye_path(&args.output, "shared-right"),
+            ];
+            Some(crate::stereo_far::compare(
+                &mut renderer,
+                &device,
+                &queue,
+                &setup,
+                &outputs,
+            )?)
+        }
+        None => None,
+    };
     let stereo_json = stereo.as_ref().map(|(_, frames, outputs)| {
         let (stereo_ms, stereo_gpu_ms) = steady_ms(frames);
         let (one_eye_ms, one_eye_gpu_ms) = steady_ms(&single_frames);
@@ -342,6 +398,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             "gpu_ratio": if one_eye_gpu_ms > 0.0 { json!(stereo_gpu_ms / one_eye_gpu_ms) } else { json!(null) },
             "one_eye_last": stats_json(single_frames.last().expect("at least one frame")),
             "one_eye_frames": single_frames.iter().map(stats_json).collect::<Vec<_>>(),
+            "shared_far": shared_far,
         })
     });
     if args.json {
@@ -389,6 +446,23 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 s["one_eye_frame_ms"].as_f64().unwrap_or_default(),
                 s["ratio"].as_f64().unwrap_or_default()
             );
+            let f = &s["shared_far"];
+            if !f.is_null() {
+                println!(
+                    "shared far part beyond depth {:.0} (disparity error at most {:.2} px): {:.1} ms a frame, {:.2}x one eye; the pair in full {:.1} ms, {:.2}x; {:.2} % of pixels differ from it",
+                    f["split_depth"].as_f64().unwrap_or_default(),
+                    f["disparity_error_bound_px"].as_f64().unwrap_or_default(),
+                    f["frame_ms"].as_f64().unwrap_or_default(),
+                    f["ratio"].as_f64().unwrap_or_default(),
+                    f["true_stereo_frame_ms"].as_f64().unwrap_or_default(),
+                    f["true_stereo_ratio"].as_f64().unwrap_or_default(),
+                    100.0
+                        * f["image_difference"]["fraction_differing"]
+                            .as_array()
+                            .map_or(0.0, |v| v.iter().filter_map(|x| x.as_f64()).sum::<f64>()
+                                / 2.0)
+                );
+            }
         }
         if let Some(o) = oracle {
             println!("oracle: {o}");

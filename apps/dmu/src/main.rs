@@ -12,6 +12,7 @@ mod cmd_render;
 mod cmd_tradeoffs;
 mod cmd_walk;
 mod collide_batch;
+mod stereo_far;
 mod tradeoffs;
 mod walk_render;
 

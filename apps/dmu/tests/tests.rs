@@ -5,6 +5,7 @@ mod collide;
 mod explain;
 mod hostile;
 mod pick_rays;
+mod stereo_far;
 mod tradeoffs;
 
 use std::path::Path;

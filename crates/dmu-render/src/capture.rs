@@ -78,7 +78,8 @@ impl Capture {
     }
 
     /// The colour texture (one layer per eye of a stereo capture), to copy
-    /// frames elsewhere: an XR swapchain image of the same size and format.
+    /// frames out (an XR swapchain image of the same size and format) or in
+    /// (a shared far part, drawn over with [`crate::View::keep_color`]).
     pub fn color_texture(&self) -> &wgpu::Texture {
         &self.color
     }
@@ -290,7 +291,9 @@ pub(crate) fn attachment_texture(
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
         format,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+            | wgpu::TextureUsages::COPY_SRC
+            | wgpu::TextureUsages::COPY_DST,
         view_formats: &[],
     })
 }
