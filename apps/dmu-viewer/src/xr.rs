@@ -35,10 +35,10 @@ const NEAR_M: f64 = 0.05;
 const HAND_IN_HEAD_M: DVec3 = DVec3::new(0.2, -0.3, -0.25);
 /// The grid of image points whose world hits are reported with their
 /// analytic disparity (columns, rows).
-const KNOWN_POINT_GRID: (u32, u32) = (12, 9);
-/// Half the side of the square around each known point whose depth range is
-/// reported (a patch an image comparison can match), pixels.
-const KNOWN_POINT_PATCH_PX: f64 = 7.0;
+const KNOWN_POINT_GRID: (u32, u32) = (16, 12);
+/// Half the side of the square around each known point whose disparity range
+/// is reported (a patch an image comparison can match), pixels.
+const KNOWN_POINT_PATCH_PX: f64 = 5.0;
 
 /// What `--xr` was asked to do.
 #[derive(Debug)]
@@ -222,7 +222,9 @@ pub fn run(mut review: Review, args: XrArgs, facts: Value) -> anyhow::Result<Val
         report["eye_fov"] = json!(eyes.map(|(_, e)| e.fov));
         report["eye_positions"] = json!(eyes.map(|(c, _)| c.eye.to_array()));
         report["ipd_m"] = json!(eyes[0].1.pose.position.distance(eyes[1].1.pose.position));
+        let start = Instant::now();
         report["known_points"] = known_points(&review, eyes, size);
+        report["known_points_ms"] = json!(start.elapsed().as_secs_f64() * 1e3);
     }
     report["exit"] = json!(exit);
     Ok(report)
@@ -297,7 +299,10 @@ fn step_hand(
             review.drag_to(DVec3::from_array(g.by) * t);
             if step + 1 == steps {
                 review.end_drag();
-                let facts = selection_json(review);
+                let mut facts = selection_json(review);
+                // The tree followed every step (the desktop's invariant).
+                facts["tree_valid"] = json!(review.tree.validate_against(&review.scene).is_ok());
+                facts["cells"] = json!(review.tree.cell_count());
                 hand.grab = Some(facts.clone());
                 result = Some(facts);
             }
@@ -342,18 +347,24 @@ fn hand_position(
 /// World points seen at a grid of the left eye's image points (rays from the
 /// eyes' midpoint, parallel to the left eye's), with where each lands in both
 /// eyes, the analytic disparity (left x minus right x, pixels) and the range
-/// of distances seen across a patch around it (`patch_px` either way; a miss
-/// counts as infinitely far): what the saved images must show, and where a
-/// patch has one depth, so one disparity.
+/// of disparities across a patch around it (`patch_px` either way, at every
+/// pixel; a miss is the background, infinitely far: disparity 0): what the
+/// saved images must show.
 fn known_points(review: &Review, eyes: &[(dmu_geom::Camera, Eye); 2], size: (u32, u32)) -> Value {
     let (left, right) = (&eyes[0], &eyes[1]);
     let mid = (left.0.eye + right.0.eye) * 0.5;
     let hit_at = |x: f64, y: f64| {
         let through = dmu_xr::eye_ray(&left.0, &left.1.fov, size, x, y);
-        let ray = Ray3d::new(mid, through.dir);
-        review.pick(&ray)
+        review.pick(&Ray3d::new(mid, through.dir))
+    };
+    let pixels = |p| {
+        Some((
+            dmu_xr::eye_pixel(&left.0, &left.1.fov, size, p)?,
+            dmu_xr::eye_pixel(&right.0, &right.1.fov, size, p)?,
+        ))
     };
     let (cols, rows) = KNOWN_POINT_GRID;
+    let k = KNOWN_POINT_PATCH_PX;
     let mut points = Vec::new();
     for j in 0..rows {
         for i in 0..cols {
@@ -362,34 +373,31 @@ fn known_points(review: &Review, eyes: &[(dmu_geom::Camera, Eye); 2], size: (u32
             let Some(hit) = hit_at(x, y) else {
                 continue;
             };
-            let p = hit.point;
-            let (Some(l), Some(r)) = (
-                dmu_xr::eye_pixel(&left.0, &left.1.fov, size, p),
-                dmu_xr::eye_pixel(&right.0, &right.1.fov, size, p),
-            ) else {
+            let Some((l, r)) = pixels(hit.point) else {
                 continue;
             };
-            let (mut near, mut far) = (f64::INFINITY, 0.0f64);
-            let k = KNOWN_POINT_PATCH_PX;
-            for dy in [-k, -k / 2.0, 0.0, k / 2.0, k] {
-                for dx in [-k, -k / 2.0, 0.0, k / 2.0, k] {
-                    let d =
-                        hit_at(l.0 + dx, l.1 + dy).map_or(f64::INFINITY, |h| h.point.distance(mid));
-                    near = near.min(d);
-                    far = far.max(d);
-                }
+            let (mut low, mut high) = (f64::INFINITY, f64::NEG_INFINITY);
+            // Every pixel of the patch: a thin pipe in front must not slip
+            // between samples.
+            let steps = 2 * k as i32 + 1;
+            for n in 0..steps * steps {
+                let dx = f64::from(n % steps) - k;
+                let dy = f64::from(n / steps) - k;
+                let d = hit_at(l.0 + dx, l.1 + dy)
+                    .and_then(|h| pixels(h.point))
+                    .map_or(0.0, |(a, b)| a.0 - b.0);
+                low = low.min(d);
+                high = high.max(d);
             }
-            // JSON has no infinity: a patch reaching the background says null.
-            let patch_distance = [near, far].map(|d| d.is_finite().then_some(d));
             points.push(json!({
-                "world": p.to_array(),
-                "distance": p.distance(mid),
+                "world": hit.point.to_array(),
+                "distance": hit.point.distance(mid),
                 "part": review.scene.part_name(hit.part),
                 "left_px": [l.0, l.1],
                 "right_px": [r.0, r.1],
                 "disparity_px": l.0 - r.0,
                 "patch_px": k,
-                "patch_distance": patch_distance,
+                "patch_disparity_px": [low, high],
             }));
         }
     }
