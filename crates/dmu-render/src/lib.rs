@@ -99,5 +99,5 @@ pub use geometry::{GeometryPool, GeometrySource};
 pub use hierarchy::Hierarchy;
 pub use renderer::{FrameTarget, Renderer, RendererOptions};
 pub use stereo::{StereoCamera, StereoMode, StereoTarget, StereoView};
-pub use view::{Culling, CullingOptions, FrameStats, OcclusionDecision, View};
+pub use view::{Culling, CullingOptions, FrameStats, MAX_SECTION_PLANES, OcclusionDecision, View};
 pub use wgpu;
