@@ -20,6 +20,8 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow};
 use winit::window::{Window, WindowId};
 
 use crate::gfx::Gfx;
+use crate::gizmo::{Gizmo, GizmoDrag, Snap};
+use crate::measure::{MeasureMode, SNAP_PX};
 use crate::nav::{Navigator, axis_offset};
 use crate::panes::{Pane, PaneKind};
 use crate::record::Recorder;
@@ -76,6 +78,8 @@ enum PointerDrag {
         start: f64,
         snap: f64,
     },
+    /// Dragging a handle of the gizmo on the selection.
+    Gizmo(GizmoDrag),
 }
 
 /// Parts the renderer has been told to tint, per tint.
@@ -109,6 +113,8 @@ struct Runner {
     results: Vec<Value>,
     /// One record per frame while the script runs.
     frames: Vec<Value>,
+    /// Where the running gizmo drag pressed (view pixels).
+    gizmo_from: ViewPoint,
 }
 
 /// What this frame of the script asks of the frame.
@@ -316,6 +322,47 @@ impl App {
         })
     }
 
+    /// A click in the active pane: places a section plane on the face under
+    /// it when one is being placed, measures in a measuring mode, else picks.
+    /// The report entry of what it did.
+    fn click(&mut self, at: ViewPoint) -> anyhow::Result<Value> {
+        if self.ui.section_on_face {
+            self.ui.section_on_face = false;
+            let hit = self
+                .review
+                .pick(&self.ray_at(at))
+                .context("section on a face: nothing there to place the plane on")?;
+            // The plane keeps what lies behind the face, away from the eye.
+            self.review.section.add_plane(hit.point, -hit.normal)?;
+            return Ok(json!({
+                "point": hit.point.to_array(),
+                "normal": (-hit.normal).to_array(),
+                "section": self.review.section.describe(),
+            }));
+        }
+        if self.ui.measure.mode == MeasureMode::Off {
+            return Ok(self.pick(at));
+        }
+        let ray = self.ray_at(at);
+        let Some(hit) = self.review.pick(&ray) else {
+            return Ok(json!({ "hit": false }));
+        };
+        // Snap within SNAP_PX pixels at the hit's depth.
+        let pane = &self.panes[self.active];
+        let depth = (hit.point - pane.nav.eye).dot(pane.nav.forward());
+        let px = 2.0 * depth * (pane.nav.fov_y_rad * 0.5).tan() / f64::from(pane.view.size.1);
+        let point = crate::measure::snap(&self.review.scene, &hit, SNAP_PX * px);
+        let scene = &self.review.scene;
+        let result = self.ui.measure.click(&self.review, point);
+        Ok(match result {
+            Some(m) => {
+                self.ui.status = format!("measured {}", m.label());
+                m.json(scene)
+            }
+            None => json!({ "first": point.point.to_array(), "snap": point.snap.name() }),
+        })
+    }
+
     /// Frames the selection (or the point under `at`, picking it first).
     fn focus(&mut self, at: Option<ViewPoint>) {
         if let Some(at) = at {
@@ -327,10 +374,35 @@ impl App {
         }
     }
 
-    /// A primary drag starts at `at`: on the selection with a drag axis set it
-    /// moves the part, anywhere else it orbits about the point under it.
+    /// The gizmo on the selection in pane `pane`, when it shows.
+    fn gizmo(&self, pane: usize) -> Option<Gizmo> {
+        let part = self.review.selected.filter(|_| self.ui.show_gizmo)?;
+        let p = self.panes.get(pane)?;
+        let centre = self.review.scene.part_world_bounds(part).center();
+        Gizmo::new(&p.nav.camera(), p.view.size, centre)
+    }
+
+    /// The snapping of drags, or `None` to move freely.
+    fn snap(&self, free: bool) -> Option<Snap> {
+        (!free).then_some(Snap {
+            step: self.ui.snap,
+            degrees: self.ui.snap_deg,
+        })
+    }
+
+    /// A primary drag starts at `at`: on a gizmo handle it drags the handle;
+    /// on the selection with a drag axis set it moves the part, anywhere else
+    /// it orbits about the point under it.
     fn begin_pointer_drag(&mut self, at: ViewPoint, axis: Option<Axis>) {
         let ray = self.ray_at(at);
+        if let Some(g) = self.gizmo(self.active)
+            && let Some(handle) = g.handle_at(glam::DVec2::new(at.0, at.1))
+            && let Some(drag) = g.begin(handle, &ray)
+            && self.review.begin_drag()
+        {
+            self.pointer_drag = Some(PointerDrag::Gizmo(drag));
+            return;
+        }
         let hit = self.review.pick(&ray);
         let on_selection = hit.filter(|h| Some(h.part) == self.review.selected);
         self.pointer_drag = match (axis, on_selection) {
@@ -353,8 +425,13 @@ impl App {
         };
     }
 
-    fn pointer_drag_to(&mut self, at: ViewPoint, delta: ViewPoint) {
+    fn pointer_drag_to(&mut self, at: ViewPoint, delta: ViewPoint, free: bool) {
         match self.pointer_drag {
+            Some(PointerDrag::Gizmo(drag)) => {
+                if let Some(delta) = drag.delta(&self.ray_at(at), self.snap(free)) {
+                    self.review.drag_by(delta);
+                }
+            }
             Some(PointerDrag::Orbit) => self
                 .nav()
                 .orbit(-delta.0 * TURN_PER_PIXEL, -delta.1 * TURN_PER_PIXEL),
@@ -365,11 +442,9 @@ impl App {
                 snap,
             }) => {
                 if let Some(s) = axis_offset(origin, axis, &self.ray_at(at)) {
-                    let mut offset = s - start;
-                    if snap > 0.0 {
-                        offset = (offset / snap).round() * snap;
-                    }
-                    self.review.drag_to(axis * offset);
+                    let step = if free { 0.0 } else { snap };
+                    self.review
+                        .drag_to(axis * crate::gizmo::snap_to(s - start, step));
                 }
             }
             None => {}
@@ -377,7 +452,7 @@ impl App {
     }
 
     fn end_pointer_drag(&mut self) {
-        if let Some(PointerDrag::Part { .. }) = self.pointer_drag.take() {
+        if let Some(PointerDrag::Part { .. } | PointerDrag::Gizmo(_)) = self.pointer_drag.take() {
             self.review.end_drag();
         }
     }
@@ -385,6 +460,8 @@ impl App {
     /// The part under a view point, for the hover tint (nothing while a
     /// primary drag goes on).
     fn hover(&mut self, at: Option<(usize, ViewPoint)>) {
+        self.ui.gizmo_hot =
+            at.and_then(|(pane, (x, y))| self.gizmo(pane)?.handle_at(glam::DVec2::new(x, y)));
         self.hovered = match at {
             Some((pane, at)) if self.pointer_drag.is_none() && pane < self.panes.len() => {
                 self.review.pick(&self.ray_in(pane, at)).map(|h| h.part)
@@ -408,14 +485,16 @@ impl App {
         }
         if let Some(at) = input.double_clicked {
             self.focus(Some(at));
-        } else if let Some(at) = input.clicked {
-            self.pick(at);
+        } else if let Some(at) = input.clicked
+            && let Err(e) = self.click(at)
+        {
+            self.ui.status = format!("{e:#}");
         }
         if let Some(at) = input.drag_started {
             self.begin_pointer_drag(at, self.ui.drag_axis);
         }
         if let Some((at, delta)) = input.dragging {
-            self.pointer_drag_to(at, delta);
+            self.pointer_drag_to(at, delta, input.free);
         }
         if input.drag_stopped {
             self.end_pointer_drag();
@@ -508,12 +587,124 @@ impl App {
                     );
                 } else {
                     let (prev, now) = (at(step - 1), at(step));
-                    self.pointer_drag_to(now, (now.0 - prev.0, now.1 - prev.1));
+                    self.pointer_drag_to(now, (now.0 - prev.0, now.1 - prev.1), false);
                 }
                 if step == steps {
                     self.end_pointer_drag();
                     result = Some(self.selection_facts());
                 }
+            }
+            Action::GizmoDrag(d) => {
+                if step == 0 {
+                    let g = self.gizmo(self.active).context(
+                        "gizmo_drag: nothing is selected, or the gizmo is hidden or behind the eye",
+                    )?;
+                    let from = match d.from {
+                        Some([x, y]) => glam::DVec2::new(x + 0.5, y + 0.5),
+                        None => g
+                            .grab_point(d.handle)
+                            .context("gizmo_drag: the handle is off screen")?,
+                    };
+                    self.runner.gizmo_from = (from.x, from.y);
+                    self.begin_pointer_drag(self.runner.gizmo_from, None);
+                    anyhow::ensure!(
+                        matches!(self.pointer_drag, Some(PointerDrag::Gizmo(g)) if g.handle == d.handle),
+                        "gizmo_drag: the press at {from} does not grab the {:?} handle",
+                        d.handle
+                    );
+                } else {
+                    let steps = d.steps.max(1);
+                    let t = f64::from(step) / f64::from(steps);
+                    let (x, y) = self.runner.gizmo_from;
+                    let now = (x + d.by[0] * t, y + d.by[1] * t);
+                    let prev = f64::from(step - 1) / f64::from(steps);
+                    let delta = ((t - prev) * d.by[0], (t - prev) * d.by[1]);
+                    self.pointer_drag_to(now, delta, d.free);
+                }
+                if step == d.steps.max(1) {
+                    self.end_pointer_drag();
+                    result = Some(self.selection_facts());
+                }
+            }
+            Action::Snap(s) => {
+                self.ui.snap = s.step.unwrap_or(self.ui.snap);
+                self.ui.snap_deg = s.degrees.unwrap_or(self.ui.snap_deg);
+            }
+            Action::Gizmo(show) => self.ui.show_gizmo = *show,
+            Action::SectionPlane(p) => {
+                self.review
+                    .section
+                    .add_plane(DVec3::from_array(p.point), DVec3::from_array(p.normal))?;
+                result = Some(json!({ "section": self.review.section.describe() }));
+            }
+            Action::SectionFace([x, y]) => {
+                self.ui.section_on_face = true;
+                result = Some(self.click((x + 0.5, y + 0.5))?);
+            }
+            Action::SectionBox(b) => {
+                self.review
+                    .section
+                    .set_box(DVec3::from_array(b.min), DVec3::from_array(b.max))?;
+                result = Some(json!({ "section": self.review.section.describe() }));
+            }
+            Action::ClearSection => self.review.section = crate::section::Section::Off,
+            Action::Measure(m) => {
+                self.ui.measure.set_mode(m.mode);
+                let mut clicks = Vec::new();
+                for [x, y] in m.at {
+                    clicks.push(self.click((x + 0.5, y + 0.5))?);
+                }
+                anyhow::ensure!(
+                    self.ui.measure.first.is_none() && m.mode != MeasureMode::Off,
+                    "measure: both clicks must hit a part (got {clicks:?})"
+                );
+                result = Some(clicks.pop().unwrap_or_default());
+            }
+            Action::MeasureParts([a, b]) => {
+                let (a, b) = (
+                    self.review.scene.find_part(a)?,
+                    self.review.scene.find_part(b)?,
+                );
+                let s = self
+                    .review
+                    .distance(a, b)
+                    .context("measure_parts: a part has no triangles")?;
+                let m = crate::measure::Measurement::Parts(a, b, s);
+                self.ui.measure.result = Some(m);
+                result = Some(m.json(&self.review.scene));
+            }
+            Action::LoadClashes(path) => {
+                let added = crate::clashes::load_report(&mut self.review, path)?;
+                result = Some(json!({ "added": added, "listed": self.review.clash_list.len() }));
+            }
+            Action::ShowClash(i) => {
+                result = Some(crate::tools_ui::show_clash(
+                    &mut self.review,
+                    &mut self.ui.measure,
+                    &mut self.panes[self.active],
+                    *i,
+                )?);
+            }
+            Action::SaveViewpoint(name) => {
+                let v = crate::viewpoints::Viewpoint::capture(
+                    name,
+                    &self.panes[self.active].nav,
+                    &self.review,
+                );
+                result = Some(v.json());
+                self.ui.viewpoints.retain(|o| o.name != *name);
+                self.ui.viewpoints.push(v);
+            }
+            Action::Viewpoint(name) => {
+                let v = self
+                    .ui
+                    .viewpoints
+                    .iter()
+                    .find(|v| v.name == *name)
+                    .cloned()
+                    .with_context(|| format!("viewpoint {name:?}: no viewpoint of that name"))?;
+                crate::tools_ui::go_to(&v, &mut self.review, &mut self.panes[self.active]);
+                result = Some(v.json());
             }
             Action::Rotate(r) => {
                 anyhow::ensure!(
@@ -572,6 +763,7 @@ impl App {
             Action::Overlays(o) => {
                 self.ui.show_stats = o.stats.unwrap_or(self.ui.show_stats);
                 self.ui.show_clashes = o.clashes.unwrap_or(self.ui.show_clashes);
+                self.ui.show_tools = o.tools.unwrap_or(self.ui.show_tools);
             }
             Action::Frames(_) => {}
             Action::Screenshot(path) => {
@@ -646,7 +838,9 @@ impl App {
         let renderer = self.renderer.as_mut().expect("made with the window");
         gfx.ensure_views(self.panes.len());
         let mut stats = Vec::with_capacity(self.panes.len());
+        let section = self.review.section.planes();
         for (i, pane) in self.panes.iter_mut().enumerate() {
+            pane.view.set_section(&section);
             let rect = self.pane_rects.get(i).copied().unwrap_or((0, 0, 1, 1));
             gfx.resize_view(i, (rect.2, rect.3));
             pane.view.size = gfx.views[i].size;
@@ -812,6 +1006,7 @@ impl App {
                     "render_gpu_ms": main.gpu_ms,
                     "triangles_drawn": main.triangles_drawn,
                     "chunks_drawn": main.chunks_drawn,
+                    "culled_section": main.culled_section,
                     "draw_calls": main.draw_calls,
                     "lod_error_px": main.lod_error_px,
                     "min_pixels": main.min_pixels,

@@ -32,8 +32,7 @@ mod app;
 mod compose;
 mod gfx;
 mod panes;
-mod record;
-mod review;
+mod tools_ui;
 mod ui;
 
 use std::path::PathBuf;
@@ -42,7 +41,9 @@ use std::time::Instant;
 
 use anyhow::Context as _;
 use clap::Parser;
-use dmu_viewer::{nav, script, settings};
+use dmu_viewer::{
+    clashes, gizmo, measure, nav, record, review, script, section, settings, viewpoints,
+};
 use serde_json::json;
 
 /// dmu-viewer: walk, pick, move with live collision, save the review.

@@ -229,6 +229,21 @@ impl Navigator {
         self.pivot = center;
     }
 
+    /// Puts the eye at `eye` looking along `forward` (any length; roll is not
+    /// kept: the view stays upright, its pitch short of the vertical), the
+    /// pivot `pivot_distance` ahead. `false` (nothing changed) for a forward
+    /// that is zero or not finite.
+    pub fn look_along(&mut self, eye: DVec3, forward: DVec3, pivot_distance: f64) -> bool {
+        let Some(f) = forward.try_normalize().filter(|_| eye.is_finite()) else {
+            return false;
+        };
+        self.eye = eye;
+        self.yaw = f.y.atan2(f.x);
+        self.pitch = f.z.clamp(-1.0, 1.0).asin().clamp(-MAX_PITCH, MAX_PITCH);
+        self.pivot = eye + self.forward() * pivot_distance.max(self.near);
+        true
+    }
+
     /// Looks from a standard direction and frames `bounds`.
     pub fn preset(&mut self, preset: Preset, bounds: &Aabb3d) {
         (self.yaw, self.pitch) = preset.yaw_pitch();

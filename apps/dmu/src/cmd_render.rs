@@ -173,6 +173,7 @@ fn stats_json(s: &FrameStats) -> serde_json::Value {
         "culled_coverage": s.culled_coverage,
         "culled_occlusion": s.culled_occlusion,
         "hidden": s.hidden,
+        "culled_section": s.culled_section,
         "not_resident": s.not_resident,
         "queries": s.queries,
         "queries_visible": s.queries_visible,

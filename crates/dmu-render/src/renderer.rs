@@ -1099,6 +1099,25 @@ struct Pass {
     clear: bool,
 }
 
+/// The section planes in each eye's view space, six per eye (unused slots are
+/// `(0, 0, 0, 1)`: every point is 1 above them, kept). The plane
+/// goes through the inverse transpose of world-to-view in f64, so a plane far
+/// from the origin becomes a small camera-relative one before narrowing to f32.
+fn section_in_eyes(
+    section: &[Plane],
+    eye_views: &[DAffine3],
+) -> [[f32; 4]; 2 * MAX_SECTION_PLANES] {
+    let mut clip = [[0.0, 0.0, 0.0, 1.0]; 2 * MAX_SECTION_PLANES];
+    for (eye, view) in eye_views.iter().take(2).enumerate() {
+        let view_to_world_t = DMat4::from(view.inverse()).transpose();
+        for (i, p) in section.iter().enumerate() {
+            let v = view_to_world_t * p.normal.extend(p.d);
+            clip[eye * MAX_SECTION_PLANES + i] = v.as_vec4().to_array();
+        }
+    }
+    clip
+}
+
 #[cfg(test)]
 mod tests {
     use super::{Pass, QUERIES_PER_PASS, plan_passes};
@@ -1183,23 +1202,4 @@ mod tests {
         // Nothing to do and nothing to clear: no pass.
         assert!(plan_passes(2, true, &[], 0, false).is_empty());
     }
-}
-
-/// The section planes in each eye's view space, six per eye (unused slots are
-/// `(0, 0, 0, 1)`: every point is 1 above them, kept). The plane
-/// goes through the inverse transpose of world-to-view in f64, so a plane far
-/// from the origin becomes a small camera-relative one before narrowing to f32.
-fn section_in_eyes(
-    section: &[Plane],
-    eye_views: &[DAffine3],
-) -> [[f32; 4]; 2 * MAX_SECTION_PLANES] {
-    let mut clip = [[0.0, 0.0, 0.0, 1.0]; 2 * MAX_SECTION_PLANES];
-    for (eye, view) in eye_views.iter().take(2).enumerate() {
-        let view_to_world_t = DMat4::from(view.inverse()).transpose();
-        for (i, p) in section.iter().enumerate() {
-            let v = view_to_world_t * p.normal.extend(p.d);
-            clip[eye * MAX_SECTION_PLANES + i] = v.as_vec4().to_array();
-        }
-    }
-    clip
 }
