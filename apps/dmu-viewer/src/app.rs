@@ -66,7 +66,7 @@ impl Options {
 }
 
 /// A primary-button drag in the 3D view.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 enum PointerDrag {
     /// Orbiting about the pivot.
     Orbit,
@@ -80,6 +80,16 @@ enum PointerDrag {
     },
     /// Dragging a handle of the gizmo on the selection.
     Gizmo(GizmoDrag),
+    /// Sliding handle `index` of the section along `dir` through `origin`
+    /// (see [`crate::section::Section::handles`]); `start` is the offset under
+    /// the pointer when the drag began, `before` the section then.
+    Section {
+        index: usize,
+        origin: DVec3,
+        dir: DVec3,
+        start: f64,
+        before: crate::section::Section,
+    },
 }
 
 /// Parts the renderer has been told to tint, per tint.
@@ -113,7 +123,7 @@ struct Runner {
     results: Vec<Value>,
     /// One record per frame while the script runs.
     frames: Vec<Value>,
-    /// Where the running gizmo drag pressed (view pixels).
+    /// Where the running gizmo or section drag pressed (view pixels).
     gizmo_from: ViewPoint,
 }
 
@@ -382,6 +392,25 @@ impl App {
         Gizmo::new(&p.nav.camera(), p.view.size, centre)
     }
 
+    /// The section handle under view point `at` of pane `pane` (index, world
+    /// point, slide direction), when the tools are drawn.
+    fn section_handle_at(&self, pane: usize, at: ViewPoint) -> Option<(usize, DVec3, DVec3)> {
+        let p = self.panes.get(pane).filter(|_| self.ui.show_tools)?;
+        let projector = crate::gizmo::Projector::new(&p.nav.camera(), p.view.size);
+        let at = glam::DVec2::new(at.0, at.1);
+        self.review
+            .section
+            .handles(&self.review.tree.bounds())
+            .into_iter()
+            .enumerate()
+            .filter_map(|(i, (point, dir))| {
+                let d = projector.project(point)?.distance(at);
+                (d <= crate::gizmo::GRAB_PX).then_some((d, (i, point, dir)))
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|(_, h)| h)
+    }
+
     /// The snapping of drags, or `None` to move freely.
     fn snap(&self, free: bool) -> Option<Snap> {
         (!free).then_some(Snap {
@@ -395,6 +424,18 @@ impl App {
     /// it orbits about the point under it.
     fn begin_pointer_drag(&mut self, at: ViewPoint, axis: Option<Axis>) {
         let ray = self.ray_at(at);
+        if let Some((index, origin, dir)) = self.section_handle_at(self.active, at)
+            && let Some(start) = axis_offset(origin, dir, &ray)
+        {
+            self.pointer_drag = Some(PointerDrag::Section {
+                index,
+                origin,
+                dir,
+                start,
+                before: self.review.section.clone(),
+            });
+            return;
+        }
         if let Some(g) = self.gizmo(self.active)
             && let Some(handle) = g.handle_at(glam::DVec2::new(at.0, at.1))
             && let Some(drag) = g.begin(handle, &ray)
@@ -430,6 +471,19 @@ impl App {
             Some(PointerDrag::Gizmo(drag)) => {
                 if let Some(delta) = drag.delta(&self.ray_at(at), self.snap(free)) {
                     self.review.drag_by(delta);
+                }
+            }
+            Some(PointerDrag::Section {
+                index,
+                origin,
+                dir,
+                start,
+                ref before,
+            }) => {
+                if let Some(s) = axis_offset(origin, dir, &self.ray_at(at)) {
+                    let step = if free { 0.0 } else { self.ui.snap };
+                    self.review.section =
+                        before.slid(index, crate::gizmo::snap_to(s - start, step));
                 }
             }
             Some(PointerDrag::Orbit) => self
@@ -594,6 +648,35 @@ impl App {
                     result = Some(self.selection_facts());
                 }
             }
+            Action::SectionDrag(d) => {
+                if step == 0 {
+                    let pane = &self.panes[self.active];
+                    let projector =
+                        crate::gizmo::Projector::new(&pane.nav.camera(), pane.view.size);
+                    let (point, _) = *self
+                        .review
+                        .section
+                        .handles(&self.review.tree.bounds())
+                        .get(d.handle)
+                        .with_context(|| format!("section_drag: no section handle {}", d.handle))?;
+                    let from = projector
+                        .project(point)
+                        .context("section_drag: the handle is behind the eye")?;
+                    self.runner.gizmo_from = (from.x, from.y);
+                    self.begin_pointer_drag(self.runner.gizmo_from, None);
+                    anyhow::ensure!(
+                        matches!(self.pointer_drag, Some(PointerDrag::Section { index, .. }) if index == d.handle),
+                        "section_drag: the press at {from} does not grab handle {} (are the tools' drawings hidden?)",
+                        d.handle
+                    );
+                } else {
+                    self.script_pointer_step(step, d.steps, d.by, false);
+                }
+                if step == d.steps.max(1) {
+                    self.end_pointer_drag();
+                    result = Some(self.review.section.json());
+                }
+            }
             Action::GizmoDrag(d) => {
                 if step == 0 {
                     let g = self.gizmo(self.active).context(
@@ -613,13 +696,7 @@ impl App {
                         d.handle
                     );
                 } else {
-                    let steps = d.steps.max(1);
-                    let t = f64::from(step) / f64::from(steps);
-                    let (x, y) = self.runner.gizmo_from;
-                    let now = (x + d.by[0] * t, y + d.by[1] * t);
-                    let prev = f64::from(step - 1) / f64::from(steps);
-                    let delta = ((t - prev) * d.by[0], (t - prev) * d.by[1]);
-                    self.pointer_drag_to(now, delta, d.free);
+                    self.script_pointer_step(step, d.steps, d.by, d.free);
                 }
                 if step == d.steps.max(1) {
                     self.end_pointer_drag();
@@ -635,7 +712,7 @@ impl App {
                 self.review
                     .section
                     .add_plane(DVec3::from_array(p.point), DVec3::from_array(p.normal))?;
-                result = Some(json!({ "section": self.review.section.describe() }));
+                result = Some(self.review.section.json());
             }
             Action::SectionFace([x, y]) => {
                 self.ui.section_on_face = true;
@@ -645,7 +722,7 @@ impl App {
                 self.review
                     .section
                     .set_box(DVec3::from_array(b.min), DVec3::from_array(b.max))?;
-                result = Some(json!({ "section": self.review.section.describe() }));
+                result = Some(self.review.section.json());
             }
             Action::ClearSection => self.review.section = crate::section::Section::Off,
             Action::Measure(m) => {
@@ -787,6 +864,19 @@ impl App {
             self.runner.step = 0;
         }
         Ok(out)
+    }
+
+    /// Step `step` (from 1) of `steps` of a scripted drag that moves the
+    /// pointer by `by` pixels from where it pressed.
+    fn script_pointer_step(&mut self, step: u32, steps: u32, by: [f64; 2], free: bool) {
+        let steps = steps.max(1);
+        let (t, prev) = (
+            f64::from(step) / f64::from(steps),
+            f64::from(step - 1) / f64::from(steps),
+        );
+        let (x, y) = self.runner.gizmo_from;
+        let now = (x + by[0] * t, y + by[1] * t);
+        self.pointer_drag_to(now, ((t - prev) * by[0], (t - prev) * by[1]), free);
     }
 
     /// The selection's transform and clashes, for the report.

@@ -13,7 +13,7 @@ use serde::Deserialize;
 /// Length of an arrow on screen, pixels.
 pub const ARROW_PX: f64 = 90.0;
 /// How close the pointer must come to a handle to grab it, pixels.
-const GRAB_PX: f64 = 8.0;
+pub const GRAB_PX: f64 = 8.0;
 /// Segments of a drawn ring.
 const RING_SEGMENTS: usize = 48;
 
@@ -101,37 +101,24 @@ fn plane_basis(axis: DVec3) -> (DVec3, DVec3) {
     (u, axis.cross(u))
 }
 
-/// The gizmo of a selection seen by a camera in a view of `size` pixels.
+/// World points to the pixels of a view (y down), through a camera.
 #[derive(Clone, Copy, Debug)]
-pub struct Gizmo {
-    /// The selection's world box centre: where the arrows start and what the
-    /// rings turn about.
-    pub centre: DVec3,
-    /// World length of an arrow (constant on screen).
-    pub length: f64,
+pub struct Projector {
     clip_from_world: DMat4,
     size: DVec2,
 }
 
-impl Gizmo {
-    /// The gizmo at `centre`, or `None` when the centre is behind the eye.
-    pub fn new(camera: &Camera, size: (u32, u32), centre: DVec3) -> Option<Self> {
+impl Projector {
+    /// The projection of `camera` in a view of `size` pixels.
+    pub fn new(camera: &Camera, size: (u32, u32)) -> Self {
         let (w, h) = (f64::from(size.0.max(1)), f64::from(size.1.max(1)));
-        let depth = (centre - camera.eye).dot((camera.target - camera.eye).normalize());
-        // NaN (a camera without a direction) fails this too.
-        if depth.partial_cmp(&camera.near) != Some(std::cmp::Ordering::Greater) {
-            return None;
-        }
-        let world_per_px = 2.0 * depth * (camera.fov_y_rad * 0.5).tan() / h;
-        Some(Self {
-            centre,
-            length: ARROW_PX * world_per_px,
+        Self {
             clip_from_world: camera.projection(w / h) * camera.view_matrix(),
             size: DVec2::new(w, h),
-        })
+        }
     }
 
-    /// A world point in view pixels (y down), or `None` behind the eye.
+    /// A world point in view pixels, or `None` behind the eye.
     pub fn project(&self, p: DVec3) -> Option<DVec2> {
         let clip = self.clip_from_world * p.extend(1.0);
         (clip.w > 0.0).then(|| {
@@ -141,6 +128,40 @@ impl Gizmo {
                 (1.0 - ndc.y) * 0.5 * self.size.y,
             )
         })
+    }
+}
+
+/// The gizmo of a selection seen by a camera in a view of `size` pixels.
+#[derive(Clone, Copy, Debug)]
+pub struct Gizmo {
+    /// The selection's world box centre: where the arrows start and what the
+    /// rings turn about.
+    pub centre: DVec3,
+    /// World length of an arrow (constant on screen).
+    pub length: f64,
+    projector: Projector,
+}
+
+impl Gizmo {
+    /// The gizmo at `centre`, or `None` when the centre is behind the eye.
+    pub fn new(camera: &Camera, size: (u32, u32), centre: DVec3) -> Option<Self> {
+        let h = f64::from(size.1.max(1));
+        let depth = (centre - camera.eye).dot((camera.target - camera.eye).normalize());
+        // NaN (a camera without a direction) fails this too.
+        if depth.partial_cmp(&camera.near) != Some(std::cmp::Ordering::Greater) {
+            return None;
+        }
+        let world_per_px = 2.0 * depth * (camera.fov_y_rad * 0.5).tan() / h;
+        Some(Self {
+            centre,
+            length: ARROW_PX * world_per_px,
+            projector: Projector::new(camera, size),
+        })
+    }
+
+    /// A world point in view pixels (y down), or `None` behind the eye.
+    pub fn project(&self, p: DVec3) -> Option<DVec2> {
+        self.projector.project(p)
     }
 
     /// The world polyline of a handle: the arrow's shaft, the square's

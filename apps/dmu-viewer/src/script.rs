@@ -24,7 +24,7 @@
 //!   {"snap": {"step": 25, "degrees": 15}}, {"gizmo": true},
 //!   {"section_plane": {"point": [0, 0, 1000], "normal": [0, 0, -1]}},
 //!   {"section_face": [640, 360]}, {"section_box": {"min": [0, 0, 0], "max": [9e3, 9e3, 3e3]}},
-//!   "clear_section",
+//!   {"section_drag": {"handle": 0, "by": [0, -40], "steps": 4}}, "clear_section",
 //!   {"measure": {"mode": "points", "at": [[600, 300], [700, 320]]}},
 //!   {"measure_parts": ["U00-L1-PIPE-0003", "U00-L1-PIPE-0004"]},
 //!   {"load_clashes": "/tmp/collide.json"}, {"show_clash": 0},
@@ -168,6 +168,20 @@ pub struct SectionBox {
     pub max: [f64; 3],
 }
 
+/// A drag of a section handle (a plane's, or a box face's) with the
+/// simulated mouse.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SectionDrag {
+    /// The handle: the plane's index, or the box face's (-x, +x, -y, +y, -z, +z).
+    pub handle: usize,
+    /// How far the pointer moves from the handle, pixels `[dx, dy]`.
+    pub by: [f64; 2],
+    /// Pointer positions on the way (frames); at least 1.
+    #[serde(default = "default_steps")]
+    pub steps: u32,
+}
+
 /// Two clicks of the measuring tool in a mode.
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -221,6 +235,8 @@ pub enum Action {
     SectionFace([f64; 2]),
     /// Cut away everything outside a box.
     SectionBox(SectionBox),
+    /// Slide a section plane or box face by its handle.
+    SectionDrag(SectionDrag),
     /// Remove every section plane and box.
     ClearSection,
     /// Measure between two clicked points, parts or faces.
@@ -280,6 +296,7 @@ impl Action {
             Self::Drag(d) => d.steps.max(1),
             Self::MouseDrag(d) => d.steps.max(1).saturating_add(1),
             Self::GizmoDrag(d) => d.steps.max(1).saturating_add(1),
+            Self::SectionDrag(d) => d.steps.max(1).saturating_add(1),
             Self::Frames(n) => (*n).max(1),
             _ => 1,
         }
@@ -301,6 +318,7 @@ impl Action {
             Self::SectionFace(_) => "section_face",
             Self::SectionBox(_) => "section_box",
             Self::ClearSection => "clear_section",
+            Self::SectionDrag(_) => "section_drag",
             Self::Measure(_) => "measure",
             Self::MeasureParts(_) => "measure_parts",
             Self::LoadClashes(_) => "load_clashes",
@@ -359,6 +377,7 @@ pub fn parse(text: &str) -> anyhow::Result<Vec<Action>> {
             Action::SectionPlane(p) => p.point.iter().chain(&p.normal).all(|v| v.is_finite()),
             Action::SectionBox(b) => b.min.iter().chain(&b.max).all(|v| v.is_finite()),
             Action::Measure(m) => m.at.iter().flatten().all(|v| v.is_finite()),
+            Action::SectionDrag(d) => d.by.iter().all(|v| v.is_finite()),
             Action::Rotate(r) => r.degrees.is_finite(),
             Action::Clearance(c) => {
                 anyhow::ensure!(
@@ -382,6 +401,7 @@ pub fn parse(text: &str) -> anyhow::Result<Vec<Action>> {
             Action::Drag(d) => Some(d.steps),
             Action::MouseDrag(d) => Some(d.steps),
             Action::GizmoDrag(d) => Some(d.steps),
+            Action::SectionDrag(d) => Some(d.steps),
             _ => None,
         };
         if let Some(n) = frames {

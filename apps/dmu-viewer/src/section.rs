@@ -67,12 +67,69 @@ impl Section {
         Ok(())
     }
 
-    /// Moves plane `index` along its normal by `by` (positive: cuts away more).
-    pub fn shift_plane(&mut self, index: usize, by: f64) {
-        if let Self::Planes(p) = self
-            && let Some(plane) = p.get_mut(index)
-        {
-            plane.d -= by;
+    /// The handles that slide the section, each a world point and the unit
+    /// direction it slides along: a box's six face centres (outward), a
+    /// plane's point nearest the centre of `bounds` (along its normal).
+    pub fn handles(&self, bounds: &Aabb3d) -> Vec<(DVec3, DVec3)> {
+        match self {
+            Self::Off => Vec::new(),
+            Self::Planes(p) => p
+                .iter()
+                .map(|pl| {
+                    let c = bounds.center();
+                    (c - pl.normal * pl.signed_distance(c), pl.normal)
+                })
+                .collect(),
+            Self::Box(b) => box_planes(b)
+                .iter()
+                .map(|pl| {
+                    let c = b.center();
+                    (c - pl.normal * pl.signed_distance(c), -pl.normal)
+                })
+                .collect(),
+        }
+    }
+
+    /// This section with handle `index` ([`Section::handles`]) slid by `by`
+    /// along its direction (a box face stops at the opposite face).
+    pub fn slid(&self, index: usize, by: f64) -> Self {
+        let mut out = self.clone();
+        match &mut out {
+            Self::Off => {}
+            Self::Planes(p) => {
+                if let Some(pl) = p.get_mut(index) {
+                    pl.d -= by;
+                }
+            }
+            Self::Box(b) => {
+                let axis = index / 2;
+                if index % 2 == 0 {
+                    b.min[axis] = (b.min[axis] - by).min(b.max[axis]);
+                } else {
+                    b.max[axis] = (b.max[axis] + by).max(b.min[axis]);
+                }
+            }
+        }
+        out
+    }
+
+    /// For the report of an automated run: the kind, and the planes `(n, d)`
+    /// or the box.
+    pub fn json(&self) -> serde_json::Value {
+        match self {
+            Self::Off => serde_json::json!({ "kind": "off" }),
+            Self::Planes(p) => serde_json::json!({
+                "kind": "planes",
+                "planes": p
+                    .iter()
+                    .map(|pl| serde_json::json!({ "normal": pl.normal.to_array(), "d": pl.d }))
+                    .collect::<Vec<_>>(),
+            }),
+            Self::Box(b) => serde_json::json!({
+                "kind": "box",
+                "min": b.min.to_array(),
+                "max": b.max.to_array(),
+            }),
         }
     }
 
@@ -124,14 +181,42 @@ mod tests {
         assert!(s.set_box(DVec3::ONE, DVec3::ZERO).is_err());
     }
 
-    /// Planes keep their positive side, at most six, and shift along the normal.
+    /// Sliding a handle moves its face or plane along its direction: the
+    /// handle lands where it was slid to.
+    #[test]
+    fn handles_slide_faces_and_planes() {
+        let bounds = Aabb3d::new(DVec3::splat(-10.0), DVec3::splat(10.0));
+        let mut s = Section::Off;
+        s.set_box(DVec3::new(-1.0, -2.0, -3.0), DVec3::new(1.0, 2.0, 3.0))
+            .unwrap();
+        let before = s.handles(&bounds);
+        assert_eq!(before.len(), 6);
+        for i in 0..6 {
+            let (p, dir) = before[i];
+            let after = s.slid(i, 0.5).handles(&bounds)[i];
+            assert!(after.0.abs_diff_eq(p + dir * 0.5, 1e-12), "face {i}");
+            // Sliding inward past the opposite face stops there.
+            let squashed = s.slid(i, -100.0);
+            let Section::Box(b) = squashed else { panic!() };
+            assert_eq!(b.min[i / 2], b.max[i / 2]);
+        }
+        let mut s = Section::Off;
+        s.add_plane(DVec3::new(0.0, 0.0, 4.0), -DVec3::Z).unwrap();
+        let (p, dir) = s.handles(&bounds)[0];
+        assert_eq!(p, DVec3::new(0.0, 0.0, 4.0));
+        let slid = s.slid(0, 1.5);
+        assert!(slid.handles(&bounds)[0].0.abs_diff_eq(p + dir * 1.5, 1e-12));
+        assert!(!slid.keeps(DVec3::new(0.0, 0.0, 3.0)) && slid.keeps(DVec3::new(0.0, 0.0, 2.4)));
+    }
+
+    /// Planes keep their positive side, at most six, and slide along the normal.
     #[test]
     fn planes_keep_their_positive_side() {
         let mut s = Section::Off;
         s.add_plane(DVec3::new(0.0, 0.0, 10.0), -DVec3::Z).unwrap();
         assert!(s.keeps(DVec3::new(5.0, 5.0, 9.0)));
         assert!(!s.keeps(DVec3::new(5.0, 5.0, 11.0)));
-        s.shift_plane(0, 2.0);
+        s = s.slid(0, 2.0);
         assert!(!s.keeps(DVec3::new(5.0, 5.0, 9.0)));
         assert!(s.keeps(DVec3::new(5.0, 5.0, 7.9)));
         for _ in 1..MAX_SECTION_PLANES {

@@ -315,6 +315,20 @@ pub fn paint(
 
 fn paint_section(painter: &egui::Painter, rect: Rect, clip_from_world: &DMat4, review: &Review) {
     let stroke = Stroke::new(1.5, SECTION_COLOUR);
+    // The handles that slide planes and box faces.
+    for (point, dir) in review.section.handles(&review.tree.bounds()) {
+        if let Some(p) = crate::panes::project(clip_from_world, rect, point) {
+            painter.circle_filled(p, 5.0, SECTION_COLOUR);
+            let tip = crate::panes::project(
+                clip_from_world,
+                rect,
+                point + dir * review.tree.bounds().extent().length() * 0.02,
+            );
+            if let Some(tip) = tip {
+                painter.line_segment([p, tip], stroke);
+            }
+        }
+    }
     match &review.section {
         Section::Off => {}
         Section::Box(b) => crate::panes::box_edges(painter, clip_from_world, rect, b, stroke),

@@ -151,6 +151,8 @@ fn a_section_plane_cuts_the_2m_plant_under_xvfb() {
             {"section_plane": {"point": [cut_x, min.y, min.z], "normal": [-1, 0, 0]}},
             {"frames": 2},
             {"screenshot": cut_png},
+            {"overlays": {"tools": true}},
+            {"section_drag": {"handle": 0, "by": [-40, 0], "steps": 4}},
         ]),
     );
     assert_eq!(report["model"]["triangles"], info["triangles"]);
@@ -171,6 +173,14 @@ fn a_section_plane_cuts_the_2m_plant_under_xvfb() {
         drawn(cut)
     );
     assert!(cut["culled_section"].as_u64() > Some(0), "{cut}");
+    // The plane's handle slides it along its normal by whole 10 mm steps.
+    let d = |s: &Value| s["planes"][0]["d"].as_f64().unwrap();
+    let placed = d(step(&report, 4, "section_plane"));
+    let slid = d(step(&report, 8, "section_drag"));
+    assert!(
+        slid != placed && ((slid - placed) / 10.0).fract() == 0.0,
+        "the plane slid from d {placed} to {slid}"
+    );
 
     // The kept half box projects inside the hull of its corners: every
     // column right of the rightmost corner can show only what was cut away.
