@@ -103,7 +103,7 @@ impl Section {
             }
             Self::Box(b) => {
                 let axis = index / 2;
-                if index % 2 == 0 {
+                if index.is_multiple_of(2) {
                     b.min[axis] = (b.min[axis] - by).min(b.max[axis]);
                 } else {
                     b.max[axis] = (b.max[axis] + by).max(b.min[axis]);
@@ -191,8 +191,7 @@ mod tests {
             .unwrap();
         let before = s.handles(&bounds);
         assert_eq!(before.len(), 6);
-        for i in 0..6 {
-            let (p, dir) = before[i];
+        for (i, &(p, dir)) in before.iter().enumerate() {
             let after = s.slid(i, 0.5).handles(&bounds)[i];
             assert!(after.0.abs_diff_eq(p + dir * 0.5, 1e-12), "face {i}");
             // Sliding inward past the opposite face stops there.
