@@ -116,14 +116,16 @@ fn vs_mesh(
 }
 
 @fragment
-fn fs_shade(in: MeshOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
+fn fs_shade(in: MeshOut) -> @location(0) vec4<f32> {
     if SECTIONED {
         if cut_away(in.view_pos, in.eye) {
             discard;
         }
-        // A back face seen under a section is the inside of a closed part
-        // through the cut: it shows as the cut face, flat in the section colour.
-        if !front {
+        // A face seen from behind under a section is the inside of a closed
+        // part through the cut: it shows as the cut face, flat in the section
+        // colour. Behind by the normal the shading uses, not by the winding,
+        // which CAD exports get wrong (nothing is culled for that reason).
+        if dot(in.normal, in.view_pos) > 0.0 {
             return vec4<f32>(view.section_cap, 1.0);
         }
     }

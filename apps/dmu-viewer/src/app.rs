@@ -301,6 +301,12 @@ impl App {
             .unwrap_or((0, 0, 1, 1))
     }
 
+    /// Frames the model in the active pane: what a section box keeps of it.
+    fn frame_all(&mut self) {
+        let bounds = self.review.section.kept_bounds(self.review.tree.bounds());
+        self.frame_in_active(&bounds);
+    }
+
     /// Frames `bounds` in the active pane, whose visibility starts afresh.
     fn frame_in_active(&mut self, bounds: &dmu_geom::Aabb3d) {
         let pane = &mut self.panes[self.active];
@@ -578,7 +584,7 @@ impl App {
             self.focus(None);
         }
         if input.frame_all {
-            self.frame_in_active(&self.review.tree.bounds());
+            self.frame_all();
         }
     }
 
@@ -726,16 +732,20 @@ impl App {
             }
             Action::ClearSection => self.review.section = crate::section::Section::Off,
             Action::Measure(m) => {
-                self.ui.measure.set_mode(m.mode);
-                let mut clicks = Vec::new();
-                for [x, y] in m.at {
-                    clicks.push(self.click((x + 0.5, y + 0.5))?);
-                }
                 anyhow::ensure!(
-                    self.ui.measure.first.is_none() && m.mode != MeasureMode::Off,
-                    "measure: both clicks must hit a part (got {clicks:?})"
+                    m.mode != MeasureMode::Off,
+                    "measure: mode \"off\" measures nothing (give points, parts or angle)"
                 );
-                result = Some(clicks.pop().unwrap_or_default());
+                self.ui.measure.set_mode(m.mode);
+                let mut last = Value::Null;
+                for [x, y] in m.at {
+                    last = self.click((x + 0.5, y + 0.5))?;
+                    anyhow::ensure!(
+                        last["hit"] != false,
+                        "measure: the click at [{x}, {y}] hits no part"
+                    );
+                }
+                result = Some(last);
             }
             Action::MeasureParts([a, b]) => {
                 let (a, b) = (
@@ -827,7 +837,7 @@ impl App {
             Action::Undo => result = Some(json!({ "part_id": self.review.undo().map(|p| p.0) })),
             Action::Redo => result = Some(json!({ "part_id": self.review.redo().map(|p| p.0) })),
             Action::Focus => self.focus(None),
-            Action::FrameAll => self.frame_in_active(&self.review.tree.bounds()),
+            Action::FrameAll => self.frame_all(),
             Action::Culling(name) => {
                 self.panes[self.active].view.culling =
                     crate::script::culling_from_name(name).context("culling mode")?;

@@ -133,6 +133,15 @@ impl Section {
         }
     }
 
+    /// What of `bounds` a section box keeps (all of it for planes, or when
+    /// the box misses it).
+    pub fn kept_bounds(&self, bounds: Aabb3d) -> Aabb3d {
+        match self {
+            Self::Box(b) if b.overlaps(&bounds) => b.intersection(bounds),
+            _ => bounds,
+        }
+    }
+
     /// A short description for the status line and the report.
     pub fn describe(&self) -> String {
         match self {

@@ -193,7 +193,7 @@ fn measure_panel(ui: &mut egui::Ui, state: &mut UiState) {
             ui.label(egui::RichText::new(m.label()).strong());
             let (a, b) = m.ends();
             ui.weak(format!(
-                "{} → {}",
+                "{} to {}",
                 crate::ui::vec_text(a),
                 crate::ui::vec_text(b)
             ));
