@@ -276,6 +276,30 @@ impl App {
         Ok(Some(report))
     }
 
+    /// Takes over an open window (its egui state made with `ctx`): makes the
+    /// renderer for the model and asks for the first frame.
+    pub fn adopt(&mut self, gfx: Gfx, state: egui_winit::State, ctx: egui::Context) {
+        let renderer = Renderer::new(
+            &gfx.device,
+            &gfx.queue,
+            &self.review.scene,
+            &self.review.tree,
+            dmu_render::RendererOptions {
+                color_format: gfx.view_format,
+                // Levels cost upload time and memory: built when the view may
+                // draw them (a LOD error raised from 0 in the panel later
+                // draws chunks whole).
+                lod_levels: self.panes[0].view.options.may_draw_lods(),
+                ..Default::default()
+            },
+        );
+        gfx.window.request_redraw();
+        self.egui_ctx = ctx;
+        self.renderer = Some(renderer);
+        self.egui_state = Some(state);
+        self.gfx = Some(gfx);
+    }
+
     /// The active pane's camera.
     fn nav(&mut self) -> &mut Navigator {
         &mut self.panes[self.active].nav
@@ -425,11 +449,27 @@ impl App {
         })
     }
 
-    /// A primary drag starts at `at`: on a gizmo handle it drags the handle;
-    /// on the selection with a drag axis set it moves the part, anywhere else
-    /// it orbits about the point under it.
+    /// A primary drag starts at `at`: on the selection with a drag axis set
+    /// it moves the part along the axis; on a section handle it slides the
+    /// plane or box face; on a gizmo handle it drags the handle; anywhere
+    /// else it orbits about the point under it.
     fn begin_pointer_drag(&mut self, at: ViewPoint, axis: Option<Axis>) {
         let ray = self.ray_at(at);
+        let hit = self.review.pick(&ray);
+        // With a drag axis set, a press on the selection slides it (the
+        // mode asked for), even where a gizmo handle crosses the part.
+        if let (Some(axis), Some(h)) = (axis, hit.filter(|h| Some(h.part) == self.review.selected))
+            && self.review.begin_drag()
+        {
+            let axis = axis.unit();
+            self.pointer_drag = Some(PointerDrag::Part {
+                axis,
+                origin: h.point,
+                start: axis_offset(h.point, axis, &ray).unwrap_or(0.0),
+                snap: self.ui.snap,
+            });
+            return;
+        }
         if let Some((index, origin, dir)) = self.section_handle_at(self.active, at)
             && let Some(start) = axis_offset(origin, dir, &ray)
         {
@@ -450,26 +490,10 @@ impl App {
             self.pointer_drag = Some(PointerDrag::Gizmo(drag));
             return;
         }
-        let hit = self.review.pick(&ray);
-        let on_selection = hit.filter(|h| Some(h.part) == self.review.selected);
-        self.pointer_drag = match (axis, on_selection) {
-            (Some(axis), Some(h)) if self.review.begin_drag() => {
-                let axis = axis.unit();
-                let start = axis_offset(h.point, axis, &ray).unwrap_or(0.0);
-                Some(PointerDrag::Part {
-                    axis,
-                    origin: h.point,
-                    start,
-                    snap: self.ui.snap,
-                })
-            }
-            _ => {
-                if let Some(h) = hit {
-                    self.nav().pivot = h.point;
-                }
-                Some(PointerDrag::Orbit)
-            }
-        };
+        if let Some(h) = hit {
+            self.nav().pivot = h.point;
+        }
+        self.pointer_drag = Some(PointerDrag::Orbit);
     }
 
     fn pointer_drag_to(&mut self, at: ViewPoint, delta: ViewPoint, free: bool) {
@@ -1139,6 +1163,35 @@ impl App {
     }
 }
 
+/// Opens the viewer's window with `options`' size and sync, and egui's
+/// state for it on `ctx`.
+pub fn open_window(
+    event_loop: &ActiveEventLoop,
+    instance: &wgpu::Instance,
+    options: &Options,
+    ctx: &egui::Context,
+) -> anyhow::Result<(Gfx, egui_winit::State)> {
+    let attributes = Window::default_attributes()
+        .with_title("dmu")
+        .with_inner_size(winit::dpi::PhysicalSize::new(
+            options.size.0,
+            options.size.1,
+        ));
+    let window = event_loop
+        .create_window(attributes)
+        .context("opening the window")?;
+    let gfx = Gfx::new(instance, Arc::new(window), options.vsync, options.compose)?;
+    let state = egui_winit::State::new(
+        ctx.clone(),
+        egui::ViewportId::ROOT,
+        &gfx.window,
+        Some(gfx.window.scale_factor() as f32),
+        gfx.window.theme(),
+        Some(gfx.device.limits().max_texture_dimension_2d as usize),
+    );
+    Ok((gfx, state))
+}
+
 /// Keyboard shortcuts that act on the review: undo, redo, deselect.
 fn shortcuts(ui: &mut egui::Ui, review: &mut Review) {
     if ui.ctx().egui_wants_keyboard_input() {
@@ -1219,52 +1272,8 @@ impl ApplicationHandler for App {
         if self.gfx.is_some() {
             return;
         }
-        let attributes = Window::default_attributes()
-            .with_title("dmu")
-            .with_inner_size(winit::dpi::PhysicalSize::new(
-                self.options.size.0,
-                self.options.size.1,
-            ));
-        let made = event_loop
-            .create_window(attributes)
-            .context("opening the window")
-            .and_then(|w| {
-                Gfx::new(
-                    &self.instance,
-                    Arc::new(w),
-                    self.options.vsync,
-                    self.options.compose,
-                )
-            });
-        match made {
-            Ok(gfx) => {
-                let renderer = Renderer::new(
-                    &gfx.device,
-                    &gfx.queue,
-                    &self.review.scene,
-                    &self.review.tree,
-                    dmu_render::RendererOptions {
-                        color_format: gfx.view_format,
-                        // Levels cost upload time and memory: built when the
-                        // view may draw them (a LOD error raised from 0 in the
-                        // panel later draws chunks whole).
-                        lod_levels: self.panes[0].view.options.may_draw_lods(),
-                        ..Default::default()
-                    },
-                );
-                let state = egui_winit::State::new(
-                    self.egui_ctx.clone(),
-                    egui::ViewportId::ROOT,
-                    &gfx.window,
-                    Some(gfx.window.scale_factor() as f32),
-                    gfx.window.theme(),
-                    Some(gfx.device.limits().max_texture_dimension_2d as usize),
-                );
-                gfx.window.request_redraw();
-                self.renderer = Some(renderer);
-                self.egui_state = Some(state);
-                self.gfx = Some(gfx);
-            }
+        match open_window(event_loop, &self.instance, &self.options, &self.egui_ctx) {
+            Ok((gfx, state)) => self.adopt(gfx, state, self.egui_ctx.clone()),
             Err(e) => {
                 self.error = Some(e);
                 event_loop.exit();

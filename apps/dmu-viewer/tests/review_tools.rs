@@ -122,7 +122,8 @@ fn report_camera(camera: &Value) -> Camera {
     }
 }
 
-/// A section plane through the middle of the 2M plant, seen from the top:
+/// The window opens and shows the progress while the 2M plant loads. A
+/// section plane through the middle of the plant, seen from the top:
 /// the screen beyond every corner of the kept half of the model's box shows
 /// only background (before the cut it showed the plant), and the cut frame
 /// draws fewer triangles, culling what is wholly cut away.
@@ -156,6 +157,18 @@ fn a_section_plane_cuts_the_2m_plant_under_xvfb() {
         ]),
     );
     assert_eq!(report["model"]["triangles"], info["triangles"]);
+    // The window opened and drew the progress while the model loaded.
+    assert!(
+        report["frames_while_loading"].as_u64() > Some(0),
+        "no frame while the 2M plant loaded: {}",
+        report["frames_while_loading"]
+    );
+    let reported: [f64; 3] =
+        serde_json::from_value(report["model"]["bounds"]["min"].clone()).unwrap();
+    assert!(
+        DVec3::from_array(reported).abs_diff_eq(min, 1e-9 * min.length()),
+        "the report's model bounds start at {reported:?}, dmu info's at {min}"
+    );
     let frames = report["frames"].as_array().unwrap();
     let shot = |i: usize| {
         frames
