@@ -154,7 +154,12 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
         progress,
         started: Instant::now(),
         what: cli.model.file.as_ref().map_or_else(
-            || "the built-in plant".to_owned(),
+            || {
+                format!(
+                    "the built-in plant ({:.1}M triangles)",
+                    cli.model.plant_triangles as f64 / 1e6
+                )
+            },
             |f| f.display().to_string(),
         ),
     };
