@@ -171,7 +171,7 @@ fn viewpoint_line(v: &Viewpoint, unit: LengthUnit) -> String {
     let p = |v: DVec3| format!("[{:.3}, {:.3}, {:.3}]", v.x, v.y, v.z);
     if let Some(c) = &v.camera {
         let projection = match c.projection {
-            Projection::Perspective { fov_y_deg } => format!("fov {fov_y_deg}°"),
+            Projection::Perspective { fov_y_deg } => format!("fov {fov_y_deg:.1}°"),
             Projection::Orthogonal { view_height } => {
                 format!("orthogonal, {view_height} {} high", unit.name())
             }

@@ -38,8 +38,9 @@ use crate::load::{Loaded, ModelArgs, load};
 /// parts per record, at the first step where the pair has a finding (a record
 /// of 3,000 steps of one contact makes one topic), titled with the kind, both
 /// parts, the step and its time (and the record's file name when there are
-/// several); its viewpoint frames both parts as they stand at that step, from
-/// the +X, -Y, +Z side, with both selected (glTF node names in
+/// several); its viewpoint frames both parts as they stand at that step (for
+/// an impact, the part hit and the point of impact), from the +X, -Y, +Z side,
+/// with both selected (glTF node names in
 /// AuthoringToolId) and a snapshot rendered offscreen, the pair tinted.
 /// Without a GPU adapter the file is written without snapshots, with a
 /// warning.

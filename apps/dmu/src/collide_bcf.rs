@@ -154,7 +154,8 @@ impl Snapshots {
 }
 
 /// The camera of a clash: looking from the +X, −Y, +Z side (the viewer's iso
-/// view) at both parts' boxes, framed as the viewer frames a selection.
+/// view) at `bounds` (both parts' boxes; for an impact, the part hit and the
+/// point of impact), framed as the viewer frames a selection.
 fn clash_camera(tree: &Tree, bounds: &Aabb3d) -> Camera {
     let forward = DVec3::new(-1.0, 1.0, -1.0);
     let framed = |near| Camera::framing(bounds, forward, DVec3::Z, FOV_Y_DEG.to_radians(), near);
@@ -196,12 +197,12 @@ pub fn write_bcf(
         let record_name = file
             .file_name()
             .map_or_else(|| record.clone(), |n| n.to_string_lossy().into_owned());
-        // Steps are replayed forward once; the pairs in order of first step.
-        let mut order: Vec<&PairClash> = pairs.iter().collect();
-        order.sort_by_key(|p| p.step);
+        // The pairs come in order of first step: the steps are replayed
+        // forward once.
         let mut next_step = 0;
         let mut moved = Vec::new();
-        for pair in order {
+        for pair in pairs {
+            debug_assert!(pair.step + 1 >= next_step, "pairs in step order");
             for step in &steps[next_step..=pair.step] {
                 for m in &step.moves {
                     tree.move_part(&mut scene, m.part, m.world);
@@ -210,7 +211,14 @@ pub fn write_bcf(
             }
             next_step = pair.step + 1;
             let (a, b) = (PartId(pair.a_id), PartId(pair.b_id));
-            let bounds = scene.part_world_bounds(a).union(scene.part_world_bounds(b));
+            // An impact happened along the move, not where the moved part
+            // ends: frame the part hit and the point of impact.
+            let bounds = match pair.toi {
+                Some(_) => scene
+                    .part_world_bounds(b)
+                    .grown(DVec3::from_array(pair.point)),
+                None => scene.part_world_bounds(a).union(scene.part_world_bounds(b)),
+            };
             let camera = clash_camera(&tree, &bounds);
             let snapshot = match snapshots.as_mut() {
                 Some(s) => Some(s.take(&scene, &tree, camera, [a, b]).with_context(|| {
@@ -229,7 +237,9 @@ pub fn write_bcf(
                 request.clearance,
             ));
         }
-        for part in moved.drain(..) {
+        moved.sort_unstable();
+        moved.dedup();
+        for part in moved {
             tree.move_part(&mut scene, part, model_poses[part.index()]);
         }
     }

@@ -21,9 +21,9 @@
 //!   folder ("zip slip"), an entry larger than its cap ([`MAX_SNAPSHOT_BYTES`],
 //!   [`MAX_XML_BYTES`]) or more than [`MAX_ENTRIES`] entries is a
 //!   [`BcfError`] naming the file, the entry and the reason, never a panic.
-//! - The archive is built in memory and written through
-//!   [`dmu_scene::write_file_atomically`]: a kill or a full disk leaves the
-//!   previous file whole.
+//! - The archive is streamed into a temporary file renamed into place
+//!   ([`dmu_scene::AtomicFile`]): a kill or a full disk leaves the previous
+//!   file whole, and the snapshots are not copied into a second buffer.
 //!
 //! Conventions: right-handed world coordinates as in the model (Z up in the
 //! plant); a camera's field of view is vertical, in degrees; a clipping plane

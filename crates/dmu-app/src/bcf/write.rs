@@ -11,14 +11,15 @@ use zip::write::SimpleFileOptions;
 use super::xml::XmlWriter;
 use super::{BcfError, Camera, Component, Projection, Topic, Viewpoint};
 
-/// Writes `topics` to a BCF 2.1 archive at `path`, through a temporary file
-/// renamed into place. Positions are divided by `model_units_per_metre` (1000
-/// for a millimetre model), since BCF is in metres. `project_name`, when
-/// given, goes into `project.bcfp` with a fresh project GUID.
+/// Writes `topics` to a BCF 2.1 archive at `path`, streamed into a temporary
+/// file renamed into place ([`dmu_scene::AtomicFile`]). Positions are divided
+/// by `model_units_per_metre` (1000 for a millimetre model), since BCF is in
+/// metres. `project_name`, when given, goes into `project.bcfp` with a fresh
+/// project GUID.
 ///
 /// Fails, writing nothing, when a topic or viewpoint GUID is not a safe folder
-/// or file name (letters, digits, `-`), when two topics share a GUID, or when
-/// a coordinate is not finite.
+/// or file name (letters, digits, `-`), when two topics (or two viewpoints of
+/// a topic) share a GUID, or when a number is not finite.
 ///
 /// # Panics
 /// When `model_units_per_metre` is not finite and positive (a caller's bug).
@@ -32,39 +33,36 @@ pub fn write_bcfzip(
         model_units_per_metre.is_finite() && model_units_per_metre > 0.0,
         "model_units_per_metre must be finite and positive, not {model_units_per_metre}"
     );
-    let bytes =
-        archive(topics, project_name, 1.0 / model_units_per_metre).map_err(|(topic, reason)| {
-            match topic {
-                Some(topic) => BcfError::Topic {
-                    path: path.to_owned(),
-                    topic,
-                    reason,
-                },
-                None => BcfError::Io {
-                    path: path.to_owned(),
-                    source: std::io::Error::other(reason),
-                },
-            }
-        })?;
-    dmu_scene::write_file_atomically(path, &bytes).map_err(|source| BcfError::Io {
+    check(topics).map_err(|(topic, reason)| BcfError::Topic {
+        path: path.to_owned(),
+        topic,
+        reason,
+    })?;
+    let io = |source| BcfError::Io {
         path: path.to_owned(),
         source,
-    })
+    };
+    let mut file = dmu_scene::AtomicFile::create(path).map_err(io)?;
+    write_archive(
+        file.file(),
+        topics,
+        project_name,
+        1.0 / model_units_per_metre,
+    )
+    .map_err(|e| io(std::io::Error::other(e)))?;
+    // Dropped uncommitted on an error above: the temporary file goes.
+    file.commit().map_err(io)
 }
 
-/// A failure while building the archive: the topic's GUID (none for the
-/// archive as a whole) and the reason.
-type Failure = (Option<String>, String);
+/// Why a topic cannot be written: its GUID and the reason.
+type Refusal = (String, String);
 
-/// The archive's bytes; metres are model units times `metres_per_unit`.
-fn archive(
-    topics: &[Topic],
-    project_name: Option<&str>,
-    metres_per_unit: f64,
-) -> Result<Vec<u8>, Failure> {
+/// Whether every topic can be written: GUIDs safe as names and unique,
+/// numbers finite.
+fn check(topics: &[Topic]) -> Result<(), Refusal> {
     let mut seen = HashSet::new();
     for topic in topics {
-        let fail = |reason: String| (Some(topic.guid.clone()), reason);
+        let fail = |reason: String| (topic.guid.clone(), reason);
         check_guid(&topic.guid).map_err(|r| fail(format!("topic GUID {r}")))?;
         if !seen.insert(topic.guid.to_ascii_lowercase()) {
             return Err(fail("two topics have this GUID".to_owned()));
@@ -78,9 +76,18 @@ fn archive(
             check_finite(v).map_err(|r| fail(format!("viewpoint {}: {r}", v.guid)))?;
         }
     }
-    let zip_error = |e: zip::result::ZipError| (None, format!("building the archive: {e}"));
-    let io_error = |e: std::io::Error| (None, format!("building the archive: {e}"));
-    let mut zip = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+    Ok(())
+}
+
+/// The archive, written to `out`; metres are model units times
+/// `metres_per_unit`.
+fn write_archive<W: std::io::Write + std::io::Seek>(
+    out: W,
+    topics: &[Topic],
+    project_name: Option<&str>,
+    metres_per_unit: f64,
+) -> zip::result::ZipResult<()> {
+    let mut zip = zip::ZipWriter::new(out);
     let now = utc_now();
     let modified = zip::DateTime::from_date_and_time(
         now.year.clamp(1980, 2107) as u16,
@@ -96,9 +103,9 @@ fn archive(
         .last_modified_time(modified);
     // Snapshots are compressed already.
     let stored = deflated.compression_method(zip::CompressionMethod::Stored);
-    let mut add = |name: &str, bytes: &[u8], options| -> Result<(), Failure> {
-        zip.start_file(name, options).map_err(zip_error)?;
-        zip.write_all(bytes).map_err(io_error)
+    let mut add = |name: &str, bytes: &[u8], options| -> zip::result::ZipResult<()> {
+        zip.start_file(name, options)?;
+        Ok(zip.write_all(bytes)?)
     };
     add("bcf.version", version().as_bytes(), deflated)?;
     if let Some(name) = project_name {
@@ -107,8 +114,11 @@ fn archive(
     let date = iso8601(now);
     for topic in topics {
         let folder = &topic.guid;
-        let markup = markup(topic, &date);
-        add(&format!("{folder}/markup.bcf"), markup.as_bytes(), deflated)?;
+        add(
+            &format!("{folder}/markup.bcf"),
+            markup(topic, &date).as_bytes(),
+            deflated,
+        )?;
         for v in &topic.viewpoints {
             let visinfo = visualization_info(v, metres_per_unit);
             add(
@@ -121,7 +131,8 @@ fn archive(
             }
         }
     }
-    Ok(zip.finish().map_err(zip_error)?.into_inner())
+    zip.finish()?;
+    Ok(())
 }
 
 /// Whether a GUID can name a folder or file: letters, digits and `-`, 1 to 64
