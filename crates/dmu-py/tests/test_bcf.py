@@ -1,8 +1,8 @@
 """BCF files against an independent reader and writer, IfcOpenShell's
 bcf-client (`import bcf`): what `dmu collide --bcf` writes reads there with
 the topics, cameras, components and snapshots it should have, and what
-bcf-client writes reads in dmu (`dmu bcf show --json`) with its camera and
-clipping planes. Under CI=true a missing bcf-client fails; elsewhere it skips,
+bcf-client writes (BCF 2.1 and 3.0) reads in dmu (`dmu bcf show --json`) with
+its camera and clipping planes. Under CI=true a missing bcf-client fails; elsewhere it skips,
 saying so."""
 
 import json
@@ -24,7 +24,7 @@ def bcf_client():
     try:
         import bcf.bcfxml
         import bcf.v2.model
-        import bcf.v2.visinfo
+        import bcf.v3.model
     except ImportError as e:
         require(False, f"bcf-client is not installed (pip install bcf-client): {e}")
     return bcf
@@ -141,17 +141,21 @@ def tiny_png(width, height):
     return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b"")
 
 
-def test_bcf_client_file_reads_in_dmu(dmu_bin, tmp_path):
-    bcf = bcf_client()
-    mdl = bcf.v2.model
+@pytest.mark.parametrize("version", ["2.1", "3.0"])
+def test_bcf_client_file_reads_in_dmu(dmu_bin, tmp_path, version):
+    bcf_client()
+    import importlib
+
+    package = "bcf.v2" if version == "2.1" else "bcf.v3"
+    mdl = importlib.import_module(package + ".model")
+    visinfo = importlib.import_module(package + ".visinfo")
+    BcfXml = importlib.import_module(package + ".bcfxml").BcfXml
 
     def point(x, y, z):
         return mdl.Point(x=x, y=y, z=z)
 
     def direction(x, y, z):
         return mdl.Direction(x=x, y=y, z=z)
-
-    from bcf.v2.bcfxml import BcfXml
 
     archive = BcfXml.create_new("review")
     topic = archive.add_topic("Valve & flange <too close>", "Seen on site", "ann@example.com", "Issue", "Open")
@@ -164,13 +168,15 @@ def test_bcf_client_file_reads_in_dmu(dmu_bin, tmp_path):
             visibility=mdl.ComponentVisibility(default_visibility=True)),
         perspective_camera=mdl.PerspectiveCamera(
             camera_view_point=point(1.5, -2.5, 3.25), camera_direction=direction(0.0, 1.0, 0.0),
-            camera_up_vector=direction(0.0, 0.0, 1.0), field_of_view=55.0),
+            camera_up_vector=direction(0.0, 0.0, 1.0), field_of_view=55.0,
+            **({"aspect_ratio": 1.5} if version == "3.0" else {})),
         clipping_planes=mdl.VisualizationInfoClippingPlanes(clipping_plane=[
             mdl.ClippingPlane(location=point(*loc), direction=direction(*d)) for loc, d in planes]))
-    handler = bcf.v2.visinfo.VisualizationInfoHandler(visualization_info=info, snapshot=tiny_png(40, 30))
+    handler = visinfo.VisualizationInfoHandler(visualization_info=info, snapshot=tiny_png(40, 30))
     topic.add_visinfo_handler(handler, "snapshot.png")
-    path = tmp_path / "from_bcf_client.bcfzip"
+    path = tmp_path / f"from_bcf_client_{version}.bcfzip"
     archive.save(path)
+    assert bcf_client().bcfxml.load(path).version.version_id == version
 
     _, out = run_cli(dmu_bin, "bcf", "show", path, "--json", "--unit", "mm")
     shown = json.loads(out)
