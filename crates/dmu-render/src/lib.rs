@@ -90,7 +90,7 @@ mod view;
 pub use budget::{KnobsInEffect, MAX_LOD_ERROR_PX, MAX_MIN_PIXELS};
 pub use capture::{
     CAPTURE_FORMAT, Capture, DEPTH_FORMAT, ID_FORMAT, IdImage, SURFACE_CHANGE, count_differing,
-    save_png,
+    encode_png, save_png,
 };
 pub use device::headless_device;
 pub use dmu_geom::Camera;
