@@ -97,11 +97,15 @@ fn mesh_vertex(position: vec3<f32>, normal: vec4<f32>, entry: u32, eye: u32) -> 
 }
 
 // Whether a fragment at view_pos of eye `eye` is cut away by a section plane.
+// A face lying in a plane stays whole: the test allows the f32 rounding of
+// camera-relative positions (about 1e-7 of the distance to the eye), so it
+// does not flicker between cut and kept.
 fn cut_away(view_pos: vec3<f32>, eye: u32) -> bool {
+    let tolerance = 1e-5 * length(view_pos);
     var cut = false;
     for (var i = 0u; i < 6u; i++) {
         let plane = view.clip[eye * 6u + i];
-        cut = cut || dot(plane.xyz, view_pos) + plane.w < 0.0;
+        cut = cut || dot(plane.xyz, view_pos) + plane.w < -tolerance;
     }
     return cut;
 }

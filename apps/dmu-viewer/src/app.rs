@@ -57,6 +57,8 @@ pub struct Options {
     pub lod_error_px: f64,
     /// A frame-time budget for the 3D view, ms.
     pub target_ms: Option<f64>,
+    /// The length of a model unit, for BCF issues (BCF is in metres).
+    pub unit: dmu_app::units::LengthUnit,
 }
 
 impl Options {
@@ -169,7 +171,26 @@ pub struct App {
     facts: Value,
     keep_drawing: bool,
     error: Option<anyhow::Error>,
+    /// A BCF export in progress: a frame per topic for its snapshot.
+    export: Option<Export>,
 }
+
+/// A BCF export in progress.
+#[derive(Debug)]
+struct Export {
+    path: PathBuf,
+    issues: Vec<crate::issues::Issue>,
+    /// The issue whose snapshot is being taken.
+    next: usize,
+    /// Frames drawn for it (a snapshot waits for occlusion culling to settle).
+    frames: u32,
+    /// The view to go back to, and the overlays shown, when done.
+    restore: crate::viewpoints::Viewpoint,
+    overlays: (bool, bool, bool),
+}
+
+/// Frames an export waits at most for a view to settle before its snapshot.
+const SNAPSHOT_SETTLE_FRAMES: u32 = 8;
 
 impl std::fmt::Debug for App {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -221,6 +242,7 @@ impl App {
             facts,
             keep_drawing: true,
             error: None,
+            export: None,
         }
     }
 
@@ -544,6 +566,9 @@ impl App {
     /// The part under a view point, for the hover tint (nothing while a
     /// primary drag goes on).
     fn hover(&mut self, at: Option<(usize, ViewPoint)>) {
+        if self.export.is_some() {
+            return;
+        }
         self.ui.gizmo_hot =
             at.and_then(|(pane, (x, y))| self.gizmo(pane)?.handle_at(glam::DVec2::new(x, y)));
         self.hovered = match at {
@@ -615,7 +640,7 @@ impl App {
     /// Runs the script's current action for this frame.
     fn script_frame(&mut self) -> anyhow::Result<ScriptFrame> {
         let mut out = ScriptFrame::default();
-        if self.frames_drawn < WARMUP_FRAMES {
+        if self.frames_drawn < WARMUP_FRAMES || self.export.is_some() {
             return Ok(out);
         }
         let Some(action) = self.runner.actions.get(self.runner.index).cloned() else {
@@ -796,6 +821,11 @@ impl App {
                     *i,
                 )?);
             }
+            Action::ExportBcf(path) => {
+                let topics = self.start_export(path.clone());
+                result = Some(json!({ "path": path, "topics": topics }));
+            }
+            Action::ImportBcf(path) => result = Some(self.import_bcf(path)?),
             Action::SaveViewpoint(name) => {
                 let v = crate::viewpoints::Viewpoint::capture(
                     name,
@@ -898,6 +928,144 @@ impl App {
             self.runner.step = 0;
         }
         Ok(out)
+    }
+
+    /// Carries out the BCF export or import the panel asked for.
+    fn panel_bcf_request(&mut self) {
+        let Some(request) = self.ui.tools.bcf_request.take() else {
+            return;
+        };
+        let path = PathBuf::from(&self.ui.tools.bcf_path);
+        match request {
+            crate::tools_ui::BcfRequest::Export if self.export.is_none() => {
+                let n = self.start_export(path);
+                self.ui.status = format!("writing {n} issues…");
+            }
+            crate::tools_ui::BcfRequest::Export => {}
+            crate::tools_ui::BcfRequest::Import => {
+                if let Err(e) = self.import_bcf(&path) {
+                    self.ui.status = format!("{e:#}");
+                }
+            }
+        }
+    }
+
+    /// Starts writing the review's issues (listed clashes, saved viewpoints)
+    /// to a BCF file at `path`: each issue's view is shown for a frame or a
+    /// few, its snapshot taken, then the file written and the view restored.
+    /// How many topics it will hold.
+    pub fn start_export(&mut self, path: PathBuf) -> usize {
+        let nav = &self.panes[self.active].nav;
+        let issues = crate::issues::issues(
+            &self.review,
+            &self.ui.viewpoints,
+            nav.forward(),
+            nav.fov_y_rad,
+            nav.near,
+        );
+        let n = issues.len();
+        self.export = Some(Export {
+            path,
+            issues,
+            next: 0,
+            frames: 0,
+            restore: crate::viewpoints::Viewpoint::capture("", nav, &self.review),
+            overlays: (self.ui.show_stats, self.ui.show_clashes, self.ui.show_tools),
+        });
+        (self.ui.show_stats, self.ui.show_clashes, self.ui.show_tools) = (false, false, false);
+        n
+    }
+
+    /// Shows the view of the issue being exported (its first frame), or ends
+    /// the export when every snapshot is in.
+    fn export_view(&mut self) {
+        let Some(e) = self.export.as_mut() else {
+            return;
+        };
+        if let Some(issue) = e.issues.get(e.next) {
+            // Snapshots show the model, not where the pointer rests.
+            self.hovered = None;
+            if e.frames == 0 {
+                let view = issue.view.clone();
+                crate::tools_ui::go_to(&view, &mut self.review, &mut self.panes[self.active]);
+            }
+            return;
+        }
+        let e = self.export.take().expect("checked");
+        let topics: Vec<dmu_app::bcf::Topic> = e.issues.into_iter().map(|i| i.topic).collect();
+        let name = self.review.scene.name().to_owned();
+        let written = dmu_app::bcf::write_bcfzip(
+            &e.path,
+            &topics,
+            Some(&name),
+            self.options.unit.per_metre(),
+        );
+        crate::tools_ui::go_to(&e.restore, &mut self.review, &mut self.panes[self.active]);
+        (self.ui.show_stats, self.ui.show_clashes, self.ui.show_tools) = e.overlays;
+        match written {
+            Ok(()) => {
+                self.ui.status = format!("{} issues written to {}", topics.len(), e.path.display());
+                self.facts["bcf_export"] = json!({ "path": e.path, "topics": topics.len() });
+            }
+            Err(err) if self.options.automated() => self.error = Some(err.into()),
+            Err(err) => self.ui.status = format!("{err:#}"),
+        }
+    }
+
+    /// The active pane's pixels of `window` as the snapshot of the issue
+    /// being exported.
+    fn export_snapshot(&mut self, window: &image::RgbaImage) -> anyhow::Result<()> {
+        let (x, y, w, h) = self.active_rect();
+        let Some(e) = self.export.as_mut() else {
+            return Ok(());
+        };
+        let view = image::imageops::crop_imm(window, x, y, w, h).to_image();
+        let png = dmu_render::encode_png(&view)?;
+        if let Some(v) = e.issues[e.next].topic.viewpoints.first_mut() {
+            v.snapshot = Some(png);
+        }
+        e.next += 1;
+        e.frames = 0;
+        Ok(())
+    }
+
+    /// Reads a BCF file's topics as viewpoints (added to the saved ones,
+    /// replacing those of the same name) and goes to the first.
+    pub fn import_bcf(&mut self, path: &std::path::Path) -> anyhow::Result<Value> {
+        let topics = dmu_app::bcf::read_bcfzip(path, self.options.unit.per_metre())?;
+        let bounds = self.review.tree.bounds();
+        let pivot = if bounds.is_empty() {
+            1.0
+        } else {
+            bounds.extent().length() * 0.1
+        };
+        let imported = crate::issues::import(&self.review, &topics, pivot)?;
+        for v in &imported.viewpoints {
+            self.ui.viewpoints.retain(|o| o.name != v.name);
+            self.ui.viewpoints.push(v.clone());
+        }
+        let first = imported.viewpoints.first().cloned();
+        if let Some(v) = &first {
+            crate::tools_ui::go_to(v, &mut self.review, &mut self.panes[self.active]);
+        }
+        self.ui.status = format!(
+            "{} viewpoints from {} ({} topics skipped, {} parts not in the model)",
+            imported.viewpoints.len(),
+            path.display(),
+            imported.skipped_topics,
+            imported.unknown_components
+        );
+        Ok(json!({
+            "topics": topics.len(),
+            "viewpoints": imported.viewpoints.len(),
+            "skipped_topics": imported.skipped_topics,
+            "unknown_components": imported.unknown_components,
+            "first": first.map(|v| json!({
+                "view": v.json(),
+                "section": v.section.json(),
+                "selected": v.selected.map(|p| self.review.scene.part_name(p).to_owned()),
+            })),
+        }))
     }
 
     /// Step `step` (from 1) of `steps` of a scripted drag that moves the
@@ -1029,6 +1197,7 @@ impl App {
             .map_or(0.0, |t| t.elapsed().as_secs_f64().min(0.25));
         self.last_frame = Some(start);
         let scripted = self.script_frame()?;
+        self.export_view();
 
         let (Some(gfx), Some(egui_state)) = (self.gfx.as_mut(), self.egui_state.as_mut()) else {
             return Ok(false);
@@ -1062,9 +1231,11 @@ impl App {
                 self.pane_rects.clone_from(&input.rects_px);
             }
             self.apply_view_input(&input, dt);
+            self.panel_bcf_request();
             self.keep_drawing |= input.active();
 
             let final_frame = self.script_done()
+                && self.export.is_none()
                 && self.options.automated()
                 && self.frames_drawn + 1 >= u64::from(self.options.frames.unwrap_or(0));
             let screenshot = scripted.screenshot.clone().or_else(|| {
@@ -1092,7 +1263,15 @@ impl App {
             let resident = renderer.geometry_pool().resident_bytes();
             let gfx = self.gfx.as_mut().expect("checked above");
             let paint_start = Instant::now();
-            let presented = gfx.present(&self.egui_ctx, output, screenshot.is_some())?;
+            let snapshot = self.export.as_mut().is_some_and(|e| {
+                e.frames += 1;
+                e.frames >= SNAPSHOT_SETTLE_FRAMES || stats.iter().all(|s| s.newly_visible == 0)
+            });
+            let presented =
+                gfx.present(&self.egui_ctx, output, screenshot.is_some() || snapshot)?;
+            if snapshot && let Some(image) = &presented.image {
+                self.export_snapshot(image)?;
+            }
             let paint_ms = ms_since(paint_start);
             if let (Some(path), Some(image)) = (&screenshot, presented.image) {
                 if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {

@@ -6,6 +6,7 @@
 
 pub mod clashes;
 pub mod gizmo;
+pub mod issues;
 pub mod measure;
 pub mod nav;
 pub mod record;

@@ -45,7 +45,7 @@ use std::time::Instant;
 use anyhow::Context as _;
 use clap::Parser;
 use dmu_viewer::{
-    clashes, gizmo, measure, nav, record, review, script, section, settings, viewpoints,
+    clashes, gizmo, issues, measure, nav, record, review, script, section, settings, viewpoints,
 };
 use serde_json::json;
 
@@ -102,6 +102,10 @@ struct Cli {
     /// the choice.
     #[arg(long, value_parser = dmu_app::units::number_in(1.0, 1e6))]
     target_ms: Option<f64>,
+    /// The length of one model unit, for BCF issues written and read (BCF is
+    /// in metres; the built-in plant is in millimetres).
+    #[arg(long, value_enum, default_value = "mm")]
+    unit: dmu_app::units::LengthUnit,
 }
 
 fn run(cli: &Cli) -> anyhow::Result<()> {
@@ -135,6 +139,7 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
         compose: !cli.paint_whole,
         lod_error_px: cli.lod_error_px,
         target_ms: cli.target_ms,
+        unit: cli.unit,
     };
     let event_loop = match winit::event_loop::EventLoop::new() {
         Ok(e) => e,

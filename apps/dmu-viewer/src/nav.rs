@@ -222,11 +222,10 @@ impl Navigator {
         if bounds.is_empty() {
             return;
         }
-        let center = bounds.center();
-        let radius = (bounds.extent().length() * 0.5).max(self.near * 10.0);
-        let distance = radius / (self.fov_y_rad * 0.5).sin() * 1.05;
-        self.eye = center - self.forward() * distance;
-        self.pivot = center;
+        let camera =
+            dmu_geom::Camera::framing(bounds, self.forward(), DVec3::Z, self.fov_y_rad, self.near);
+        self.eye = camera.eye;
+        self.pivot = camera.target;
     }
 
     /// Puts the eye at `eye` looking along `forward` (any length; roll is not

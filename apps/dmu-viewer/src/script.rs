@@ -29,6 +29,7 @@
 //!   {"measure_parts": ["U00-L1-PIPE-0003", "U00-L1-PIPE-0004"]},
 //!   {"load_clashes": "/tmp/collide.json"}, {"show_clash": 0},
 //!   {"save_viewpoint": "pump"}, {"viewpoint": "pump"},
+//!   {"export_bcf": "/tmp/review.bcfzip"}, {"import_bcf": "/tmp/other.bcfzip"},
 //!   {"frames": 5},
 //!   {"screenshot": "docs/viewer.png"},
 //!   {"save": "/tmp/edited.glb"}
@@ -247,6 +248,11 @@ pub enum Action {
     LoadClashes(PathBuf),
     /// Show clash `i` (from 0) of the list: isolate and frame its two parts.
     ShowClash(usize),
+    /// Write the review's issues (listed clashes, saved viewpoints) as BCF
+    /// 2.1, a snapshot each (the next actions wait until it is written).
+    ExportBcf(PathBuf),
+    /// Read a BCF file's topics as viewpoints and go to the first.
+    ImportBcf(PathBuf),
     /// Save the view (camera, selection, hidden parts, section) under a name.
     SaveViewpoint(String),
     /// Go back to a saved view.
@@ -323,6 +329,8 @@ impl Action {
             Self::MeasureParts(_) => "measure_parts",
             Self::LoadClashes(_) => "load_clashes",
             Self::ShowClash(_) => "show_clash",
+            Self::ExportBcf(_) => "export_bcf",
+            Self::ImportBcf(_) => "import_bcf",
             Self::SaveViewpoint(_) => "save_viewpoint",
             Self::Viewpoint(_) => "viewpoint",
             Self::Hover(_) => "hover",

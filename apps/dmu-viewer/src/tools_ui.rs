@@ -21,6 +21,20 @@ pub struct ToolFields {
     pub clash_report: String,
     /// Name for the next saved viewpoint.
     pub viewpoint_name: String,
+    /// Path of the BCF file issues go to and come from.
+    pub bcf_path: String,
+    /// The panel asked for this BCF action (the app carries it out: an
+    /// export takes a frame per topic).
+    pub bcf_request: Option<BcfRequest>,
+}
+
+/// A BCF action asked for in the panel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BcfRequest {
+    /// Write the clash list and the viewpoints.
+    Export,
+    /// Read topics as viewpoints.
+    Import,
 }
 
 impl Default for ToolFields {
@@ -28,6 +42,8 @@ impl Default for ToolFields {
         Self {
             clash_report: "collide.json".to_owned(),
             viewpoint_name: "view 1".to_owned(),
+            bcf_path: "dmu-review.bcfzip".to_owned(),
+            bcf_request: None,
         }
     }
 }
@@ -272,6 +288,26 @@ fn viewpoint_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review, 
     if let Some(i) = go {
         go_to(&state.viewpoints[i], review, pane);
     }
+    ui.horizontal(|ui| {
+        ui.label("BCF");
+        ui.add(egui::TextEdit::singleline(&mut state.tools.bcf_path).desired_width(130.0));
+        if ui
+            .button("export")
+            .on_hover_text("a topic per listed clash and per viewpoint, each with its snapshot")
+            .clicked()
+        {
+            state.tools.bcf_request = Some(BcfRequest::Export);
+        }
+        if ui
+            .button("import")
+            .on_hover_text(
+                "each topic's camera, selection, visibility and clipping planes as a viewpoint",
+            )
+            .clicked()
+        {
+            state.tools.bcf_request = Some(BcfRequest::Import);
+        }
+    });
 }
 
 /// Colour of a clash kind's name (impacts as hard clashes).

@@ -7,7 +7,11 @@ saying so."""
 
 import json
 import math
+import os
+import pathlib
+import shutil
 import struct
+import subprocess
 import uuid
 import zlib
 
@@ -141,8 +145,12 @@ def tiny_png(width, height):
     return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b"")
 
 
-@pytest.mark.parametrize("version", ["2.1", "3.0"])
-def test_bcf_client_file_reads_in_dmu(dmu_bin, tmp_path, version):
+PLANES = [((1.25, 2.0, -0.5), (1.0, 0.0, 0.0)), ((0.0, 0.0, 3.75), (0.0, 0.6, -0.8))]
+
+
+def client_file(tmp_path, version):
+    """A BCF file written by bcf-client: one topic, a perspective camera, box_1_0_0
+    selected, the two clipping planes of PLANES (metres). Returns (path, topic, info)."""
     bcf_client()
     import importlib
 
@@ -159,7 +167,6 @@ def test_bcf_client_file_reads_in_dmu(dmu_bin, tmp_path, version):
 
     archive = BcfXml.create_new("review")
     topic = archive.add_topic("Valve & flange <too close>", "Seen on site", "ann@example.com", "Issue", "Open")
-    planes = [((1.25, 2.0, -0.5), (1.0, 0.0, 0.0)), ((0.0, 0.0, 3.75), (0.0, 0.6, -0.8))]
     info = mdl.VisualizationInfo(
         guid=str(uuid.uuid4()),
         components=mdl.Components(
@@ -171,13 +178,19 @@ def test_bcf_client_file_reads_in_dmu(dmu_bin, tmp_path, version):
             camera_up_vector=direction(0.0, 0.0, 1.0), field_of_view=55.0,
             **({"aspect_ratio": 1.5} if version == "3.0" else {})),
         clipping_planes=mdl.VisualizationInfoClippingPlanes(clipping_plane=[
-            mdl.ClippingPlane(location=point(*loc), direction=direction(*d)) for loc, d in planes]))
+            mdl.ClippingPlane(location=point(*loc), direction=direction(*d)) for loc, d in PLANES]))
     handler = visinfo.VisualizationInfoHandler(visualization_info=info, snapshot=tiny_png(40, 30))
     topic.add_visinfo_handler(handler, "snapshot.png")
     path = tmp_path / f"from_bcf_client_{version}.bcfzip"
     archive.save(path)
     assert bcf_client().bcfxml.load(path).version.version_id == version
+    return path, topic, info
 
+
+@pytest.mark.parametrize("version", ["2.1", "3.0"])
+def test_bcf_client_file_reads_in_dmu(dmu_bin, tmp_path, version):
+    path, topic, info = client_file(tmp_path, version)
+    planes = PLANES
     _, out = run_cli(dmu_bin, "bcf", "show", path, "--json", "--unit", "mm")
     shown = json.loads(out)
     assert shown["unit"] == "mm"
@@ -205,3 +218,107 @@ def test_bcf_client_file_reads_in_dmu(dmu_bin, tmp_path, version):
     # In metres the same file reads 1000 times smaller.
     _, out = run_cli(dmu_bin, "bcf", "show", path, "--json", "--unit", "m")
     assert json.loads(out)["topics"][0]["viewpoints"][0]["camera"]["eye"] == pytest.approx([1.5, -2.5, 3.25])
+
+
+LVP_ICD = "/usr/share/vulkan/icd.d/lvp_icd.x86_64.json"
+
+
+@pytest.fixture(scope="session")
+def viewer_bin(dmu_bin):
+    """The `dmu-viewer` beside the `dmu` binary, with Xvfb and lavapipe to run it."""
+    viewer = pathlib.Path(dmu_bin).with_name("dmu-viewer")
+    require(viewer.is_file(), f"no dmu-viewer beside {dmu_bin} (cargo build --workspace)")
+    require(shutil.which("xvfb-run") is not None, "xvfb-run is missing (apt-get install xvfb xauth)")
+    require(pathlib.Path(LVP_ICD).is_file(), "lavapipe is missing (apt-get install mesa-vulkan-drivers)")
+    return viewer
+
+
+def run_viewer(viewer_bin, model, script, tmp_path):
+    """Runs the viewer on `model` with a script (a list of actions) under Xvfb;
+    returns its JSON report."""
+    script_path = tmp_path / "script.json"
+    script_path.write_text(json.dumps(script))
+    env = dict(os.environ, WGPU_BACKEND="vulkan", VK_ICD_FILENAMES=LVP_ICD)
+    out = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1600x1000x24", str(viewer_bin), str(model),
+                          "--script", str(script_path)], capture_output=True, text=True, timeout=600, env=env)
+    assert out.returncode == 0, f"dmu-viewer failed: {out.stderr}"
+    return json.loads(out.stdout)
+
+
+def step_of(report, action):
+    (step,) = [s for s in report["steps"] if s["action"] == action]
+    return step
+
+
+def test_viewer_bcf_reads_in_bcf_client(grid_glb, viewer_bin, tmp_path):
+    """The viewer's issues, a clash found live and a saved viewpoint with a
+    section plane, read in bcf-client with their cameras, components,
+    visibility, clipping planes and snapshots."""
+    bcf = bcf_client()
+    out_path = tmp_path / "review.bcfzip"
+    report = run_viewer(viewer_bin, grid_glb, [
+        {"select": "box_0_0_0"},
+        {"move": [7.0, 0.0, 0.0]},
+        {"section_plane": {"point": [0.0, 0.0, 25.0], "normal": [0.0, 0.0, -1.0]}},
+        {"save_viewpoint": "level 2 cut"},
+        {"export_bcf": str(out_path)},
+    ], tmp_path)
+    assert step_of(report, "export_bcf")["topics"] == 2
+    assert report["bcf_export"]["topics"] == 2
+    view = report["viewport"]
+
+    archive = bcf.bcfxml.load(out_path)
+    assert archive.version.version_id == "2.1"
+    topics = {t.topic.title: t for t in archive.topics.values()}
+    assert sorted(topics) == ["hard: box_0_0_0 × box_1_0_0", "level 2 cut"]
+    for title, topic in topics.items():
+        assert topic.topic.creation_author == "dmu-viewer"
+        (viewpoint,) = topic.viewpoints.values()
+        info = viewpoint.visualization_info
+        assert [c.authoring_tool_id for c in info.components.selection.component] == ["box_0_0_0"]
+        assert info.perspective_camera.field_of_view == pytest.approx(60.0)
+        assert png_info(viewpoint.snapshot) == (view["width"], view["height"])
+
+    clash = topics["hard: box_0_0_0 × box_1_0_0"]
+    assert clash.topic.topic_type == "Clash"
+    (viewpoint,) = clash.viewpoints.values()
+    visibility = viewpoint.visualization_info.components.visibility
+    assert visibility.default_visibility is False
+    assert sorted(c.authoring_tool_id for c in visibility.exceptions.component) == ["box_0_0_0", "box_1_0_0"]
+    cam = viewpoint.visualization_info.perspective_camera
+    camera = {"eye": [v * 1000.0 for v in xyz(cam.camera_view_point)], "direction": xyz(cam.camera_direction),
+              "up": xyz(cam.camera_up_vector), "fov": cam.field_of_view}
+    for corner in box_corners([7.0, 0.0, 0.0]) + box_corners([10.0, 0.0, 0.0]):
+        assert in_view(camera, corner, view["width"] / view["height"]), corner
+
+    cut = topics["level 2 cut"]
+    (viewpoint,) = cut.viewpoints.values()
+    (plane,) = viewpoint.visualization_info.clipping_planes.clipping_plane
+    # The plane keeps z <= 25 mm; BCF's direction points into what is hidden.
+    assert plane.location.z == pytest.approx(0.025)
+    assert xyz(plane.direction) == pytest.approx([0.0, 0.0, 1.0])
+
+
+@pytest.mark.parametrize("version", ["2.1", "3.0"])
+def test_bcf_client_file_imports_in_viewer(grid_glb, viewer_bin, tmp_path, version):
+    """A file bcf-client wrote opens in the viewer at its camera, with its
+    clipping planes as the section and its component selected."""
+    path, _, _ = client_file(tmp_path, version)
+    report = run_viewer(viewer_bin, grid_glb, [{"import_bcf": str(path)}, {"frames": 2}], tmp_path)
+    imported = step_of(report, "import_bcf")
+    assert (imported["topics"], imported["viewpoints"], imported["unknown_components"]) == (1, 1, 0)
+    first = imported["first"]
+    assert first["selected"] == "box_1_0_0"
+    assert first["view"]["name"] == "Valve & flange <too close>"
+    assert first["view"]["eye"] == pytest.approx([1500.0, -2500.0, 3250.0], abs=1e-9)
+    assert first["view"]["forward"] == pytest.approx([0.0, 1.0, 0.0], abs=1e-12)
+    assert first["view"]["fov_y_deg"] == pytest.approx(55.0)
+    planes = first["section"]["planes"]
+    assert len(planes) == 2
+    for got, (loc, d) in zip(planes, PLANES):
+        n = [-c / math.sqrt(sum(x * x for x in d)) for c in d]
+        assert got["normal"] == pytest.approx(n, abs=1e-12)
+        assert got["d"] == pytest.approx(-sum(n[i] * loc[i] * 1000.0 for i in range(3)), abs=1e-9)
+    # The view the run ended on is the imported camera.
+    assert report["camera"]["eye"] == pytest.approx([1500.0, -2500.0, 3250.0], abs=1e-9)
+    assert report["camera"]["fov_y_deg"] == pytest.approx(55.0)
