@@ -8,7 +8,7 @@ use dmu_scene::PartId;
 use glam::{DAffine3, DMat3, DQuat, DVec3};
 use serde_json::{Value, json};
 
-use crate::support::{Viewport, can_run, count_pixels, dmu, dmu_status, image_path};
+use crate::support::{Viewport, can_run, count_pixels, dmu, dmu_status, image_path, srgb};
 use crate::xvfb::{no_overlays, path_str, plant_200k, run_script, step};
 
 /// A reported selection's transform.
@@ -222,7 +222,7 @@ fn a_section_plane_cuts_the_2m_plant_under_xvfb() {
         size.0
     );
     let background = RendererOptions::default().clear_color;
-    let bg = [background.r, background.g, background.b].map(|c| srgb_byte(c as f32));
+    let bg = [background.r, background.g, background.b].map(|c| srgb(c).round() as u8);
     let beyond = |png: &std::path::Path| {
         let image = image::open(png).expect("screenshot").to_rgba8();
         let right = Viewport {
@@ -241,16 +241,6 @@ fn a_section_plane_cuts_the_2m_plant_under_xvfb() {
         after, 0,
         "{after} pixels beyond the cut still show geometry"
     );
-}
-
-/// A linear colour channel as an sRGB byte.
-fn srgb_byte(linear: f32) -> u8 {
-    let s = if linear <= 0.003_130_8 {
-        linear * 12.92
-    } else {
-        1.055 * linear.powf(1.0 / 2.4) - 0.055
-    };
-    (s * 255.0).round() as u8
 }
 
 /// The viewer's minimum distance between two neighbouring pipes (11.3 mm
