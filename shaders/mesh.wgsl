@@ -15,11 +15,16 @@ struct ViewUniform {
     clash: vec4<f32>,
     // Colour mixed into the part under the pointer, as highlight.
     hover: vec4<f32>,
+    // Colour of cut faces.
+    section_cap: vec3<f32>,
     // Model-views per eye: eye k's are model_views[k * eye_stride ..].
     eye_stride: u32,
     // The eye single-view entry points draw (0 but for a stereo pair drawn a
     // layer at a time).
     eye: u32,
+    // Section planes (n, d) in eye k's view space at clip[k * 6 ..]: a point
+    // p with dot(n, p) + d < 0 is cut away. Unused ones are (0, 0, 0, 1).
+    clip: array<vec4<f32>, 12>,
 }
 
 // Rows of a part's affine model-view (part-local to view space).
@@ -51,6 +56,10 @@ struct QueryBox {
 @group(0) @binding(4) var<storage, read> materials: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read> boxes: array<QueryBox>;
 
+// Whether the pipeline cuts with section planes: the uncut ones compile
+// without the discard, which would cost early depth testing.
+override SECTIONED: bool = false;
+
 // Part flag bits; the tint goes by priority: selected, clashing, hovered.
 const PART_SELECTED: u32 = 1u;
 const PART_CLASHING: u32 = 2u;
@@ -62,6 +71,7 @@ struct MeshOut {
     @location(0) view_pos: vec3<f32>,
     @location(1) normal: vec3<f32>,
     @location(2) @interpolate(flat) entry: u32,
+    @location(3) @interpolate(flat) eye: u32,
 }
 
 // A chunk vertex as eye `eye` sees it. Every mesh entry point goes through
@@ -82,7 +92,22 @@ fn mesh_vertex(position: vec3<f32>, normal: vec4<f32>, entry: u32, eye: u32) -> 
     out.view_pos = view_pos;
     out.normal = view_normal;
     out.entry = entry;
+    out.eye = eye;
     return out;
+}
+
+// Whether a fragment at view_pos of eye `eye` is cut away by a section plane.
+// A face lying in a plane stays whole: the test allows the f32 rounding of
+// camera-relative positions (about 1e-7 of the distance to the eye), so it
+// does not flicker between cut and kept.
+fn cut_away(view_pos: vec3<f32>, eye: u32) -> bool {
+    let tolerance = 1e-5 * length(view_pos);
+    var cut = false;
+    for (var i = 0u; i < 6u; i++) {
+        let plane = view.clip[eye * 6u + i];
+        cut = cut || dot(plane.xyz, view_pos) + plane.w < -tolerance;
+    }
+    return cut;
 }
 
 @vertex
@@ -96,6 +121,18 @@ fn vs_mesh(
 
 @fragment
 fn fs_shade(in: MeshOut) -> @location(0) vec4<f32> {
+    if SECTIONED {
+        if cut_away(in.view_pos, in.eye) {
+            discard;
+        }
+        // A face seen from behind under a section is the inside of a closed
+        // part through the cut: it shows as the cut face, flat in the section
+        // colour. Behind by the normal the shading uses, not by the winding,
+        // which CAD exports get wrong (nothing is culled for that reason).
+        if dot(in.normal, in.view_pos) > 0.0 {
+            return vec4<f32>(view.section_cap, 1.0);
+        }
+    }
     let e = entries[in.entry];
     var base = materials[e.material];
     let flags = part_flags[e.part];
@@ -118,6 +155,9 @@ fn fs_shade(in: MeshOut) -> @location(0) vec4<f32> {
 
 @fragment
 fn fs_id(in: MeshOut) -> @location(0) u32 {
+    if SECTIONED && cut_away(in.view_pos, in.eye) {
+        discard;
+    }
     // 0 is the background.
     return in.entry + 1u;
 }

@@ -20,6 +20,8 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow};
 use winit::window::{Window, WindowId};
 
 use crate::gfx::Gfx;
+use crate::gizmo::{Gizmo, GizmoDrag, Snap};
+use crate::measure::{MeasureMode, SNAP_PX};
 use crate::nav::{Navigator, axis_offset};
 use crate::panes::{Pane, PaneKind};
 use crate::record::Recorder;
@@ -55,6 +57,8 @@ pub struct Options {
     pub lod_error_px: f64,
     /// A frame-time budget for the 3D view, ms.
     pub target_ms: Option<f64>,
+    /// The length of a model unit, for BCF issues (BCF is in metres).
+    pub unit: dmu_app::units::LengthUnit,
 }
 
 impl Options {
@@ -64,7 +68,7 @@ impl Options {
 }
 
 /// A primary-button drag in the 3D view.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 enum PointerDrag {
     /// Orbiting about the pivot.
     Orbit,
@@ -75,6 +79,18 @@ enum PointerDrag {
         origin: DVec3,
         start: f64,
         snap: f64,
+    },
+    /// Dragging a handle of the gizmo on the selection.
+    Gizmo(GizmoDrag),
+    /// Sliding handle `index` of the section along `dir` through `origin`
+    /// (see [`crate::section::Section::handles`]); `start` is the offset under
+    /// the pointer when the drag began, `before` the section then.
+    Section {
+        index: usize,
+        origin: DVec3,
+        dir: DVec3,
+        start: f64,
+        before: crate::section::Section,
     },
 }
 
@@ -109,6 +125,8 @@ struct Runner {
     results: Vec<Value>,
     /// One record per frame while the script runs.
     frames: Vec<Value>,
+    /// Where the running gizmo or section drag pressed (view pixels).
+    gizmo_from: ViewPoint,
 }
 
 /// What this frame of the script asks of the frame.
@@ -153,7 +171,26 @@ pub struct App {
     facts: Value,
     keep_drawing: bool,
     error: Option<anyhow::Error>,
+    /// A BCF export in progress: a frame per topic for its snapshot.
+    export: Option<Export>,
 }
+
+/// A BCF export in progress.
+#[derive(Debug)]
+struct Export {
+    path: PathBuf,
+    issues: Vec<crate::issues::Issue>,
+    /// The issue whose snapshot is being taken.
+    next: usize,
+    /// Frames drawn for it (a snapshot waits for occlusion culling to settle).
+    frames: u32,
+    /// The view to go back to, and the overlays shown, when done.
+    restore: crate::viewpoints::Viewpoint,
+    overlays: (bool, bool, bool),
+}
+
+/// Frames an export waits at most for a view to settle before its snapshot.
+const SNAPSHOT_SETTLE_FRAMES: u32 = 8;
 
 impl std::fmt::Debug for App {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -205,6 +242,7 @@ impl App {
             facts,
             keep_drawing: true,
             error: None,
+            export: None,
         }
     }
 
@@ -260,6 +298,30 @@ impl App {
         Ok(Some(report))
     }
 
+    /// Takes over an open window (its egui state made with `ctx`): makes the
+    /// renderer for the model and asks for the first frame.
+    pub fn adopt(&mut self, gfx: Gfx, state: egui_winit::State, ctx: egui::Context) {
+        let renderer = Renderer::new(
+            &gfx.device,
+            &gfx.queue,
+            &self.review.scene,
+            &self.review.tree,
+            dmu_render::RendererOptions {
+                color_format: gfx.view_format,
+                // Levels cost upload time and memory: built when the view may
+                // draw them (a LOD error raised from 0 in the panel later
+                // draws chunks whole).
+                lod_levels: self.panes[0].view.options.may_draw_lods(),
+                ..Default::default()
+            },
+        );
+        gfx.window.request_redraw();
+        self.egui_ctx = ctx;
+        self.renderer = Some(renderer);
+        self.egui_state = Some(state);
+        self.gfx = Some(gfx);
+    }
+
     /// The active pane's camera.
     fn nav(&mut self) -> &mut Navigator {
         &mut self.panes[self.active].nav
@@ -283,6 +345,12 @@ impl App {
             .get(self.active)
             .copied()
             .unwrap_or((0, 0, 1, 1))
+    }
+
+    /// Frames the model in the active pane: what a section box keeps of it.
+    fn frame_all(&mut self) {
+        let bounds = self.review.section.kept_bounds(self.review.tree.bounds());
+        self.frame_in_active(&bounds);
     }
 
     /// Frames `bounds` in the active pane, whose visibility starts afresh.
@@ -316,6 +384,47 @@ impl App {
         })
     }
 
+    /// A click in the active pane: places a section plane on the face under
+    /// it when one is being placed, measures in a measuring mode, else picks.
+    /// The report entry of what it did.
+    fn click(&mut self, at: ViewPoint) -> anyhow::Result<Value> {
+        if self.ui.section_on_face {
+            self.ui.section_on_face = false;
+            let hit = self
+                .review
+                .pick(&self.ray_at(at))
+                .context("section on a face: nothing there to place the plane on")?;
+            // The plane keeps what lies behind the face, away from the eye.
+            self.review.section.add_plane(hit.point, -hit.normal)?;
+            return Ok(json!({
+                "point": hit.point.to_array(),
+                "normal": (-hit.normal).to_array(),
+                "section": self.review.section.describe(),
+            }));
+        }
+        if self.ui.measure.mode == MeasureMode::Off {
+            return Ok(self.pick(at));
+        }
+        let ray = self.ray_at(at);
+        let Some(hit) = self.review.pick(&ray) else {
+            return Ok(json!({ "hit": false }));
+        };
+        // Snap within SNAP_PX pixels at the hit's depth.
+        let pane = &self.panes[self.active];
+        let depth = (hit.point - pane.nav.eye).dot(pane.nav.forward());
+        let px = 2.0 * depth * (pane.nav.fov_y_rad * 0.5).tan() / f64::from(pane.view.size.1);
+        let point = crate::measure::snap(&self.review.scene, &hit, SNAP_PX * px);
+        let scene = &self.review.scene;
+        let result = self.ui.measure.click(&self.review, point);
+        Ok(match result {
+            Some(m) => {
+                self.ui.status = format!("measured {}", m.label());
+                m.json(scene)
+            }
+            None => json!({ "first": point.point.to_array(), "snap": point.snap.name() }),
+        })
+    }
+
     /// Frames the selection (or the point under `at`, picking it first).
     fn focus(&mut self, at: Option<ViewPoint>) {
         if let Some(at) = at {
@@ -327,34 +436,108 @@ impl App {
         }
     }
 
-    /// A primary drag starts at `at`: on the selection with a drag axis set it
-    /// moves the part, anywhere else it orbits about the point under it.
+    /// The gizmo on the selection in pane `pane`, when it shows.
+    fn gizmo(&self, pane: usize) -> Option<Gizmo> {
+        let part = self.review.selected.filter(|_| self.ui.show_gizmo)?;
+        let p = self.panes.get(pane)?;
+        let centre = self.review.scene.part_world_bounds(part).center();
+        Gizmo::new(&p.nav.camera(), p.view.size, centre)
+    }
+
+    /// The section handle under view point `at` of pane `pane` (index, world
+    /// point, slide direction), when the tools are drawn.
+    fn section_handle_at(&self, pane: usize, at: ViewPoint) -> Option<(usize, DVec3, DVec3)> {
+        let p = self.panes.get(pane).filter(|_| self.ui.show_tools)?;
+        let projector = crate::gizmo::Projector::new(&p.nav.camera(), p.view.size);
+        let at = glam::DVec2::new(at.0, at.1);
+        self.review
+            .section
+            .handles(&self.review.tree.bounds())
+            .into_iter()
+            .enumerate()
+            .filter_map(|(i, (point, dir))| {
+                let d = projector.project(point)?.distance(at);
+                (d <= crate::gizmo::GRAB_PX).then_some((d, (i, point, dir)))
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|(_, h)| h)
+    }
+
+    /// The snapping of drags, or `None` to move freely.
+    fn snap(&self, free: bool) -> Option<Snap> {
+        (!free).then_some(Snap {
+            step: self.ui.snap,
+            degrees: self.ui.snap_deg,
+        })
+    }
+
+    /// A primary drag starts at `at`: on the selection with a drag axis set
+    /// it moves the part along the axis; on a section handle it slides the
+    /// plane or box face; on a gizmo handle it drags the handle; anywhere
+    /// else it orbits about the point under it.
     fn begin_pointer_drag(&mut self, at: ViewPoint, axis: Option<Axis>) {
         let ray = self.ray_at(at);
         let hit = self.review.pick(&ray);
-        let on_selection = hit.filter(|h| Some(h.part) == self.review.selected);
-        self.pointer_drag = match (axis, on_selection) {
-            (Some(axis), Some(h)) if self.review.begin_drag() => {
-                let axis = axis.unit();
-                let start = axis_offset(h.point, axis, &ray).unwrap_or(0.0);
-                Some(PointerDrag::Part {
-                    axis,
-                    origin: h.point,
-                    start,
-                    snap: self.ui.snap,
-                })
-            }
-            _ => {
-                if let Some(h) = hit {
-                    self.nav().pivot = h.point;
-                }
-                Some(PointerDrag::Orbit)
-            }
-        };
+        // With a drag axis set, a press on the selection slides it (the
+        // mode asked for), even where a gizmo handle crosses the part.
+        if let (Some(axis), Some(h)) = (axis, hit.filter(|h| Some(h.part) == self.review.selected))
+            && self.review.begin_drag()
+        {
+            let axis = axis.unit();
+            self.pointer_drag = Some(PointerDrag::Part {
+                axis,
+                origin: h.point,
+                start: axis_offset(h.point, axis, &ray).unwrap_or(0.0),
+                snap: self.ui.snap,
+            });
+            return;
+        }
+        if let Some((index, origin, dir)) = self.section_handle_at(self.active, at)
+            && let Some(start) = axis_offset(origin, dir, &ray)
+        {
+            self.pointer_drag = Some(PointerDrag::Section {
+                index,
+                origin,
+                dir,
+                start,
+                before: self.review.section.clone(),
+            });
+            return;
+        }
+        if let Some(g) = self.gizmo(self.active)
+            && let Some(handle) = g.handle_at(glam::DVec2::new(at.0, at.1))
+            && let Some(drag) = g.begin(handle, &ray)
+            && self.review.begin_drag()
+        {
+            self.pointer_drag = Some(PointerDrag::Gizmo(drag));
+            return;
+        }
+        if let Some(h) = hit {
+            self.nav().pivot = h.point;
+        }
+        self.pointer_drag = Some(PointerDrag::Orbit);
     }
 
-    fn pointer_drag_to(&mut self, at: ViewPoint, delta: ViewPoint) {
+    fn pointer_drag_to(&mut self, at: ViewPoint, delta: ViewPoint, free: bool) {
         match self.pointer_drag {
+            Some(PointerDrag::Gizmo(drag)) => {
+                if let Some(delta) = drag.delta(&self.ray_at(at), self.snap(free)) {
+                    self.review.drag_by(delta);
+                }
+            }
+            Some(PointerDrag::Section {
+                index,
+                origin,
+                dir,
+                start,
+                ref before,
+            }) => {
+                if let Some(s) = axis_offset(origin, dir, &self.ray_at(at)) {
+                    let step = if free { 0.0 } else { self.ui.snap };
+                    self.review.section =
+                        before.slid(index, crate::gizmo::snap_to(s - start, step));
+                }
+            }
             Some(PointerDrag::Orbit) => self
                 .nav()
                 .orbit(-delta.0 * TURN_PER_PIXEL, -delta.1 * TURN_PER_PIXEL),
@@ -365,11 +548,9 @@ impl App {
                 snap,
             }) => {
                 if let Some(s) = axis_offset(origin, axis, &self.ray_at(at)) {
-                    let mut offset = s - start;
-                    if snap > 0.0 {
-                        offset = (offset / snap).round() * snap;
-                    }
-                    self.review.drag_to(axis * offset);
+                    let step = if free { 0.0 } else { snap };
+                    self.review
+                        .drag_to(axis * crate::gizmo::snap_to(s - start, step));
                 }
             }
             None => {}
@@ -377,7 +558,7 @@ impl App {
     }
 
     fn end_pointer_drag(&mut self) {
-        if let Some(PointerDrag::Part { .. }) = self.pointer_drag.take() {
+        if let Some(PointerDrag::Part { .. } | PointerDrag::Gizmo(_)) = self.pointer_drag.take() {
             self.review.end_drag();
         }
     }
@@ -385,6 +566,11 @@ impl App {
     /// The part under a view point, for the hover tint (nothing while a
     /// primary drag goes on).
     fn hover(&mut self, at: Option<(usize, ViewPoint)>) {
+        if self.export.is_some() {
+            return;
+        }
+        self.ui.gizmo_hot =
+            at.and_then(|(pane, (x, y))| self.gizmo(pane)?.handle_at(glam::DVec2::new(x, y)));
         self.hovered = match at {
             Some((pane, at)) if self.pointer_drag.is_none() && pane < self.panes.len() => {
                 self.review.pick(&self.ray_in(pane, at)).map(|h| h.part)
@@ -408,14 +594,16 @@ impl App {
         }
         if let Some(at) = input.double_clicked {
             self.focus(Some(at));
-        } else if let Some(at) = input.clicked {
-            self.pick(at);
+        } else if let Some(at) = input.clicked
+            && let Err(e) = self.click(at)
+        {
+            self.ui.status = format!("{e:#}");
         }
         if let Some(at) = input.drag_started {
             self.begin_pointer_drag(at, self.ui.drag_axis);
         }
         if let Some((at, delta)) = input.dragging {
-            self.pointer_drag_to(at, delta);
+            self.pointer_drag_to(at, delta, input.free);
         }
         if input.drag_stopped {
             self.end_pointer_drag();
@@ -445,14 +633,14 @@ impl App {
             self.focus(None);
         }
         if input.frame_all {
-            self.frame_in_active(&self.review.tree.bounds());
+            self.frame_all();
         }
     }
 
     /// Runs the script's current action for this frame.
     fn script_frame(&mut self) -> anyhow::Result<ScriptFrame> {
         let mut out = ScriptFrame::default();
-        if self.frames_drawn < WARMUP_FRAMES {
+        if self.frames_drawn < WARMUP_FRAMES || self.export.is_some() {
             return Ok(out);
         }
         let Some(action) = self.runner.actions.get(self.runner.index).cloned() else {
@@ -508,12 +696,156 @@ impl App {
                     );
                 } else {
                     let (prev, now) = (at(step - 1), at(step));
-                    self.pointer_drag_to(now, (now.0 - prev.0, now.1 - prev.1));
+                    self.pointer_drag_to(now, (now.0 - prev.0, now.1 - prev.1), false);
                 }
                 if step == steps {
                     self.end_pointer_drag();
                     result = Some(self.selection_facts());
                 }
+            }
+            Action::SectionDrag(d) => {
+                if step == 0 {
+                    let pane = &self.panes[self.active];
+                    let projector =
+                        crate::gizmo::Projector::new(&pane.nav.camera(), pane.view.size);
+                    let (point, _) = *self
+                        .review
+                        .section
+                        .handles(&self.review.tree.bounds())
+                        .get(d.handle)
+                        .with_context(|| format!("section_drag: no section handle {}", d.handle))?;
+                    let from = projector
+                        .project(point)
+                        .context("section_drag: the handle is behind the eye")?;
+                    self.runner.gizmo_from = (from.x, from.y);
+                    self.begin_pointer_drag(self.runner.gizmo_from, None);
+                    anyhow::ensure!(
+                        matches!(self.pointer_drag, Some(PointerDrag::Section { index, .. }) if index == d.handle),
+                        "section_drag: the press at {from} does not grab handle {} (are the tools' drawings hidden?)",
+                        d.handle
+                    );
+                } else {
+                    self.script_pointer_step(step, d.steps, d.by, false);
+                }
+                if step == d.steps.max(1) {
+                    self.end_pointer_drag();
+                    result = Some(self.review.section.json());
+                }
+            }
+            Action::GizmoDrag(d) => {
+                if step == 0 {
+                    let g = self.gizmo(self.active).context(
+                        "gizmo_drag: nothing is selected, or the gizmo is hidden or behind the eye",
+                    )?;
+                    let from = match d.from {
+                        Some([x, y]) => glam::DVec2::new(x + 0.5, y + 0.5),
+                        None => g
+                            .grab_point(d.handle)
+                            .context("gizmo_drag: the handle is off screen")?,
+                    };
+                    self.runner.gizmo_from = (from.x, from.y);
+                    self.begin_pointer_drag(self.runner.gizmo_from, None);
+                    anyhow::ensure!(
+                        matches!(self.pointer_drag, Some(PointerDrag::Gizmo(g)) if g.handle == d.handle),
+                        "gizmo_drag: the press at {from} does not grab the {:?} handle",
+                        d.handle
+                    );
+                } else {
+                    self.script_pointer_step(step, d.steps, d.by, d.free);
+                }
+                if step == d.steps.max(1) {
+                    self.end_pointer_drag();
+                    result = Some(self.selection_facts());
+                }
+            }
+            Action::Snap(s) => {
+                self.ui.snap = s.step.unwrap_or(self.ui.snap);
+                self.ui.snap_deg = s.degrees.unwrap_or(self.ui.snap_deg);
+            }
+            Action::Gizmo(show) => self.ui.show_gizmo = *show,
+            Action::SectionPlane(p) => {
+                self.review
+                    .section
+                    .add_plane(DVec3::from_array(p.point), DVec3::from_array(p.normal))?;
+                result = Some(self.review.section.json());
+            }
+            Action::SectionFace([x, y]) => {
+                self.ui.section_on_face = true;
+                result = Some(self.click((x + 0.5, y + 0.5))?);
+            }
+            Action::SectionBox(b) => {
+                self.review
+                    .section
+                    .set_box(DVec3::from_array(b.min), DVec3::from_array(b.max))?;
+                result = Some(self.review.section.json());
+            }
+            Action::ClearSection => self.review.section = crate::section::Section::Off,
+            Action::Measure(m) => {
+                anyhow::ensure!(
+                    m.mode != MeasureMode::Off,
+                    "measure: mode \"off\" measures nothing (give points, parts or angle)"
+                );
+                self.ui.measure.set_mode(m.mode);
+                let mut last = Value::Null;
+                for [x, y] in m.at {
+                    last = self.click((x + 0.5, y + 0.5))?;
+                    anyhow::ensure!(
+                        last["hit"] != false,
+                        "measure: the click at [{x}, {y}] hits no part"
+                    );
+                }
+                result = Some(last);
+            }
+            Action::MeasureParts([a, b]) => {
+                let (a, b) = (
+                    self.review.scene.find_part(a)?,
+                    self.review.scene.find_part(b)?,
+                );
+                let s = self
+                    .review
+                    .distance(a, b)
+                    .context("measure_parts: a part has no triangles")?;
+                let m = crate::measure::Measurement::Parts(a, b, s);
+                self.ui.measure.result = Some(m);
+                result = Some(m.json(&self.review.scene));
+            }
+            Action::LoadClashes(path) => {
+                let added = crate::clashes::load_report(&mut self.review, path)?;
+                result = Some(json!({ "added": added, "listed": self.review.clash_list.len() }));
+            }
+            Action::ShowClash(i) => {
+                result = Some(crate::tools_ui::show_clash(
+                    &mut self.review,
+                    &mut self.ui.measure,
+                    &mut self.panes[self.active],
+                    *i,
+                )?);
+            }
+            Action::ExportBcf(path) => {
+                let topics = self.start_export(path.clone());
+                result = Some(json!({ "path": path, "topics": topics }));
+            }
+            Action::ImportBcf(path) => result = Some(self.import_bcf(path)?),
+            Action::SaveViewpoint(name) => {
+                let v = crate::viewpoints::Viewpoint::capture(
+                    name,
+                    &self.panes[self.active].nav,
+                    &self.review,
+                );
+                result = Some(v.json());
+                self.ui.viewpoints.retain(|o| o.name != *name);
+                self.ui.viewpoints.push(v);
+            }
+            Action::Viewpoint(name) => {
+                let v = self
+                    .ui
+                    .viewpoints
+                    .iter()
+                    .find(|v| v.name == *name)
+                    .cloned()
+                    .with_context(|| format!("viewpoint {name:?}: no viewpoint of that name"))?;
+                crate::tools_ui::go_to(&v, &mut self.review, &mut self.panes[self.active]);
+                result = Some(v.json());
             }
             Action::Rotate(r) => {
                 anyhow::ensure!(
@@ -559,7 +891,7 @@ impl App {
             Action::Undo => result = Some(json!({ "part_id": self.review.undo().map(|p| p.0) })),
             Action::Redo => result = Some(json!({ "part_id": self.review.redo().map(|p| p.0) })),
             Action::Focus => self.focus(None),
-            Action::FrameAll => self.frame_in_active(&self.review.tree.bounds()),
+            Action::FrameAll => self.frame_all(),
             Action::Culling(name) => {
                 self.panes[self.active].view.culling =
                     crate::script::culling_from_name(name).context("culling mode")?;
@@ -572,6 +904,7 @@ impl App {
             Action::Overlays(o) => {
                 self.ui.show_stats = o.stats.unwrap_or(self.ui.show_stats);
                 self.ui.show_clashes = o.clashes.unwrap_or(self.ui.show_clashes);
+                self.ui.show_tools = o.tools.unwrap_or(self.ui.show_tools);
             }
             Action::Frames(_) => {}
             Action::Screenshot(path) => {
@@ -595,6 +928,157 @@ impl App {
             self.runner.step = 0;
         }
         Ok(out)
+    }
+
+    /// Carries out the BCF export or import the panel asked for.
+    fn panel_bcf_request(&mut self) {
+        let Some(request) = self.ui.tools.bcf_request.take() else {
+            return;
+        };
+        let path = PathBuf::from(&self.ui.tools.bcf_path);
+        match request {
+            crate::tools_ui::BcfRequest::Export if self.export.is_none() => {
+                let n = self.start_export(path);
+                self.ui.status = format!("writing {n} issues…");
+            }
+            crate::tools_ui::BcfRequest::Export => {}
+            crate::tools_ui::BcfRequest::Import => {
+                if let Err(e) = self.import_bcf(&path) {
+                    self.ui.status = format!("{e:#}");
+                }
+            }
+        }
+    }
+
+    /// Starts writing the review's issues (listed clashes, saved viewpoints)
+    /// to a BCF file at `path`: each issue's view is shown for a frame or a
+    /// few, its snapshot taken, then the file written and the view restored.
+    /// How many topics it will hold.
+    pub fn start_export(&mut self, path: PathBuf) -> usize {
+        let nav = &self.panes[self.active].nav;
+        let issues = crate::issues::issues(
+            &self.review,
+            &self.ui.viewpoints,
+            nav.forward(),
+            nav.fov_y_rad,
+            nav.near,
+        );
+        let n = issues.len();
+        self.export = Some(Export {
+            path,
+            issues,
+            next: 0,
+            frames: 0,
+            restore: crate::viewpoints::Viewpoint::capture("", nav, &self.review),
+            overlays: (self.ui.show_stats, self.ui.show_clashes, self.ui.show_tools),
+        });
+        (self.ui.show_stats, self.ui.show_clashes, self.ui.show_tools) = (false, false, false);
+        n
+    }
+
+    /// Shows the view of the issue being exported (its first frame), or ends
+    /// the export when every snapshot is in.
+    fn export_view(&mut self) {
+        let Some(e) = self.export.as_mut() else {
+            return;
+        };
+        if let Some(issue) = e.issues.get(e.next) {
+            // Snapshots show the model, not where the pointer rests.
+            self.hovered = None;
+            if e.frames == 0 {
+                let view = issue.view.clone();
+                crate::tools_ui::go_to(&view, &mut self.review, &mut self.panes[self.active]);
+            }
+            return;
+        }
+        let e = self.export.take().expect("checked");
+        let topics: Vec<dmu_app::bcf::Topic> = e.issues.into_iter().map(|i| i.topic).collect();
+        let name = self.review.scene.name().to_owned();
+        let written = dmu_app::bcf::write_bcfzip(
+            &e.path,
+            &topics,
+            Some(&name),
+            self.options.unit.per_metre(),
+        );
+        crate::tools_ui::go_to(&e.restore, &mut self.review, &mut self.panes[self.active]);
+        (self.ui.show_stats, self.ui.show_clashes, self.ui.show_tools) = e.overlays;
+        match written {
+            Ok(()) => {
+                self.ui.status = format!("{} issues written to {}", topics.len(), e.path.display());
+                self.facts["bcf_export"] = json!({ "path": e.path, "topics": topics.len() });
+            }
+            Err(err) if self.options.automated() => self.error = Some(err.into()),
+            Err(err) => self.ui.status = format!("{err:#}"),
+        }
+    }
+
+    /// The active pane's pixels of `window` as the snapshot of the issue
+    /// being exported.
+    fn export_snapshot(&mut self, window: &image::RgbaImage) -> anyhow::Result<()> {
+        let (x, y, w, h) = self.active_rect();
+        let Some(e) = self.export.as_mut() else {
+            return Ok(());
+        };
+        let view = image::imageops::crop_imm(window, x, y, w, h).to_image();
+        let png = dmu_render::encode_png(&view)?;
+        if let Some(v) = e.issues[e.next].topic.viewpoints.first_mut() {
+            v.snapshot = Some(png);
+        }
+        e.next += 1;
+        e.frames = 0;
+        Ok(())
+    }
+
+    /// Reads a BCF file's topics as viewpoints (added to the saved ones,
+    /// replacing those of the same name) and goes to the first.
+    pub fn import_bcf(&mut self, path: &std::path::Path) -> anyhow::Result<Value> {
+        let topics = dmu_app::bcf::read_bcfzip(path, self.options.unit.per_metre())?;
+        let bounds = self.review.tree.bounds();
+        let pivot = if bounds.is_empty() {
+            1.0
+        } else {
+            bounds.extent().length() * 0.1
+        };
+        let imported = crate::issues::import(&self.review, &topics, pivot)?;
+        for v in &imported.viewpoints {
+            self.ui.viewpoints.retain(|o| o.name != v.name);
+            self.ui.viewpoints.push(v.clone());
+        }
+        let first = imported.viewpoints.first().cloned();
+        if let Some(v) = &first {
+            crate::tools_ui::go_to(v, &mut self.review, &mut self.panes[self.active]);
+        }
+        self.ui.status = format!(
+            "{} viewpoints from {} ({} topics skipped, {} parts not in the model)",
+            imported.viewpoints.len(),
+            path.display(),
+            imported.skipped_topics,
+            imported.unknown_components
+        );
+        Ok(json!({
+            "topics": topics.len(),
+            "viewpoints": imported.viewpoints.len(),
+            "skipped_topics": imported.skipped_topics,
+            "unknown_components": imported.unknown_components,
+            "first": first.map(|v| json!({
+                "view": v.json(),
+                "section": v.section.json(),
+                "selected": v.selected.map(|p| self.review.scene.part_name(p).to_owned()),
+            })),
+        }))
+    }
+
+    /// Step `step` (from 1) of `steps` of a scripted drag that moves the
+    /// pointer by `by` pixels from where it pressed.
+    fn script_pointer_step(&mut self, step: u32, steps: u32, by: [f64; 2], free: bool) {
+        let steps = steps.max(1);
+        let (t, prev) = (
+            f64::from(step) / f64::from(steps),
+            f64::from(step - 1) / f64::from(steps),
+        );
+        let (x, y) = self.runner.gizmo_from;
+        let now = (x + by[0] * t, y + by[1] * t);
+        self.pointer_drag_to(now, ((t - prev) * by[0], (t - prev) * by[1]), free);
     }
 
     /// The selection's transform and clashes, for the report.
@@ -632,7 +1116,9 @@ impl App {
         let renderer = self.renderer.as_mut().expect("made with the window");
         gfx.ensure_views(self.panes.len());
         let mut stats = Vec::with_capacity(self.panes.len());
+        let section = self.review.section.planes();
         for (i, pane) in self.panes.iter_mut().enumerate() {
+            pane.view.set_section(&section);
             let rect = self.pane_rects.get(i).copied().unwrap_or((0, 0, 1, 1));
             gfx.resize_view(i, (rect.2, rect.3));
             pane.view.size = gfx.views[i].size;
@@ -697,6 +1183,7 @@ impl App {
             .map_or(0.0, |t| t.elapsed().as_secs_f64().min(0.25));
         self.last_frame = Some(start);
         let scripted = self.script_frame()?;
+        self.export_view();
 
         let (Some(gfx), Some(egui_state)) = (self.gfx.as_mut(), self.egui_state.as_mut()) else {
             return Ok(false);
@@ -730,9 +1217,11 @@ impl App {
                 self.pane_rects.clone_from(&input.rects_px);
             }
             self.apply_view_input(&input, dt);
+            self.panel_bcf_request();
             self.keep_drawing |= input.active();
 
             let final_frame = self.script_done()
+                && self.export.is_none()
                 && self.options.automated()
                 && self.frames_drawn + 1 >= u64::from(self.options.frames.unwrap_or(0));
             let screenshot = scripted.screenshot.clone().or_else(|| {
@@ -760,7 +1249,15 @@ impl App {
             let resident = renderer.geometry_pool().resident_bytes();
             let gfx = self.gfx.as_mut().expect("checked above");
             let paint_start = Instant::now();
-            let presented = gfx.present(&self.egui_ctx, output, screenshot.is_some())?;
+            let snapshot = self.export.as_mut().is_some_and(|e| {
+                e.frames += 1;
+                e.frames >= SNAPSHOT_SETTLE_FRAMES || stats.iter().all(|s| s.newly_visible == 0)
+            });
+            let presented =
+                gfx.present(&self.egui_ctx, output, screenshot.is_some() || snapshot)?;
+            if snapshot && let Some(image) = &presented.image {
+                self.export_snapshot(image)?;
+            }
             let paint_ms = ms_since(paint_start);
             if let (Some(path), Some(image)) = (&screenshot, presented.image) {
                 if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -798,6 +1295,7 @@ impl App {
                     "render_gpu_ms": main.gpu_ms,
                     "triangles_drawn": main.triangles_drawn,
                     "chunks_drawn": main.chunks_drawn,
+                    "culled_section": main.culled_section,
                     "draw_calls": main.draw_calls,
                     "lod_error_px": main.lod_error_px,
                     "min_pixels": main.min_pixels,
@@ -828,6 +1326,35 @@ impl App {
             Ok(final_frame)
         }
     }
+}
+
+/// Opens the viewer's window with `options`' size and sync, and egui's
+/// state for it on `ctx`.
+pub fn open_window(
+    event_loop: &ActiveEventLoop,
+    instance: &wgpu::Instance,
+    options: &Options,
+    ctx: &egui::Context,
+) -> anyhow::Result<(Gfx, egui_winit::State)> {
+    let attributes = Window::default_attributes()
+        .with_title("dmu")
+        .with_inner_size(winit::dpi::PhysicalSize::new(
+            options.size.0,
+            options.size.1,
+        ));
+    let window = event_loop
+        .create_window(attributes)
+        .context("opening the window")?;
+    let gfx = Gfx::new(instance, Arc::new(window), options.vsync, options.compose)?;
+    let state = egui_winit::State::new(
+        ctx.clone(),
+        egui::ViewportId::ROOT,
+        &gfx.window,
+        Some(gfx.window.scale_factor() as f32),
+        gfx.window.theme(),
+        Some(gfx.device.limits().max_texture_dimension_2d as usize),
+    );
+    Ok((gfx, state))
 }
 
 /// Keyboard shortcuts that act on the review: undo, redo, deselect.
@@ -930,52 +1457,8 @@ impl ApplicationHandler for App {
         if self.gfx.is_some() {
             return;
         }
-        let attributes = Window::default_attributes()
-            .with_title("dmu")
-            .with_inner_size(winit::dpi::PhysicalSize::new(
-                self.options.size.0,
-                self.options.size.1,
-            ));
-        let made = event_loop
-            .create_window(attributes)
-            .context("opening the window")
-            .and_then(|w| {
-                Gfx::new(
-                    &self.instance,
-                    Arc::new(w),
-                    self.options.vsync,
-                    self.options.compose,
-                )
-            });
-        match made {
-            Ok(gfx) => {
-                let renderer = Renderer::new(
-                    &gfx.device,
-                    &gfx.queue,
-                    &self.review.scene,
-                    &self.review.tree,
-                    dmu_render::RendererOptions {
-                        color_format: gfx.view_format,
-                        // Levels cost upload time and memory: built when the
-                        // view may draw them (a LOD error raised from 0 in the
-                        // panel later draws chunks whole).
-                        lod_levels: self.panes[0].view.options.may_draw_lods(),
-                        ..Default::default()
-                    },
-                );
-                let state = egui_winit::State::new(
-                    self.egui_ctx.clone(),
-                    egui::ViewportId::ROOT,
-                    &gfx.window,
-                    Some(gfx.window.scale_factor() as f32),
-                    gfx.window.theme(),
-                    Some(gfx.device.limits().max_texture_dimension_2d as usize),
-                );
-                gfx.window.request_redraw();
-                self.renderer = Some(renderer);
-                self.egui_state = Some(state);
-                self.gfx = Some(gfx);
-            }
+        match open_window(event_loop, &self.instance, &self.options, &self.egui_ctx) {
+            Ok((gfx, state)) => self.adopt(gfx, state, self.egui_ctx.clone()),
             Err(e) => {
                 self.error = Some(e);
                 event_loop.exit();

@@ -1,9 +1,18 @@
 //! The parts of `dmu-viewer` that need no window, as a library so that tests
-//! and the fuzz harness (`fuzz/`) reach them: automation scripts, navigation
-//! and the render settings scripts name. The binary (`main.rs`) uses them from
-//! here.
+//! and the fuzz harness (`fuzz/`) reach them: the review (moves, undo,
+//! collision, sections, the clash list, viewpoints), the gizmo's geometry,
+//! measurement, automation scripts, navigation and the render settings
+//! scripts name. The binary (`main.rs`) uses them from here.
 
+pub mod clashes;
+pub mod gizmo;
+pub mod issues;
+pub mod measure;
 pub mod nav;
+pub mod record;
+pub mod review;
 pub mod script;
+pub mod section;
 pub mod settings;
+pub mod viewpoints;
 pub mod xr_script;

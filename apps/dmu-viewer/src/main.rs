@@ -31,19 +31,23 @@
 mod app;
 mod compose;
 mod gfx;
+mod launch;
 mod panes;
-mod record;
-mod review;
+mod tools_ui;
 mod ui;
 mod xr;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 use anyhow::Context as _;
 use clap::Parser;
-use dmu_viewer::{nav, script, settings};
+use dmu_viewer::{
+    clashes, gizmo, issues, measure, nav, record, review, script, section, settings, viewpoints,
+};
 use serde_json::json;
 
 /// dmu-viewer: walk, pick, move with live collision, save the review.
@@ -99,6 +103,10 @@ struct Cli {
     /// the choice.
     #[arg(long, value_parser = dmu_app::units::number_in(1.0, 1e6))]
     target_ms: Option<f64>,
+    /// The length of one model unit, for BCF issues written and read (BCF is
+    /// in metres; the built-in plant is in millimetres).
+    #[arg(long, value_enum, default_value = "mm")]
+    unit: dmu_app::units::LengthUnit,
     /// Show the model in a headset through the active OpenXR runtime
     /// (XR_RUNTIME_JSON) instead of a window: both eyes drawn with the
     /// runtime's poses and fields of view, until --frames are submitted (and
@@ -132,55 +140,19 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
     if cli.screenshot.is_some() && cli.frames.is_none() && script.is_empty() {
         anyhow::bail!("--screenshot needs --frames or --script (it is taken at the end)");
     }
-    let loaded = dmu_app::load::load(&cli.model)?;
-    let tree_start = Instant::now();
-    let mut review = review::Review::new(loaded.scene, loaded.source);
-    review.recorder = cli
-        .record
-        .as_deref()
-        .map(record::Recorder::create)
-        .transpose()?;
-    let tree_ms = tree_start.elapsed().as_secs_f64() * 1e3;
-    let facts = json!({
-        "model": {
-            "source": review.source,
-            "name": review.scene.name(),
-            "triangles": review.scene.triangle_count(),
-            "parts": review.scene.parts().len(),
-            "load_ms": loaded.load_ms,
-            "tree_ms": tree_ms,
-            "cells": review.tree.cell_count(),
-        },
-    });
     if cli.xr {
-        anyhow::ensure!(
-            cli.script.is_none() && cli.screenshot.is_none(),
-            "--xr takes --xr-script and --save-eyes, not the window's --script and --screenshot"
-        );
-        let args = xr::XrArgs {
-            script: cli
-                .xr_script
-                .as_deref()
-                .map(dmu_viewer::xr_script::read)
-                .transpose()?
-                .unwrap_or_default(),
-            frames: cli.frames,
-            save_eyes: cli.save_eyes.clone(),
-            eye_px: cli.eye_px,
-            culling: script::culling_from_name(&cli.culling)?,
-            culling_options: dmu_render::CullingOptions {
-                lod_error_px: cli.lod_error_px,
-                ..Default::default()
-            },
-        };
-        let report = xr::run(review, args, facts)?;
-        if cli.json {
-            println!("{}", serde_json::to_string_pretty(&report)?);
-        } else {
-            println!("{}", xr::summary_line(&report));
-        }
-        return Ok(());
+        return run_xr(cli);
     }
+    // The model loads on a thread while the window shows the progress.
+    let progress = Arc::new(launch::LoadProgress::default());
+    let (send, result) = std::sync::mpsc::channel();
+    let (model, record_path, shared) = (cli.model.clone(), cli.record.clone(), progress.clone());
+    std::thread::Builder::new()
+        .name("dmu load".into())
+        .spawn(move || {
+            let _ = send.send(load_review(&model, record_path.as_deref(), &shared));
+        })
+        .context("starting the loading thread")?;
     let automated = cli.frames.is_some() || !script.is_empty();
     let options = app::Options {
         size: (cli.width, cli.height),
@@ -192,18 +164,110 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
         compose: !cli.paint_whole,
         lod_error_px: cli.lod_error_px,
         target_ms: cli.target_ms,
+        unit: cli.unit,
     };
-    let event_loop = winit::event_loop::EventLoop::new()
-        .context("opening the display (is DISPLAY or WAYLAND_DISPLAY set?)")?;
+    let event_loop = match winit::event_loop::EventLoop::new() {
+        Ok(e) => e,
+        // Without a display the model's own errors still come first.
+        Err(e) => {
+            result
+                .recv()
+                .context("the loading thread ended without a model")??;
+            return Err(e).context("opening the display (is DISPLAY or WAYLAND_DISPLAY set?)");
+        }
+    };
     let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_with_display_handle_from_env(
         Box::new(event_loop.owned_display_handle()),
     ));
-    let mut app = app::App::new(instance, review, options, facts);
-    event_loop.run_app(&mut app)?;
-    if let Some(report) = app.finish()? {
+    let loading = launch::Loading {
+        result,
+        progress,
+        started: Instant::now(),
+        what: cli.model.file.as_ref().map_or_else(
+            || {
+                format!(
+                    "the built-in plant ({:.1}M triangles)",
+                    cli.model.plant_triangles as f64 / 1e6
+                )
+            },
+            |f| f.display().to_string(),
+        ),
+    };
+    let mut launcher = launch::Launcher::new(instance, options, loading);
+    event_loop.run_app(&mut launcher)?;
+    if let Some(report) = launcher.finish()? {
         println!("{}", serde_json::to_string_pretty(&report)?);
     }
     Ok(())
+}
+
+/// Loads the model, builds its review (cell tree included) and starts the
+/// recording asked for: everything before the first frame, on the loading
+/// thread. The report's facts about the model come with it.
+/// `--xr`: the review in a headset through OpenXR (docs/xr.md), the model
+/// loaded first (no window to show its progress in).
+fn run_xr(cli: &Cli) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        cli.script.is_none() && cli.screenshot.is_none(),
+        "--xr takes --xr-script and --save-eyes, not the window's --script and --screenshot"
+    );
+    let args = xr::XrArgs {
+        script: cli
+            .xr_script
+            .as_deref()
+            .map(dmu_viewer::xr_script::read)
+            .transpose()?
+            .unwrap_or_default(),
+        frames: cli.frames,
+        save_eyes: cli.save_eyes.clone(),
+        eye_px: cli.eye_px,
+        culling: script::culling_from_name(&cli.culling)?,
+        culling_options: dmu_render::CullingOptions {
+            lod_error_px: cli.lod_error_px,
+            ..Default::default()
+        },
+    };
+    let (review, facts) = load_review(
+        &cli.model,
+        cli.record.as_deref(),
+        &launch::LoadProgress::default(),
+    )?;
+    let report = xr::run(review, args, facts)?;
+    if cli.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!("{}", xr::summary_line(&report));
+    }
+    Ok(())
+}
+
+fn load_review(
+    model: &dmu_app::load::ModelArgs,
+    record_path: Option<&std::path::Path>,
+    progress: &launch::LoadProgress,
+) -> launch::LoadResult {
+    let loaded = dmu_app::load::load_reporting(model, &|done, total| {
+        progress.total.store(total, Ordering::Relaxed);
+        progress.done.store(done, Ordering::Relaxed);
+    })?;
+    let tree_start = Instant::now();
+    let mut review = review::Review::new(loaded.scene, loaded.source);
+    review.recorder = record_path.map(record::Recorder::create).transpose()?;
+    let tree_ms = tree_start.elapsed().as_secs_f64() * 1e3;
+    let b = review.scene.world_bounds();
+    let facts = json!({
+        "model": {
+            "source": review.source,
+            "name": review.scene.name(),
+            "triangles": review.scene.triangle_count(),
+            "parts": review.scene.parts().len(),
+            "load_ms": loaded.load_ms,
+            "tree_ms": tree_ms,
+            "cells": review.tree.cell_count(),
+            "bounds": { "min": b.min.to_array(), "max": b.max.to_array() },
+        },
+    });
+    Ok((review, facts))
 }
 
 #[expect(unsafe_code, reason = "quiet_device_select runs before any thread")]

@@ -222,11 +222,25 @@ impl Navigator {
         if bounds.is_empty() {
             return;
         }
-        let center = bounds.center();
-        let radius = (bounds.extent().length() * 0.5).max(self.near * 10.0);
-        let distance = radius / (self.fov_y_rad * 0.5).sin() * 1.05;
-        self.eye = center - self.forward() * distance;
-        self.pivot = center;
+        let camera =
+            dmu_geom::Camera::framing(bounds, self.forward(), DVec3::Z, self.fov_y_rad, self.near);
+        self.eye = camera.eye;
+        self.pivot = camera.target;
+    }
+
+    /// Puts the eye at `eye` looking along `forward` (any length; roll is not
+    /// kept: the view stays upright, its pitch short of the vertical), the
+    /// pivot `pivot_distance` ahead. `false` (nothing changed) for a forward
+    /// that is zero or not finite.
+    pub fn look_along(&mut self, eye: DVec3, forward: DVec3, pivot_distance: f64) -> bool {
+        let Some(f) = forward.try_normalize().filter(|_| eye.is_finite()) else {
+            return false;
+        };
+        self.eye = eye;
+        self.yaw = f.y.atan2(f.x);
+        self.pitch = f.z.clamp(-1.0, 1.0).asin().clamp(-MAX_PITCH, MAX_PITCH);
+        self.pivot = eye + self.forward() * pivot_distance.max(self.near);
+        true
     }
 
     /// Looks from a standard direction and frames `bounds`.

@@ -122,7 +122,7 @@ pub fn drawn_cells(tree: &Tree, view: &View, out: &mut Vec<bool>) {
 
 /// Where a world point lands in `rect` through `clip_from_world`, or `None`
 /// behind the eye.
-fn project(clip_from_world: &glam::DMat4, rect: Rect, p: DVec3) -> Option<Pos2> {
+pub(crate) fn project(clip_from_world: &glam::DMat4, rect: Rect, p: DVec3) -> Option<Pos2> {
     let clip = *clip_from_world * p.extend(1.0);
     if clip.w <= 0.0 {
         return None;
@@ -135,7 +135,7 @@ fn project(clip_from_world: &glam::DMat4, rect: Rect, p: DVec3) -> Option<Pos2> 
 }
 
 /// Draws the edges of a box; edges with an end behind the eye are left out.
-fn box_edges(
+pub(crate) fn box_edges(
     painter: &egui::Painter,
     clip_from_world: &glam::DMat4,
     rect: Rect,

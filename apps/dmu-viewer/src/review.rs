@@ -5,13 +5,14 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use dmu_collide::{Checker, Report, Settings};
+use dmu_collide::{Checker, Report, Separation, Settings};
 use dmu_geom::Ray3d;
 use dmu_scene::{PartId, Scene};
 use dmu_tree::{Hit, Tree, TreeOptions};
 use glam::{DAffine3, DQuat, DVec3};
 
 use crate::record::Recorder;
+use crate::section::Section;
 
 /// One undoable move: a part's absolute transform before and after.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -27,6 +28,40 @@ struct Edit {
 struct Drag {
     part: PartId,
     start: DAffine3,
+}
+
+/// A clash in the session's list.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ListedClash {
+    /// The moved part.
+    pub a: PartId,
+    /// The other part.
+    pub b: PartId,
+    /// `hard`, `contact`, `soft`, or `impact` (from a report of swept moves).
+    pub kind: String,
+    /// The smallest distance seen (0 for hard clashes), model units.
+    pub distance: f64,
+    /// A world point of the clash where that distance was seen.
+    pub point: DVec3,
+    /// Where it was found: `live`, or the report file and step.
+    pub source: String,
+}
+
+/// Adds `clash` to `list`, or keeps the smaller distance of an entry for the
+/// same pair (either order) and kind.
+pub fn list_clash(list: &mut Vec<ListedClash>, clash: ListedClash) {
+    let same = |c: &&mut ListedClash| {
+        c.kind == clash.kind
+            && ((c.a, c.b) == (clash.a, clash.b) || (c.a, c.b) == (clash.b, clash.a))
+    };
+    match list.iter_mut().find(same) {
+        Some(c) if clash.distance < c.distance => {
+            c.distance = clash.distance;
+            c.point = clash.point;
+        }
+        Some(_) => {}
+        None => list.push(clash),
+    }
 }
 
 /// Timings of the last edit, for the stats overlay.
@@ -70,6 +105,11 @@ pub struct Review {
     pub recorder: Option<Recorder>,
     /// Why the recording stopped, when writing it failed.
     pub record_error: Option<String>,
+    /// What cuts the model open (drawing and picking both follow it).
+    pub section: Section,
+    /// Every clash seen in this session (live checks and loaded reports),
+    /// one entry per part pair and kind, in the order first seen.
+    pub clash_list: Vec<ListedClash>,
     checker: Checker,
     undo: Vec<Edit>,
     redo: Vec<Edit>,
@@ -92,6 +132,8 @@ impl Review {
             timings: EditTimings::default(),
             recorder: None,
             record_error: None,
+            section: Section::Off,
+            clash_list: Vec::new(),
             checker,
             undo: Vec::new(),
             redo: Vec::new(),
@@ -99,9 +141,17 @@ impl Review {
         }
     }
 
-    /// The nearest visible part along `ray` (exact, f64), as `dmu pick` finds it.
+    /// The nearest visible part along `ray` (exact, f64), as `dmu pick` finds
+    /// it, seeing through what the section cuts away.
     pub fn pick(&self, ray: &Ray3d) -> Option<Hit> {
-        self.tree.pick(&self.scene, ray)
+        self.tree
+            .pick_kept(&self.scene, ray, &self.section.planes())
+    }
+
+    /// The minimum distance between two parts and its closest points (f64),
+    /// by the collision check's own narrow phase.
+    pub fn distance(&self, a: PartId, b: PartId) -> Option<Separation> {
+        self.checker.distance(&self.scene, &self.settings, a, b)
     }
 
     /// Selects a part (or nothing) and checks what it clashes with.
@@ -127,6 +177,19 @@ impl Review {
                     &mut self.report,
                 );
                 self.timings.check_ms = start.elapsed().as_secs_f64() * 1e3;
+                for c in &self.report.clashes {
+                    list_clash(
+                        &mut self.clash_list,
+                        ListedClash {
+                            a: c.a,
+                            b: c.b,
+                            kind: c.kind.as_str().to_owned(),
+                            distance: c.distance,
+                            point: c.point,
+                            source: "live".to_owned(),
+                        },
+                    );
+                }
             }
             _ => self.report.clear(),
         }
@@ -242,11 +305,16 @@ impl Review {
     /// One drag step: the dragged part at its start translated by `offset`
     /// (world units); the tree is updated and collisions checked.
     pub fn drag_to(&mut self, offset: DVec3) {
+        self.drag_by(DAffine3::from_translation(offset));
+    }
+
+    /// One drag step: the dragged part at `delta` applied (in world space) to
+    /// where the drag started.
+    pub fn drag_by(&mut self, delta: DAffine3) {
         let Some(drag) = self.drag else {
             return;
         };
-        let mut world = drag.start;
-        world.translation += offset;
+        let world = delta * drag.start;
         // A step out of the world is not taken: the part stays where it was.
         if self.scene.is_valid_world(drag.part, &world) {
             self.place(drag.part, world);

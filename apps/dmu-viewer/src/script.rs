@@ -20,6 +20,16 @@
 //!   {"occlusion": "auto"},
 //!   {"overlays": {"stats": false, "clashes": true}},
 //!   {"paint_whole": true},
+//!   {"gizmo_drag": {"handle": "rz", "by": [40, -10], "steps": 8}},
+//!   {"snap": {"step": 25, "degrees": 15}}, {"gizmo": true},
+//!   {"section_plane": {"point": [0, 0, 1000], "normal": [0, 0, -1]}},
+//!   {"section_face": [640, 360]}, {"section_box": {"min": [0, 0, 0], "max": [9e3, 9e3, 3e3]}},
+//!   {"section_drag": {"handle": 0, "by": [0, -40], "steps": 4}}, "clear_section",
+//!   {"measure": {"mode": "points", "at": [[600, 300], [700, 320]]}},
+//!   {"measure_parts": ["U00-L1-PIPE-0003", "U00-L1-PIPE-0004"]},
+//!   {"load_clashes": "/tmp/collide.json"}, {"show_clash": 0},
+//!   {"save_viewpoint": "pump"}, {"viewpoint": "pump"},
+//!   {"export_bcf": "/tmp/review.bcfzip"}, {"import_bcf": "/tmp/other.bcfzip"},
 //!   {"frames": 5},
 //!   {"screenshot": "docs/viewer.png"},
 //!   {"save": "/tmp/edited.glb"}
@@ -103,6 +113,84 @@ pub struct Overlays {
     pub stats: Option<bool>,
     /// The clash markers.
     pub clashes: Option<bool>,
+    /// The review tools' drawings: gizmo, section outlines, measurement.
+    pub tools: Option<bool>,
+}
+
+/// A drag of a gizmo handle with the (simulated) mouse, through the same code
+/// as an interactive one.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GizmoDrag {
+    /// The handle: `x`, `y`, `z` (arrows), `xy`, `yz`, `zx` (planes), `rx`,
+    /// `ry`, `rz` (rings).
+    pub handle: crate::gizmo::Handle,
+    /// Where the button goes down (view pixels); default: the handle's own
+    /// grab point.
+    #[serde(default)]
+    pub from: Option<[f64; 2]>,
+    /// How far the pointer moves, pixels `[dx, dy]`.
+    pub by: [f64; 2],
+    /// Pointer positions on the way (frames); at least 1.
+    #[serde(default = "default_steps")]
+    pub steps: u32,
+    /// Move freely, without snapping (as with Shift held).
+    #[serde(default)]
+    pub free: bool,
+}
+
+/// Snapping of drags (absent fields stay as they are).
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SnapSteps {
+    /// Offsets snap to multiples of this, model units (0: free).
+    pub step: Option<f64>,
+    /// Turns snap to multiples of this, degrees (0: free).
+    pub degrees: Option<f64>,
+}
+
+/// A section plane through a point, keeping the side its normal points to.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SectionPlane {
+    /// A world point of the plane.
+    pub point: [f64; 3],
+    /// The normal, toward what is kept.
+    pub normal: [f64; 3],
+}
+
+/// A section box.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SectionBox {
+    /// The low corner, world.
+    pub min: [f64; 3],
+    /// The high corner, world.
+    pub max: [f64; 3],
+}
+
+/// A drag of a section handle (a plane's, or a box face's) with the
+/// simulated mouse.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SectionDrag {
+    /// The handle: the plane's index, or the box face's (-x, +x, -y, +y, -z, +z).
+    pub handle: usize,
+    /// How far the pointer moves from the handle, pixels `[dx, dy]`.
+    pub by: [f64; 2],
+    /// Pointer positions on the way (frames); at least 1.
+    #[serde(default = "default_steps")]
+    pub steps: u32,
+}
+
+/// Two clicks of the measuring tool in a mode.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Measure {
+    /// `points`, `parts` or `angle`.
+    pub mode: crate::measure::MeasureMode,
+    /// The two view pixels clicked.
+    pub at: [[f64; 2]; 2],
 }
 
 /// A typed rotation of the selection about a world axis through its box centre.
@@ -135,6 +223,40 @@ pub enum Action {
     MouseDrag(MouseDrag),
     /// Turn the selection about an axis through its box centre (one edit).
     Rotate(Rotate),
+    /// Drag a handle of the gizmo on the selection.
+    GizmoDrag(GizmoDrag),
+    /// Set the snapping steps of drags.
+    Snap(SnapSteps),
+    /// Show or hide the gizmo on the selection.
+    Gizmo(bool),
+    /// Add a section plane.
+    SectionPlane(SectionPlane),
+    /// Add a section plane on the face under a view pixel `[x, y]`, cutting
+    /// away the side facing the eye.
+    SectionFace([f64; 2]),
+    /// Cut away everything outside a box.
+    SectionBox(SectionBox),
+    /// Slide a section plane or box face by its handle.
+    SectionDrag(SectionDrag),
+    /// Remove every section plane and box.
+    ClearSection,
+    /// Measure between two clicked points, parts or faces.
+    Measure(Measure),
+    /// The minimum distance between two parts (names, paths or `#id`s).
+    MeasureParts([String; 2]),
+    /// Add the clashes of a `dmu collide --json` report to the clash list.
+    LoadClashes(PathBuf),
+    /// Show clash `i` (from 0) of the list: isolate and frame its two parts.
+    ShowClash(usize),
+    /// Write the review's issues (listed clashes, saved viewpoints) as BCF
+    /// 2.1, a snapshot each (the next actions wait until it is written).
+    ExportBcf(PathBuf),
+    /// Read a BCF file's topics as viewpoints and go to the first.
+    ImportBcf(PathBuf),
+    /// Save the view (camera, selection, hidden parts, section) under a name.
+    SaveViewpoint(String),
+    /// Go back to a saved view.
+    Viewpoint(String),
     /// Move the pointer over a view pixel `[x, y]` (hover highlight).
     Hover([f64; 2]),
     /// Look from a preset direction, framing the model (in the active pane).
@@ -179,6 +301,8 @@ impl Action {
         match self {
             Self::Drag(d) => d.steps.max(1),
             Self::MouseDrag(d) => d.steps.max(1).saturating_add(1),
+            Self::GizmoDrag(d) => d.steps.max(1).saturating_add(1),
+            Self::SectionDrag(d) => d.steps.max(1).saturating_add(1),
             Self::Frames(n) => (*n).max(1),
             _ => 1,
         }
@@ -193,6 +317,22 @@ impl Action {
             Self::Drag(_) => "drag",
             Self::MouseDrag(_) => "mouse_drag",
             Self::Rotate(_) => "rotate",
+            Self::GizmoDrag(_) => "gizmo_drag",
+            Self::Snap(_) => "snap",
+            Self::Gizmo(_) => "gizmo",
+            Self::SectionPlane(_) => "section_plane",
+            Self::SectionFace(_) => "section_face",
+            Self::SectionBox(_) => "section_box",
+            Self::ClearSection => "clear_section",
+            Self::SectionDrag(_) => "section_drag",
+            Self::Measure(_) => "measure",
+            Self::MeasureParts(_) => "measure_parts",
+            Self::LoadClashes(_) => "load_clashes",
+            Self::ShowClash(_) => "show_clash",
+            Self::ExportBcf(_) => "export_bcf",
+            Self::ImportBcf(_) => "import_bcf",
+            Self::SaveViewpoint(_) => "save_viewpoint",
+            Self::Viewpoint(_) => "viewpoint",
             Self::Hover(_) => "hover",
             Self::View(_) => "view",
             Self::Panes(_) => "panes",
@@ -229,7 +369,23 @@ pub fn parse(text: &str) -> anyhow::Result<Vec<Action>> {
     );
     for (i, a) in actions.iter().enumerate() {
         let finite = match a {
-            Action::Pick(p) | Action::Hover(p) => p.iter().all(|v| v.is_finite()),
+            Action::Pick(p) | Action::Hover(p) | Action::SectionFace(p) => {
+                p.iter().all(|v| v.is_finite())
+            }
+            Action::GizmoDrag(d) => d.from.iter().flatten().chain(&d.by).all(|v| v.is_finite()),
+            Action::Snap(s) => {
+                for v in [s.step, s.degrees].into_iter().flatten() {
+                    anyhow::ensure!(
+                        v.is_finite() && v >= 0.0,
+                        "action {i} (snap): {v} must be finite and not negative"
+                    );
+                }
+                true
+            }
+            Action::SectionPlane(p) => p.point.iter().chain(&p.normal).all(|v| v.is_finite()),
+            Action::SectionBox(b) => b.min.iter().chain(&b.max).all(|v| v.is_finite()),
+            Action::Measure(m) => m.at.iter().flatten().all(|v| v.is_finite()),
+            Action::SectionDrag(d) => d.by.iter().all(|v| v.is_finite()),
             Action::Rotate(r) => r.degrees.is_finite(),
             Action::Clearance(c) => {
                 anyhow::ensure!(
@@ -252,6 +408,8 @@ pub fn parse(text: &str) -> anyhow::Result<Vec<Action>> {
             Action::Frames(n) => Some(*n),
             Action::Drag(d) => Some(d.steps),
             Action::MouseDrag(d) => Some(d.steps),
+            Action::GizmoDrag(d) => Some(d.steps),
+            Action::SectionDrag(d) => Some(d.steps),
             _ => None,
         };
         if let Some(n) = frames {
@@ -313,10 +471,24 @@ mod tests {
                 {"screenshot": "a.png"}, {"save": "b.glb"},
                 {"rotate": {"axis": "y", "degrees": -45}}, {"hover": [3, 4]},
                 {"view": "iso"}, {"record": "s.jsonl"}, {"record": null},
-                {"clearance": 2.5}, {"occlusion": "on"}]"##,
+                {"clearance": 2.5}, {"occlusion": "on"},
+                {"gizmo_drag": {"handle": "rz", "by": [40, -10], "steps": 8}},
+                {"snap": {"step": 25}}, {"gizmo": false},
+                {"section_plane": {"point": [0, 0, 1], "normal": [0, 0, -1]}},
+                {"section_face": [3, 4]}, {"section_box": {"min": [0, 0, 0], "max": [1, 1, 1]}},
+                "clear_section", {"measure": {"mode": "angle", "at": [[1, 2], [3, 4]]}},
+                {"measure_parts": ["a", "#2"]}, {"load_clashes": "c.json"}, {"show_clash": 0},
+                {"save_viewpoint": "v"}, {"viewpoint": "v"}]"##,
         )
         .unwrap();
-        assert_eq!(script.len(), 21);
+        assert_eq!(script.len(), 34);
+        assert_eq!(script[21].frames(), 9);
+        assert_eq!(
+            script[23],
+            Action::Gizmo(false),
+            "{:?}",
+            script.iter().map(Action::name).collect::<Vec<_>>()
+        );
         assert_eq!(
             script[14],
             Action::Rotate(Rotate {
@@ -345,6 +517,9 @@ mod tests {
         assert!(parse(r#"[{"view": "bottom"}]"#).is_err());
         assert!(parse(r#"[{"occlusion": "sometimes"}]"#).is_err());
         assert!(parse(r#"{"pick": [1, 2]}"#).is_err());
+        assert!(parse(r#"[{"snap": {"step": -1}}]"#).is_err());
+        assert!(parse(r#"[{"gizmo_drag": {"handle": "w", "by": [1, 2]}}]"#).is_err());
+        assert!(parse(r#"[{"measure": {"mode": "volume", "at": [[1, 2], [3, 4]]}}]"#).is_err());
     }
 
     /// `frames` saturates on the largest counts the format can hold (`parse`

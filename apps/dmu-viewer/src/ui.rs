@@ -59,6 +59,8 @@ pub struct ViewInput {
     pub frame_all: bool,
     /// The pane the pointer is over and where (for the hover tint).
     pub hover: Option<(usize, ViewPoint)>,
+    /// Shift is held: drags move freely, without snapping.
+    pub free: bool,
 }
 
 impl ViewInput {
@@ -112,6 +114,20 @@ pub struct UiState {
     pub drag_axis: Option<Axis>,
     /// Drag offsets snap to multiples of this (0: no snapping), model units.
     pub snap: f64,
+    /// Gizmo turns snap to multiples of this (0: no snapping), degrees.
+    pub snap_deg: f64,
+    /// Show the gizmo on the selection.
+    pub show_gizmo: bool,
+    /// The gizmo handle under the pointer (drawn highlighted).
+    pub gizmo_hot: Option<crate::gizmo::Handle>,
+    /// The next click places a section plane on the face under it.
+    pub section_on_face: bool,
+    /// The measuring tool.
+    pub measure: crate::measure::MeasureTool,
+    /// Saved viewpoints.
+    pub viewpoints: Vec<crate::viewpoints::Viewpoint>,
+    /// Panel fields of the review tools.
+    pub tools: crate::tools_ui::ToolFields,
     save_path: String,
     /// A message for the status line.
     pub status: String,
@@ -121,6 +137,9 @@ pub struct UiState {
     pub show_stats: bool,
     /// Mark clash points on the view.
     pub show_clashes: bool,
+    /// Draw the review tools over the view (gizmo, section outlines,
+    /// measurement); the gizmo still works when they are hidden.
+    pub show_tools: bool,
 }
 
 impl UiState {
@@ -138,12 +157,20 @@ impl UiState {
             rotate_deg: 90.0,
             record_path: "dmu-session.jsonl".to_owned(),
             drag_axis: None,
-            snap: 0.0,
+            snap: 10.0,
+            snap_deg: 15.0,
+            show_gizmo: true,
+            gizmo_hot: None,
+            section_on_face: false,
+            measure: Default::default(),
+            viewpoints: Vec::new(),
+            tools: Default::default(),
             save_path,
             status: String::new(),
             reveal: None,
             show_stats: true,
             show_clashes: true,
+            show_tools: true,
         }
     }
 }
@@ -176,8 +203,14 @@ pub fn show(
     egui::Panel::right("properties")
         .default_size(320.0)
         .show(ui, |ui| {
-            why_section(ui, panes.panes);
-            properties_panel(ui, state, review);
+            // Long paths wrap instead of widening the panel (and shrinking the view).
+            ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Wrap);
+            egui::ScrollArea::vertical().show(ui, |ui| {
+                why_section(ui, panes.panes);
+                properties_panel(ui, state, review);
+                let active = panes.active.min(panes.panes.len() - 1);
+                crate::tools_ui::panel(ui, state, review, &mut panes.panes[active]);
+            });
         });
     egui::Panel::bottom("status").show(ui, |ui| {
         ui.horizontal(|ui| {
@@ -188,7 +221,8 @@ pub fn show(
                     RichText::new(
                         "click: pick · drag: orbit · right-drag: look · middle-drag: pan · \
                          wheel: zoom · WASD/QE: walk · double-click: focus · F: frame · \
-                         Ctrl+Z/Y: undo/redo",
+                         Ctrl+Z/Y: undo/redo · gizmo: drag arrows, squares, rings \
+                         (Shift: no snapping)",
                     )
                     .weak(),
                 )
@@ -477,7 +511,7 @@ fn node_ui(ui: &mut egui::Ui, review: &mut Review, node: NodeId, reveal: Option<
         });
 }
 
-fn vec_text(v: DVec3) -> String {
+pub(crate) fn vec_text(v: DVec3) -> String {
     format!("{:.3}, {:.3}, {:.3}", v.x, v.y, v.z)
 }
 
@@ -499,9 +533,7 @@ fn why_section(ui: &mut egui::Ui, panes: &[Pane]) {
 }
 
 fn properties_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) {
-    // Long paths wrap instead of widening the panel (and shrinking the view).
-    ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Wrap);
-    egui::ScrollArea::vertical().show(ui, |ui| {
+    ui.vertical(|ui| {
         ui.heading("Selection");
         let Some(part) = review.selected else {
             ui.weak("nothing selected: click a part, or pick one in the structure");
@@ -590,11 +622,22 @@ fn properties_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review)
                 ui.radio_value(&mut state.drag_axis, Some(a), a.name());
             }
         });
-        ui.add(
-            egui::DragValue::new(&mut state.snap)
-                .range(0.0..=f64::MAX)
-                .prefix("snap "),
-        );
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut state.show_gizmo, "gizmo")
+                .on_hover_text("arrows move along an axis, squares in a plane, rings turn");
+            ui.add(
+                egui::DragValue::new(&mut state.snap)
+                    .range(0.0..=f64::MAX)
+                    .prefix("snap ")
+                    .suffix(" mm"),
+            );
+            ui.add(
+                egui::DragValue::new(&mut state.snap_deg)
+                    .range(0.0..=360.0)
+                    .suffix("°"),
+            )
+            .on_hover_text("turns snap to this angle; hold Shift while dragging to move freely");
+        });
         history_row(ui, review);
         ui.separator();
         ui.heading("Collision");
@@ -709,6 +752,9 @@ fn view_area(
         if state.show_clashes {
             clash_markers(&painter, rect, review, &pane.nav);
         }
+        if state.show_tools {
+            crate::tools_ui::paint(&painter, rect, ppp, state, review, pane);
+        }
         if show.panes.len() > 1 {
             let stroke = if i == show.active {
                 egui::Stroke::new(1.5, Color32::from_rgb(90, 160, 255))
@@ -795,6 +841,7 @@ fn pane_input(
         input.drag_stopped = true;
         acted = true;
     }
+    input.free |= ui.input(|i| i.modifiers.shift);
     if response.dragged_by(egui::PointerButton::Secondary) {
         input.look = delta;
         acted = true;
@@ -849,7 +896,7 @@ fn stats_overlay(painter: &egui::Painter, rect: Rect, o: &Overlay, review: &Revi
          3D: cpu {:.1} ms · gpu {:.1} ms\n\
          triangles {} drawn / {} in frustum / {} model\n\
          chunks {} drawn · {} queries in {} rounds · LOD {:.2} px · min {:.1} px\n\
-         culled: frustum {} · coverage {} · occlusion {} · hidden {}\n\
+         culled: frustum {} · coverage {} · occlusion {} · hidden {} · section {}\n\
          occlusion {} (cost {:.2} ms, saves {:.2} ms)\n\
          GPU geometry {:.1} MiB\n\
          move {:.0} µs · collision {:.2} ms",
@@ -878,6 +925,7 @@ fn stats_overlay(painter: &egui::Painter, rect: Rect, o: &Overlay, review: &Revi
         s.culled_coverage,
         s.culled_occlusion,
         s.hidden,
+        s.culled_section,
         if s.occlusion.enabled { "on" } else { "off" },
         s.occlusion.cost_ms,
         s.occlusion.saved_ms,

@@ -23,7 +23,7 @@ use dmu_xr::{Eye, Placement, Status, XrOptions, XrSession};
 use serde_json::{Value, json};
 
 use crate::app::{clashes_json, retint, selection_json, summary};
-use crate::review::Review;
+use dmu_viewer::review::Review;
 
 /// How long the runtime may take to start the session (IDLE to READY).
 const START_TIMEOUT: Duration = Duration::from_secs(60);

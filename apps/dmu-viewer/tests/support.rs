@@ -142,7 +142,7 @@ fn linear(c: u8) -> f64 {
 }
 
 /// Linear to an sRGB byte value (unrounded).
-fn srgb(c: f64) -> f64 {
+pub fn srgb(c: f64) -> f64 {
     let c = c.clamp(0.0, 1.0);
     255.0
         * if c <= 0.0031308 {

@@ -41,7 +41,7 @@ pub fn path_str(p: &Path) -> &str {
 
 /// Overlays off: screenshots show the model alone.
 pub fn no_overlays() -> Value {
-    json!({"overlays": {"stats": false, "clashes": false}})
+    json!({"overlays": {"stats": false, "clashes": false, "tools": false}})
 }
 
 /// Runs `script` (a JSON list of actions) on the plant and returns the report.

@@ -11,6 +11,7 @@ use dmu_scene::Scene;
 use serde_json::json;
 
 use crate::collide_batch::{Checked, check_records};
+use crate::collide_bcf::{BcfRequest, write_bcf};
 use crate::load::{Loaded, ModelArgs, load};
 
 /// Replay records of part moves and report the clashes at every step.
@@ -31,6 +32,18 @@ use crate::load::{Loaded, ModelArgs, load};
 /// adds a first column `record`, JSON prints `{"records": [...], "summary":
 /// ...}`, each entry what one record alone prints with --json. One record
 /// named as a file prints as it always has.
+///
+/// With --bcf FILE.bcfzip the clashes are also written as BCF 2.1 issues for
+/// design-review tools (`dmu bcf show FILE` lists them): one topic per pair of
+/// parts per record, at the first step where the pair has a finding (a record
+/// of 3,000 steps of one contact makes one topic), titled with the kind, both
+/// parts, the step and its time (and the record's file name when there are
+/// several); its viewpoint frames both parts as they stand at that step (for
+/// an impact, the part hit and the point of impact), from the +X, -Y, +Z side,
+/// with both selected (glTF node names in
+/// AuthoringToolId) and a snapshot rendered offscreen, the pair tinted.
+/// Without a GPU adapter the file is written without snapshots, with a
+/// warning.
 ///
 /// Exit status: 0 when clear, 1 when any step of any record has a clash or
 /// impact, 2 on error.
@@ -68,11 +81,31 @@ pub struct Args {
     /// Print CSV, one row per finding; the summary goes to standard error.
     #[arg(long)]
     csv: bool,
+    /// Also write the clashes as BCF 2.1 issues to this `.bcfzip` (see above).
+    #[arg(long, value_name = "FILE", value_parser = crate::units::output_with("bcfzip"))]
+    bcf: Option<PathBuf>,
+    /// Size of the BCF snapshots, `WIDTHxHEIGHT`, or `none` for none.
+    #[arg(long, value_name = "SIZE", default_value = "1024x576", requires = "bcf", value_parser = parse_snapshot_size)]
+    bcf_snapshot: SnapshotSize,
+    /// The length of one model unit, for --bcf (BCF is in metres).
+    #[arg(long, value_enum, default_value = "mm", requires = "bcf")]
+    bcf_unit: crate::units::LengthUnit,
     /// Records checked at once (1 to 1024; default: the available cores, at
     /// most one per record). Each worker holds its own copy of the model, cell
     /// tree and collision meshes, so memory grows with --jobs.
     #[arg(long, value_parser = crate::units::count_in(1, MAX_JOBS))]
     jobs: Option<u64>,
+}
+
+/// `--bcf-snapshot`: a size in pixels, or none.
+#[derive(Clone, Copy, Debug)]
+struct SnapshotSize(Option<(u32, u32)>);
+
+fn parse_snapshot_size(s: &str) -> anyhow::Result<SnapshotSize> {
+    if s.eq_ignore_ascii_case("none") {
+        return Ok(SnapshotSize(None));
+    }
+    crate::cmd_render::parse_size(s).map(|size| SnapshotSize(Some(size)))
 }
 
 /// The most workers `--jobs` may ask for.
@@ -227,6 +260,10 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
         SweepMode::Auto => "auto",
         SweepMode::Always => "always",
     };
+    // The BCF topics are made after the run, on a copy of the model at its
+    // own poses (the workers consume theirs).
+    let bcf_scene = args.bcf.as_ref().map(|_| scene.clone());
+    let mut bcf_clashes = Vec::new();
     let start = Instant::now();
     let mut reports = Vec::new();
     let mut totals = Summary::default();
@@ -250,6 +287,9 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
         totals.impacts += summary.impacts;
         totals.seconds += summary.seconds;
         records_with_findings += usize::from(found_any(&summary));
+        if args.bcf.is_some() {
+            bcf_clashes.push(crate::collide_bcf::first_clashes(&findings));
+        }
         let mut out = std::io::stdout().lock();
         if args.json {
             reports.push(json!({
@@ -339,6 +379,24 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
     };
     let workers = check_records(scene, &records, &settings, sweep, jobs, collect, emit)?;
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
+    let bcf = match (&args.bcf, bcf_scene) {
+        (Some(path), Some(scene)) => {
+            let request = BcfRequest {
+                path,
+                unit: args.bcf_unit,
+                snapshot: args.bcf_snapshot.0,
+                clearance: args.clearance,
+            };
+            let written = write_bcf(scene, &records, &files, &bcf_clashes, batch, &request)
+                .with_context(|| format!("--bcf {}", path.display()))?;
+            Some(json!({
+                "path": path.display().to_string(),
+                "topics": written.topics,
+                "snapshots": written.snapshots,
+            }))
+        }
+        _ => None,
+    };
 
     if args.json {
         let out = if batch {
@@ -364,6 +422,10 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
         } else {
             reports.pop().expect("one record, one report")
         };
+        let mut out = out;
+        if let Some(bcf) = &bcf {
+            out["bcf"] = bcf.clone();
+        }
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else if batch {
         let line = format!(
@@ -372,6 +434,21 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
             totals.steps,
             totals.clashes,
             totals.impacts,
+        );
+        if args.csv {
+            eprintln!("{line}");
+        } else {
+            println!("{line}");
+        }
+    }
+    if !args.json
+        && let Some(bcf) = &bcf
+    {
+        let line = format!(
+            "bcf: {} topics ({} with snapshots) written to {}",
+            bcf["topics"],
+            bcf["snapshots"],
+            bcf["path"].as_str().unwrap_or_default()
         );
         if args.csv {
             eprintln!("{line}");

@@ -103,7 +103,8 @@ pub struct Args {
     explain: bool,
 }
 
-fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
+/// `WIDTHxHEIGHT`, each side 1 to 16384 pixels.
+pub(crate) fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
     let (w, h) = s
         .split_once('x')
         .with_context(|| format!("--size {s:?}: expected WIDTHxHEIGHT"))?;
@@ -116,6 +117,21 @@ fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
         bail!("--size {s:?}: each side must be 1 to 16384 pixels");
     }
     Ok((w, h))
+}
+
+/// The near plane for an eye at `eye`: 1/10,000 of the model's size, but never
+/// beyond half the distance to the nearest chunk, so one far-away part (a huge
+/// diagonal) cannot clip away what stands near the eye.
+pub(crate) fn default_near(tree: &Tree, eye: DVec3) -> f64 {
+    let nearest = tree
+        .entries()
+        .iter()
+        .map(|e| (eye.clamp(e.bounds.min, e.bounds.max) - eye).length())
+        .filter(|&d| d > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    (tree.bounds().extent().length() * 1e-4)
+        .min(nearest * 0.5)
+        .max(1e-6)
 }
 
 /// `OUTPUT-eye.png` next to `OUTPUT`.
@@ -192,6 +208,7 @@ fn stats_json(s: &FrameStats) -> serde_json::Value {
         "culled_coverage": s.culled_coverage,
         "culled_occlusion": s.culled_occlusion,
         "hidden": s.hidden,
+        "culled_section": s.culled_section,
         "not_resident": s.not_resident,
         "queries": s.queries,
         "queries_visible": s.queries_visible,
@@ -245,20 +262,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let loaded = load(&args.model)?;
     let scene = &loaded.scene;
     let tree = Tree::build(scene, TreeOptions::default());
-    // The default near plane: 1/10,000 of the model's size, but never beyond
-    // half the distance to the nearest chunk, so one far-away part (a huge
-    // diagonal) cannot clip away what stands near the eye.
-    let near = args.near.unwrap_or_else(|| {
-        let nearest = tree
-            .entries()
-            .iter()
-            .map(|e| (eye.clamp(e.bounds.min, e.bounds.max) - eye).length())
-            .filter(|&d| d > 0.0)
-            .fold(f64::INFINITY, f64::min);
-        (tree.bounds().extent().length() * 1e-4)
-            .min(nearest * 0.5)
-            .max(1e-6)
-    });
+    let near = args.near.unwrap_or_else(|| default_near(&tree, eye));
     // Looking straight up or down: any up that is not the view direction will do.
     let forward = (target - eye).normalize();
     let up = if forward.cross(DVec3::Z).length() < 1e-6 {

@@ -1,6 +1,7 @@
 //! `dmu`: the command line of the dmu digital-mockup viewer.
 
 mod bench_collide;
+mod cmd_bcf;
 mod cmd_bench;
 mod cmd_collide;
 mod cmd_generate;
@@ -12,6 +13,7 @@ mod cmd_render;
 mod cmd_tradeoffs;
 mod cmd_walk;
 mod collide_batch;
+mod collide_bcf;
 mod stereo_far;
 mod tradeoffs;
 mod walk_render;
@@ -42,6 +44,7 @@ enum Command {
     Pick(cmd_pick::Args),
     Move(cmd_move::Args),
     Collide(cmd_collide::Args),
+    Bcf(cmd_bcf::Args),
     Render(cmd_render::Args),
     Walk(cmd_walk::Args),
     Bench(cmd_bench::Args),
@@ -80,6 +83,7 @@ fn main() -> ExitCode {
             Ok(code) => return code,
             Err(e) => Err(e),
         },
+        Command::Bcf(args) => cmd_bcf::run(&args),
         Command::Render(args) => cmd_render::run(&args),
         Command::Walk(args) => cmd_walk::run(&args),
         Command::Bench(args) => cmd_bench::run(&args),

@@ -1,6 +1,7 @@
 //! The `dmu` binary end to end: generate, info, errors and exit codes; the
 //! modules below take one command each (collide, bulk picks) or hostile input.
 
+mod bcf;
 mod collide;
 mod explain;
 mod hostile;

@@ -3,7 +3,8 @@
 //! from the same command-line arguments, parsing the numbers people type,
 //! reporting pick hits and progress, and streaming a store's chunks into the
 //! renderer ([`resident::ResidentSource`]), and putting the choices made by
-//! measurement into words ([`explain`]).
+//! measurement into words ([`explain`]), and reading and writing BCF issue
+//! files ([`bcf`]).
 //!
 //! Design choices:
 //! - The `dmu` command line and the `dmu-viewer` window open models through one
@@ -28,6 +29,7 @@
 //! # Ok::<(), anyhow::Error>(())
 //! ```
 
+pub mod bcf;
 pub mod explain;
 pub mod hits;
 pub mod load;

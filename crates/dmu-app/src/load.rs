@@ -34,9 +34,19 @@ pub struct ModelArgs {
 
 /// Opens the model: the file, or the built-in plant.
 pub fn load(args: &ModelArgs) -> anyhow::Result<Loaded> {
+    load_reporting(args, &|_, _| {})
+}
+
+/// [`load`], telling `progress` the meshes imported so far and in all
+/// (`(done, total)`, from any thread; not called for the built-in plant) as
+/// well as drawing the terminal's bar: a window shows it while it loads.
+pub fn load_reporting(
+    args: &ModelArgs,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> anyhow::Result<Loaded> {
     let start = Instant::now();
     let (scene, report) = match &args.file {
-        Some(path) => import(path, args.chunk_triangles)?,
+        Some(path) => import(path, args.chunk_triangles, progress)?,
         None => {
             let options = dmu_samples::PlantOptions {
                 triangles: args.plant_triangles,
@@ -54,7 +64,11 @@ pub fn load(args: &ModelArgs) -> anyhow::Result<Loaded> {
     })
 }
 
-fn import(path: &Path, chunk_triangles: u32) -> anyhow::Result<(Scene, ImportReport)> {
+fn import(
+    path: &Path,
+    chunk_triangles: u32,
+    report: &(dyn Fn(usize, usize) + Sync),
+) -> anyhow::Result<(Scene, ImportReport)> {
     // A bar only for files big enough to take a while; indicatif hides it when
     // stderr is not a terminal, so scripts see clean output.
     let big = std::fs::metadata(path)
@@ -69,6 +83,7 @@ fn import(path: &Path, chunk_triangles: u32) -> anyhow::Result<(Scene, ImportRep
     let progress = |done: usize, total: usize| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
+        report(done, total);
     };
     let options = ImportOptions {
         chunk_triangles,

@@ -188,3 +188,43 @@ mod tests {
         assert!(parse_dvec3("1,2,NaN").is_err());
     }
 }
+
+/// The length one model unit stands for, where a file has its own unit (BCF
+/// is in metres): `--unit mm` for the plant and most CAD exports.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum LengthUnit {
+    /// Millimetres.
+    Mm,
+    /// Centimetres.
+    Cm,
+    /// Metres (glTF's own unit).
+    M,
+    /// Inches.
+    In,
+    /// Feet.
+    Ft,
+}
+
+impl LengthUnit {
+    /// Model units in a metre.
+    pub fn per_metre(self) -> f64 {
+        match self {
+            Self::Mm => 1000.0,
+            Self::Cm => 100.0,
+            Self::M => 1.0,
+            Self::In => 1.0 / 0.0254,
+            Self::Ft => 1.0 / 0.3048,
+        }
+    }
+
+    /// `mm`, `cm`, `m`, `in` or `ft`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Mm => "mm",
+            Self::Cm => "cm",
+            Self::M => "m",
+            Self::In => "in",
+            Self::Ft => "ft",
+        }
+    }
+}

@@ -146,6 +146,19 @@ pub struct Clash {
     pub normal: DVec3,
 }
 
+/// How far apart two parts are ([`Checker::distance`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Separation {
+    /// Minimum distance between the surfaces, model units (0 when they cross).
+    pub distance: f64,
+    /// The closest point on the first part, world.
+    pub point_a: DVec3,
+    /// The closest point on the second part, world.
+    pub point_b: DVec3,
+    /// The surfaces cross deeper than the pair's contact tolerance.
+    pub penetrating: bool,
+}
+
 /// The first impact of a part moving along a motion (see [`Checker::sweep`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Impact {
@@ -340,6 +353,52 @@ impl Checker {
             }
         }
         self.narrow(scene, settings, report);
+    }
+
+    /// The minimum distance between parts `a` and `b` and its closest points,
+    /// world f64, by the narrow phase every check uses (so it equals the
+    /// distance a soft clash of the pair reports at a clearance above it);
+    /// `None` when either part has no triangles. Penetrating parts give
+    /// distance 0 at a point of the crossing; a part wholly inside a closed
+    /// one gives the distance between their surfaces (it is not 0).
+    pub fn distance(
+        &self,
+        scene: &Scene,
+        settings: &Settings,
+        a: PartId,
+        b: PartId,
+    ) -> Option<Separation> {
+        let world_a = scene.part_world(a);
+        let origin = world_a.translation;
+        let place_a = Placement::new(&world_a, origin);
+        let place_b = Placement::new(&scene.part_world(b), origin);
+        let mut pairs: Vec<(f64, ChunkPair)> = Vec::new();
+        for ca in scene.part_mesh(a).chunk_ids() {
+            let box_a = scene.chunk(ca).bounds.transformed(&place_a.to_pair);
+            for cb in scene.part_mesh(b).chunk_ids() {
+                let box_b = scene.chunk(cb).bounds.transformed(&place_b.to_pair);
+                pairs.push((box_gap_squared(&box_a, &box_b), ChunkPair { a, b, ca, cb }));
+            }
+        }
+        // Nearest boxes first: the first pairs shrink the search for the rest.
+        pairs.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let pairs: Vec<ChunkPair> = pairs.into_iter().map(|(_, p)| p).collect();
+        let tolerance = pair_tolerance(scene, a, b, settings.contact_tolerance);
+        let mut search = PairSearch::new(tolerance, f64::INFINITY);
+        let mut scratch_report = Report::default();
+        self.search_chunk_pairs(
+            scene,
+            &pairs,
+            (&place_a, &place_b),
+            &mut search,
+            &mut scratch_report,
+        );
+        search.best.map(|t| Separation {
+            distance: t.distance,
+            point_a: origin + t.point_a,
+            point_b: origin + t.point_b,
+            penetrating: t.penetrating,
+        })
     }
 
     /// The same check without the tree: every visible part's box against each

@@ -100,7 +100,8 @@ mod sweep;
 mod triangle;
 
 pub use check::{
-    AllowList, Checker, Clash, ClashKind, DEFAULT_CONTACT_TOLERANCE, Impact, Report, Settings,
+    AllowList, Checker, Clash, ClashKind, DEFAULT_CONTACT_TOLERANCE, Impact, Report, Separation,
+    Settings,
 };
 pub use finding::Finding;
 pub use record::{

@@ -1,13 +1,13 @@
 //! Through the tree equals brute force over all part pairs, on random scenes.
 
-use dmu_collide::{Checker, Report, Settings};
+use dmu_collide::{Checker, Report, Settings, triangle_distance};
 use dmu_samples::Rng;
 use dmu_scene::{PartId, Scene};
 use dmu_tree::{Tree, TreeOptions};
 use glam::{DAffine3, DQuat, DVec3, Vec3};
 use proptest::prelude::*;
 
-use crate::support::{Expected, Shape, oracle, scene_of, tessellated_box_mesh};
+use crate::support::{Expected, Shape, oracle, scene_of, tessellated_box_mesh, world_triangles};
 
 fn random_pose(rng: &mut Rng, origin: DVec3, reach: f64) -> DAffine3 {
     let axis = DVec3::new(
@@ -158,4 +158,62 @@ fn random_scenes_do_produce_every_kind() {
     }
     assert!(kinds.contains(&dmu_collide::ClashKind::Hard));
     assert!(kinds.contains(&dmu_collide::ClashKind::Soft));
+}
+
+/// The distance between two parts equals brute force over every triangle
+/// pair (near the origin and 1e7 away), its closest points lie that far
+/// apart, and a soft clash of the pair at a larger clearance reports the
+/// same distance.
+#[test]
+fn part_distance_equals_brute_force() {
+    let mut rng = Rng::new(99);
+    let mut compared = 0;
+    for round in 0..30 {
+        let origin = if round % 2 == 1 {
+            DVec3::new(1e7, -1e7, 1e7)
+        } else {
+            DVec3::ZERO
+        };
+        let (scene, _) = random_scene(&mut rng, 2, origin);
+        let (a, b) = (PartId(0), PartId(1));
+        let checker = Checker::new(&scene);
+        let settings = Settings::default();
+        let Some(got) = checker.distance(&scene, &settings, a, b) else {
+            panic!("round {round}: parts with triangles have a distance");
+        };
+        let (ta, tb) = (world_triangles(&scene, a), world_triangles(&scene, b));
+        let want = ta
+            .iter()
+            .flat_map(|x| tb.iter().map(|y| triangle_distance(x, y).0))
+            .fold(f64::INFINITY, f64::min);
+        let scale = origin.length().max(1.0);
+        assert!(
+            (got.distance - want).abs() <= 1e-9 * scale + 1e-9 * want,
+            "round {round}: {} vs brute {want}",
+            got.distance
+        );
+        if got.penetrating {
+            continue;
+        }
+        assert!(
+            ((got.point_a - got.point_b).length() - got.distance).abs() <= 1e-9 * scale,
+            "round {round}: closest points {:?}",
+            got
+        );
+        if want > 1e-3 {
+            compared += 1;
+            let mut tree_checker = Checker::new(&scene);
+            let tree = Tree::build(&scene, TreeOptions::default());
+            let mut report = Report::default();
+            let soft = Settings::with_clearance(want * 2.0 + 1.0);
+            tree_checker.check(&scene, &tree, &[a], &soft, &mut report);
+            let clash = report
+                .clashes
+                .iter()
+                .find(|c| c.b == b)
+                .expect("soft clash");
+            assert_eq!(clash.distance, got.distance, "round {round}");
+        }
+    }
+    assert!(compared >= 5, "only {compared} separated pairs");
 }

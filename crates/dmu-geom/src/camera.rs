@@ -39,6 +39,25 @@ impl Camera {
             && self.near.is_finite()
     }
 
+    /// The camera looking along `forward` at the centre of `bounds` from just
+    /// far enough back that the box's bounding sphere (radius at least ten
+    /// near distances) fits the vertical field of view with 5 % to spare, so
+    /// all of the box is in view on any screen at least as wide as it is tall.
+    /// How the viewer frames a selection and `dmu collide --bcf` frames a
+    /// clash.
+    pub fn framing(bounds: &Aabb3d, forward: DVec3, up: DVec3, fov_y_rad: f64, near: f64) -> Self {
+        let target = bounds.center();
+        let radius = (bounds.extent().length() * 0.5).max(near * 10.0);
+        let distance = radius / (fov_y_rad * 0.5).sin() * 1.05;
+        Self {
+            eye: target - forward.normalize() * distance,
+            target,
+            up,
+            fov_y_rad,
+            near,
+        }
+    }
+
     /// World to view (right-handed, looking down -Z).
     pub fn view_matrix(&self) -> DMat4 {
         look_at(self.eye, self.target, self.up)

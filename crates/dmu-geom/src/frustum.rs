@@ -62,10 +62,10 @@ impl Frustum {
         }
         let mut result = Containment::Inside;
         for plane in &self.planes {
-            let towards = plane.normal.cmpge(DVec3::ZERO);
-            if plane.signed_distance(DVec3::select(towards, aabb.max, aabb.min)) < 0.0 {
+            if plane.excludes_aabb(aabb) {
                 return Containment::Outside;
             }
+            let towards = plane.normal.cmpge(DVec3::ZERO);
             if plane.signed_distance(DVec3::select(towards, aabb.min, aabb.max)) < 0.0 {
                 result = Containment::Intersecting;
             }
@@ -76,10 +76,6 @@ impl Frustum {
     /// True unless `aabb` is [`Containment::Outside`]; cheaper than
     /// [`Frustum::test_aabb`] as it checks only the p-vertices.
     pub fn intersects_aabb(&self, aabb: &Aabb3d) -> bool {
-        !aabb.is_empty()
-            && self.planes.iter().all(|plane| {
-                let towards = plane.normal.cmpge(DVec3::ZERO);
-                plane.signed_distance(DVec3::select(towards, aabb.max, aabb.min)) >= 0.0
-            })
+        !aabb.is_empty() && !self.planes.iter().any(|plane| plane.excludes_aabb(aabb))
     }
 }

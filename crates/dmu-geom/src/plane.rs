@@ -2,6 +2,8 @@
 
 use glam::{DVec3, DVec4};
 
+use crate::Aabb3d;
+
 /// The plane of points `p` with `normal · p + d = 0`; the side the normal points to
 /// has positive signed distance. `normal` is unit length, except in
 /// [`Plane::ACCEPT_ALL`].
@@ -52,5 +54,13 @@ impl Plane {
     /// Distance from the plane, positive on the side the normal points to.
     pub fn signed_distance(&self, p: DVec3) -> f64 {
         self.normal.dot(p) + self.d
+    }
+
+    /// True when all of `aabb` lies strictly on the negative side (its corner
+    /// furthest along the normal, the p-vertex, is below the plane); the empty
+    /// box counts as below. Frustum culling and section planes cull with it.
+    pub fn excludes_aabb(&self, aabb: &Aabb3d) -> bool {
+        let towards = self.normal.cmpge(DVec3::ZERO);
+        aabb.is_empty() || self.signed_distance(DVec3::select(towards, aabb.max, aabb.min)) < 0.0
     }
 }

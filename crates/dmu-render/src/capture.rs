@@ -208,14 +208,20 @@ pub fn save_png(image: &image::RgbaImage, path: &Path) -> Result<(), RenderError
             source: std::io::Error::other("a PNG is written only to a name ending in .png").into(),
         });
     }
-    let mut png = Vec::new();
-    image
-        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .and_then(|()| dmu_scene::write_file_atomically(path, &png).map_err(Into::into))
+    encode_png(image)
+        .and_then(|png| dmu_scene::write_file_atomically(path, &png).map_err(Into::into))
         .map_err(|source| RenderError::Image {
             path: path.display().to_string(),
             source,
         })
+}
+
+/// An image as the bytes of a PNG file (for a snapshot kept in memory, as in
+/// a BCF archive).
+pub fn encode_png(image: &image::RgbaImage) -> Result<Vec<u8>, image::ImageError> {
+    let mut png = Vec::new();
+    image.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)?;
+    Ok(png)
 }
 
 /// Copies one layer of a 4-byte-per-texel texture to tightly packed rows.

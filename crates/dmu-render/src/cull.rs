@@ -3,7 +3,7 @@
 
 use std::time::Instant;
 
-use dmu_geom::{Aabb3d, Coverage, Frustum};
+use dmu_geom::{Aabb3d, Coverage, Frustum, Plane};
 use dmu_scene::Scene;
 use dmu_tree::{EntryVisibility, Tree};
 use glam::{DAffine3, DVec3};
@@ -32,6 +32,8 @@ struct Cull {
     near_reach: f64,
     /// Pixels of error a chunk's simplified level may show (0: none).
     lod_error_px: f64,
+    /// The view's section planes (what is below one is cut away).
+    section: Vec<Plane>,
 }
 
 impl Cull {
@@ -69,7 +71,13 @@ impl Cull {
             min_pixels: knobs.min_pixels,
             near_reach: view.near_reach(),
             lod_error_px: knobs.lod_error_px,
+            section: view.section.clone(),
         }
+    }
+
+    /// True when the section planes cut all of the box away.
+    fn cut_away(&self, b: &Aabb3d) -> bool {
+        self.section.iter().any(|p| p.excludes_aabb(b))
     }
 
     /// How the view's rounds pick chunk levels, when they may.
@@ -202,7 +210,7 @@ impl Renderer {
             )
         } else {
             let mut draws = match view.culling {
-                Culling::None => self.all_draws(scene, tree, &mut stats),
+                Culling::None => self.all_draws(scene, tree, &cull, &mut stats),
                 Culling::Frustum | Culling::Occlusion => {
                     self.frustum_draws(scene, tree, &cull, &mut stats)
                 }
@@ -301,12 +309,21 @@ impl Renderer {
             .collect()
     }
 
-    fn all_draws(&self, scene: &Scene, tree: &Tree, stats: &mut FrameStats) -> Vec<Draw> {
+    /// Every chunk instance not hidden and not wholly cut away by a section.
+    fn all_draws(
+        &self,
+        scene: &Scene,
+        tree: &Tree,
+        cull: &Cull,
+        stats: &mut FrameStats,
+    ) -> Vec<Draw> {
         let mut draws = Vec::with_capacity(tree.entries().len());
         for (e, entry) in tree.entries().iter().enumerate() {
             stats.nodes_visited += 1;
             if scene.part(entry.part).hidden {
                 stats.hidden += 1;
+            } else if cull.cut_away(&entry.bounds) {
+                stats.culled_section += 1;
             } else {
                 draws.push(Draw {
                     entry: e as u32,
@@ -339,6 +356,7 @@ impl Renderer {
                         stats.culled_coverage += 1;
                     }
                     _ if scene.part(entry.part).hidden => stats.hidden += 1,
+                    _ if cull.cut_away(&entry.bounds) => stats.culled_section += 1,
                     EntryVisibility::InFrustum { wanted: true, .. } => draws.push(Draw {
                         entry: e.0,
                         query: false,
@@ -567,6 +585,10 @@ impl Walk<'_> {
             self.stats.culled_frustum += 1;
             return None;
         }
+        if self.cull.cut_away(&node.bounds) {
+            self.stats.culled_section += 1;
+            return None;
+        }
         if self.cull.too_small(&node.bounds) {
             self.stats.culled_coverage += 1;
             return None;
@@ -589,7 +611,9 @@ impl Walk<'_> {
         let mut stack = vec![n];
         while let Some(n) = stack.pop() {
             let node = &self.h.nodes[n as usize];
-            if !self.cull.frustum.intersects_aabb(&node.bounds) || self.cull.too_small(&node.bounds)
+            if !self.cull.frustum.intersects_aabb(&node.bounds)
+                || self.cull.cut_away(&node.bounds)
+                || self.cull.too_small(&node.bounds)
             {
                 continue;
             }

@@ -26,14 +26,20 @@ pub(crate) struct ViewUniform {
     pub clash: [f32; 4],
     /// Colour mixed into the hovered part, as `highlight`.
     pub hover: [f32; 4],
+    /// Colour of cut faces (rgb).
+    pub section_cap: [f32; 3],
     /// Model-views per eye: eye `k`'s start at `k * eye_stride` (the part count).
     pub eye_stride: u32,
     /// The eye single-view pipelines draw (0 for a view).
     pub eye: u32,
-    /// WGSL rounds the struct up to 16 bytes.
-    pub _pad: [u32; 2],
+    /// The array that follows starts at a multiple of 16 bytes.
+    pub _pad: [u32; 3],
+    /// Section planes `(n, d)` in each eye's view space, eye `k`'s at
+    /// `k * MAX_SECTION_PLANES`; a point is cut away where `n·p + d < 0`.
+    /// Unused slots are `(0, 0, 0, 1)`, which keep everything.
+    pub clip: [[f32; 4]; 2 * crate::MAX_SECTION_PLANES],
 }
-const _: () = assert!(size_of::<ViewUniform>() == 128);
+const _: () = assert!(size_of::<ViewUniform>() == 144 + 16 * 2 * crate::MAX_SECTION_PLANES);
 
 /// `ModelView`: rows of a part's camera-relative affine model-view, formed in
 /// f64 and narrowed to f32 only once small.

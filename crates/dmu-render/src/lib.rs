@@ -90,7 +90,7 @@ mod view;
 pub use budget::{KnobsInEffect, MAX_LOD_ERROR_PX, MAX_MIN_PIXELS};
 pub use capture::{
     CAPTURE_FORMAT, Capture, DEPTH_FORMAT, ID_FORMAT, IdImage, SURFACE_CHANGE, count_differing,
-    save_png,
+    encode_png, save_png,
 };
 pub use device::headless_device;
 pub use dmu_geom::Camera;
@@ -99,5 +99,5 @@ pub use geometry::{GeometryPool, GeometrySource};
 pub use hierarchy::Hierarchy;
 pub use renderer::{FrameTarget, Renderer, RendererOptions};
 pub use stereo::{StereoCamera, StereoMode, StereoTarget, StereoView};
-pub use view::{Culling, CullingOptions, FrameStats, OcclusionDecision, View};
+pub use view::{Culling, CullingOptions, FrameStats, MAX_SECTION_PLANES, OcclusionDecision, View};
 pub use wgpu;

@@ -4,8 +4,10 @@
 use std::num::NonZeroU32;
 use std::ops::Range;
 
+use dmu_geom::Plane;
 use dmu_scene::{PartId, Scene};
 use dmu_tree::Tree;
+use glam::{DAffine3, DMat4};
 
 use crate::RenderError;
 use crate::capture::{DEPTH_FORMAT, ID_FORMAT};
@@ -16,7 +18,7 @@ use crate::gpu::{
     STEREO_SHADER, ViewUniform,
 };
 use crate::hierarchy::Hierarchy;
-use crate::view::View;
+use crate::view::{MAX_SECTION_PLANES, View};
 
 /// The lavapipe bug in Mesa 22.3 returns wrong counts past about 536 occlusion
 /// queries in one render pass; 512 were always exact.
@@ -167,6 +169,9 @@ pub struct RendererOptions {
     pub clash_highlight: [f32; 4],
     /// Colour of the part under the pointer (rgb, linear) and its weight.
     pub hover_highlight: [f32; 4],
+    /// Colour of cut faces under section planes (rgb, linear): the inside of
+    /// a closed part seen through the cut.
+    pub section_cap: [f32; 3],
     /// Background colour (linear).
     pub clear_color: wgpu::Color,
     /// How stereo pairs reach their two layers.
@@ -185,6 +190,7 @@ impl Default for RendererOptions {
             highlight: [1.0, 0.55, 0.0, 0.7],
             clash_highlight: [1.0, 0.0, 0.15, 0.75],
             hover_highlight: [0.3, 0.75, 1.0, 0.35],
+            section_cap: [0.75, 0.18, 0.12],
             clear_color: wgpu::Color {
                 r: 0.02,
                 g: 0.025,
@@ -254,6 +260,9 @@ pub(crate) struct ViewGpu {
     timestamps: Option<(wgpu::QuerySet, wgpu::Buffer, wgpu::Buffer)>,
     /// Reused model-view staging.
     staging: Vec<ModelView>,
+    /// The frame cuts with section planes: it draws with the pipelines that
+    /// discard what is cut away (the others keep early depth testing).
+    sectioned: bool,
 }
 
 /// Draws chunk instances of a scene's cell tree into caller-provided targets.
@@ -267,15 +276,17 @@ pub struct Renderer {
     pub(crate) queue: wgpu::Queue,
     pub(crate) options: RendererOptions,
     layout: wgpu::BindGroupLayout,
-    shade: wgpu::RenderPipeline,
-    /// The multiview shading pipeline; `None` without [`wgpu::Features::MULTIVIEW`]
+    /// Shading, and shading that discards what section planes cut away
+    /// (`[uncut, cut]`; so is every mesh pipeline pair here).
+    shade: [wgpu::RenderPipeline; 2],
+    /// The multiview shading pipelines; `None` without [`wgpu::Features::MULTIVIEW`]
     /// or when stereo pairs are drawn a layer at a time.
-    shade_stereo: Option<wgpu::RenderPipeline>,
+    shade_stereo: Option<[wgpu::RenderPipeline; 2]>,
     /// How stereo pairs are drawn, resolved from the options.
     stereo_mode: crate::StereoMode,
     /// Bytes between the eyes' uniforms (the device's uniform offset alignment).
     uniform_stride: u64,
-    ids: wgpu::RenderPipeline,
+    ids: [wgpu::RenderPipeline; 2],
     boxes_color: wgpu::RenderPipeline,
     entries: wgpu::Buffer,
     part_flags_buffer: wgpu::Buffer,
@@ -354,7 +365,8 @@ impl Renderer {
                         fs,
                         format,
                         write: bool,
-                        multiview_mask| {
+                        multiview_mask,
+                        sectioned: bool| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(label),
                 layout: Some(&pipeline_layout),
@@ -387,7 +399,16 @@ impl Renderer {
                 fragment: Some(wgpu::FragmentState {
                     module,
                     entry_point: Some(fs),
-                    compilation_options: Default::default(),
+                    // The uncut pipelines compile without the discard, which
+                    // would cost early depth testing.
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants: if sectioned {
+                            &[("SECTIONED", 1.0)]
+                        } else {
+                            &[]
+                        },
+                        ..Default::default()
+                    },
                     targets: &[Some(wgpu::ColorTargetState {
                         format,
                         blend: None,
@@ -402,30 +423,36 @@ impl Renderer {
                 cache: None,
             })
         };
-        let shade = pipeline(
-            "dmu shade",
-            &module,
-            "vs_mesh",
-            &mesh_buffers,
-            "fs_shade",
-            options.color_format,
-            true,
-            None,
-        );
-        // Its own module: one naming `view_index` fails validation without multiview.
-        let stereo_module = (multiview && options.stereo != crate::StereoMode::LayerPasses)
-            .then(|| shader("dmu mesh.wgsl + stereo.wgsl", STEREO_SHADER));
-        let shade_stereo = stereo_module.as_ref().map(|module| {
+        let shade = [false, true].map(|cut| {
             pipeline(
-                "dmu shade stereo",
-                module,
-                "vs_mesh_stereo",
+                "dmu shade",
+                &module,
+                "vs_mesh",
                 &mesh_buffers,
                 "fs_shade",
                 options.color_format,
                 true,
-                Some(STEREO_VIEWS),
+                None,
+                cut,
             )
+        });
+        // Its own module: one naming `view_index` fails validation without multiview.
+        let stereo_module = (multiview && options.stereo != crate::StereoMode::LayerPasses)
+            .then(|| shader("dmu mesh.wgsl + stereo.wgsl", STEREO_SHADER));
+        let shade_stereo = stereo_module.as_ref().map(|module| {
+            [false, true].map(|cut| {
+                pipeline(
+                    "dmu shade stereo",
+                    module,
+                    "vs_mesh_stereo",
+                    &mesh_buffers,
+                    "fs_shade",
+                    options.color_format,
+                    true,
+                    Some(STEREO_VIEWS),
+                    cut,
+                )
+            })
         });
         let stereo_mode = match (options.stereo, &stereo_module) {
             (crate::StereoMode::Auto, Some(module))
@@ -436,16 +463,19 @@ impl Renderer {
             (crate::StereoMode::Auto, _) => crate::StereoMode::LayerPasses,
             (mode, _) => mode,
         };
-        let ids = pipeline(
-            "dmu ids",
-            &module,
-            "vs_mesh",
-            &mesh_buffers,
-            "fs_id",
-            ID_FORMAT,
-            true,
-            None,
-        );
+        let ids = [false, true].map(|cut| {
+            pipeline(
+                "dmu ids",
+                &module,
+                "vs_mesh",
+                &mesh_buffers,
+                "fs_id",
+                ID_FORMAT,
+                true,
+                None,
+                cut,
+            )
+        });
         // Stereo pairs query each eye's layer in a pass of its own (see
         // `run_round`), so the box pipeline is single-view only.
         let boxes_color = pipeline(
@@ -457,6 +487,7 @@ impl Renderer {
             options.color_format,
             false,
             None,
+            false,
         );
 
         let storage_buffer = |label, contents: &[u8]| {
@@ -572,24 +603,28 @@ impl Renderer {
         &self,
         view: &mut View,
         scene: &Scene,
-        eye_views: &[glam::DAffine3],
+        eye_views: &[DAffine3],
     ) -> ViewGpu {
         let proj = view.projection();
         let parts = scene.parts().len();
+        let clip = section_in_eyes(&view.section, eye_views);
         let mut g = view
             .gpu
             .take()
             .unwrap_or_else(|| self.make_view_gpu(parts.max(1) * eye_views.len()));
         self.ensure_capacity(&mut g, parts * eye_views.len(), 0);
+        g.sectioned = !view.section.is_empty();
         for eye in 0..eye_views.len() {
             let uniform = ViewUniform {
                 proj: proj.as_mat4().to_cols_array_2d(),
                 highlight: self.options.highlight,
                 clash: self.options.clash_highlight,
                 hover: self.options.hover_highlight,
+                section_cap: self.options.section_cap,
                 eye_stride: parts as u32,
                 eye: eye as u32,
-                _pad: [0; 2],
+                _pad: [0; 3],
+                clip,
             };
             self.queue.write_buffer(
                 &g.uniform,
@@ -681,6 +716,7 @@ impl Renderer {
             readback: buffer("dmu query readback", 8, read_usage),
             timestamps,
             staging: Vec::new(),
+            sectioned: false,
         }
     }
 
@@ -906,13 +942,14 @@ impl Renderer {
             let mut q = 0;
             let mut bound: Option<(u32, u32, bool)> = None;
             if !pass_plan.draws.is_empty() {
+                let cut = usize::from(gpu.sectioned);
                 pass.set_pipeline(match shading {
-                    _ if multiview_mask.is_some() => self
+                    _ if multiview_mask.is_some() => &self
                         .shade_stereo
                         .as_ref()
-                        .expect("multiview rounds only where the pipeline exists"),
-                    Shading::Color => &self.shade,
-                    Shading::Ids => &self.ids,
+                        .expect("multiview rounds only where the pipeline exists")[cut],
+                    Shading::Color => &self.shade[cut],
+                    Shading::Ids => &self.ids[cut],
                 });
             }
             for (&(entry, slot), &wrapped) in self.slots[pass_plan.draws.clone()]
@@ -1073,6 +1110,25 @@ struct Pass {
     queries: u32,
     /// It clears its layers first.
     clear: bool,
+}
+
+/// The section planes in each eye's view space, six per eye (unused slots are
+/// `(0, 0, 0, 1)`: every point is 1 above them, kept). The plane
+/// goes through the inverse transpose of world-to-view in f64, so a plane far
+/// from the origin becomes a small camera-relative one before narrowing to f32.
+fn section_in_eyes(
+    section: &[Plane],
+    eye_views: &[DAffine3],
+) -> [[f32; 4]; 2 * MAX_SECTION_PLANES] {
+    let mut clip = [[0.0, 0.0, 0.0, 1.0]; 2 * MAX_SECTION_PLANES];
+    for (eye, view) in eye_views.iter().take(2).enumerate() {
+        let view_to_world_t = DMat4::from(view.inverse()).transpose();
+        for (i, p) in section.iter().enumerate() {
+            let v = view_to_world_t * p.normal.extend(p.d);
+            clip[eye * MAX_SECTION_PLANES + i] = v.as_vec4().to_array();
+        }
+    }
+    clip
 }
 
 #[cfg(test)]

@@ -1,7 +1,10 @@
 //! Views: a camera, a viewport, a culling mode and the per-node visibility
 //! state that coherent occlusion culling carries from frame to frame.
 
-use dmu_geom::Camera;
+use dmu_geom::{Camera, Plane};
+
+/// The most section planes a view cuts with (a section box takes six).
+pub const MAX_SECTION_PLANES: usize = 6;
 
 /// How a view decides what to draw.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -98,6 +101,9 @@ pub struct FrameStats {
     pub culled_occlusion: u64,
     /// Chunk instances skipped because their part is hidden.
     pub hidden: u64,
+    /// Tree nodes (internal, cells and chunk instances) wholly cut away by
+    /// the view's section planes: neither drawn nor queried.
+    pub culled_section: u64,
     /// Chunk instances skipped because their geometry is not resident.
     pub not_resident: u64,
     /// Occlusion queries issued (a stereo pair queries each node in both
@@ -174,6 +180,9 @@ pub struct View {
     /// still) instead of clearing it to the background: a near part over a
     /// far part drawn before.
     pub keep_color: bool,
+    /// Section planes, world space: what lies on the negative side of any of
+    /// them is cut away (not drawn, not queried; see [`View::set_section`]).
+    pub(crate) section: Vec<Plane>,
     pub(crate) frame: u64,
     pub(crate) entries: Vec<EntryState>,
     pub(crate) decision: OcclusionDecision,
@@ -205,6 +214,7 @@ impl View {
             fov: None,
             far: None,
             keep_color: false,
+            section: Vec::new(),
             frame: 0,
             entries: Vec::new(),
             decision: OcclusionDecision {
@@ -219,6 +229,35 @@ impl View {
             drawn: Vec::new(),
             gpu: None,
         }
+    }
+
+    /// Cuts the view with `planes` (world space, each keeping its positive
+    /// side; none: the whole model). Cut faces show the inside of closed
+    /// parts in the section colour ([`crate::RendererOptions::section_cap`]);
+    /// nodes wholly cut away are culled, so a section makes frames cheaper.
+    ///
+    /// # Panics
+    /// With more than [`MAX_SECTION_PLANES`] planes, or a plane whose normal
+    /// is not a finite unit vector.
+    pub fn set_section(&mut self, planes: &[Plane]) {
+        assert!(
+            planes.len() <= MAX_SECTION_PLANES,
+            "{} section planes: at most {MAX_SECTION_PLANES}",
+            planes.len()
+        );
+        assert!(
+            planes
+                .iter()
+                .all(|p| p.normal.is_normalized() && p.d.is_finite()),
+            "section planes need finite unit normals"
+        );
+        self.section.clear();
+        self.section.extend_from_slice(planes);
+    }
+
+    /// The section planes the view cuts with.
+    pub fn section(&self) -> &[Plane] {
+        &self.section
     }
 
     /// Width over height.

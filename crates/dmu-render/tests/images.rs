@@ -1,8 +1,8 @@
 //! Images against analytic and CPU references on the real driver.
 
-use dmu_geom::Ray3d;
 use dmu_geom::glam::{DAffine3, DVec2, DVec3, DVec4};
-use dmu_render::{Camera, Culling, View};
+use dmu_geom::{Plane, Ray3d};
+use dmu_render::{Camera, Culling, RendererOptions, View};
 use dmu_samples::grid;
 use dmu_scene::Scene;
 use dmu_tree::{Tree, TreeOptions};
@@ -119,15 +119,48 @@ fn grid_boxes_cover_their_projected_hulls() {
 /// The chunk-id oracle agrees with exact CPU picking through pixel centres.
 #[test]
 fn id_oracle_agrees_with_cpu_pick() {
+    let Some((samples, hits, _)) = ids_agree_with_picks(&[]) else {
+        return;
+    };
+    assert!(
+        hits > samples / 5,
+        "only {hits} of {samples} rays hit the plant"
+    );
+}
+
+/// Under two section planes through the plant the GPU cuts exactly what the
+/// CPU pick sees through: ids agree with picks of what the section keeps.
+#[test]
+fn sections_cut_the_image_as_the_pick_sees_through_them() {
+    let o = DVec3::new(4_512_000.0, 5_342_750.0, 12_000.0);
+    let Some((samples, hits, seen_through)) = ids_agree_with_picks(&[
+        Plane::from_point_normal(
+            o + DVec3::new(12_000.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.2, 0.0),
+        ),
+        Plane::from_point_normal(o + DVec3::new(0.0, 0.0, 4_000.0), -DVec3::Z),
+    ]) else {
+        return;
+    };
+    // The section must both cut and keep enough for the test to mean something.
+    assert!(
+        hits > samples / 40 && seen_through > samples / 10,
+        "{hits} of {samples} rays hit the plant, {seen_through} through the cut"
+    );
+}
+
+/// Renders the ids of the 200k plant from inside it, cut by `section`, and
+/// compares them with CPU picks (of what the section keeps) through a grid
+/// of pixel centres. Returns the samples, the rays that hit, and those whose
+/// nearest hit the section cut away.
+fn ids_agree_with_picks(section: &[Plane]) -> Option<(usize, usize, usize)> {
     let scene = dmu_samples::plant(&dmu_samples::PlantOptions {
         triangles: 200_000,
         ..Default::default()
     });
     let tree = Tree::build(&scene, TreeOptions::default());
     let size = (480, 270);
-    let Some(mut rig) = Rig::new(&scene, &tree, size) else {
-        return;
-    };
+    let mut rig = Rig::new(&scene, &tree, size)?;
     let o = DVec3::new(4_512_000.0, 5_342_750.0, 12_000.0);
     let cam = camera(
         o + DVec3::new(-8_000.0, 5_000.0, 6_000.0),
@@ -135,10 +168,11 @@ fn id_oracle_agrees_with_cpu_pick() {
         50.0,
     );
     let mut view = View::new(cam, size, Culling::None);
+    view.set_section(section);
     let ids = rig.ids(&mut view, &scene, &tree);
     let t = (cam.fov_y_rad * 0.5).tan();
     let rot = DAffine3::from_mat4(cam.view_matrix()).matrix3.transpose();
-    let (mut samples, mut hits, mut edge_only) = (0, 0, 0);
+    let (mut samples, mut hits, mut edge_only, mut seen_through) = (0, 0, 0, 0);
     for y in (2..size.1).step_by(6) {
         for x in (2..size.0).step_by(6) {
             let ndc = DVec2::new(
@@ -146,9 +180,12 @@ fn id_oracle_agrees_with_cpu_pick() {
                 1.0 - (f64::from(y) + 0.5) / f64::from(size.1) * 2.0,
             );
             let dir = rot * DVec3::new(ndc.x * t * view.aspect(), ndc.y * t, -1.0);
+            let ray = Ray3d::new(cam.eye, dir);
             let pick = tree
-                .pick(&scene, &Ray3d::new(cam.eye, dir))
+                .pick_kept(&scene, &ray, section)
                 .map(|h| (h.part, h.chunk));
+            let whole = tree.pick(&scene, &ray).map(|h| (h.part, h.chunk));
+            seen_through += usize::from(whole != pick);
             let id = ids.at(x, y).map(|e| {
                 let entry = &tree.entries()[e.0 as usize];
                 (entry.part, entry.chunk)
@@ -174,13 +211,10 @@ fn id_oracle_agrees_with_cpu_pick() {
         }
     }
     assert!(
-        hits > samples / 5,
-        "only {hits} of {samples} rays hit the plant"
-    );
-    assert!(
         edge_only * 50 < samples,
         "{edge_only} of {samples} samples differ at edges"
     );
+    Some((samples, hits, seen_through))
 }
 
 /// Moving a part changes only the pixels it covered before or covers after.
@@ -361,4 +395,60 @@ fn clashing_part_changes_tint_and_nothing_else() {
         differing(&plain, &rig.image()).is_empty(),
         "flags clear exactly"
     );
+}
+
+/// A section plane through the middle column of the grid: the column wholly
+/// on its far side is culled (not drawn, counted), triangles drawn fall, the
+/// cut boxes show their inside in the section colour, and only they do.
+#[test]
+fn a_section_culls_what_it_cuts_away_and_caps_what_it_cuts() {
+    let Some((scene, tree, mut rig, cam)) = grid_rig() else {
+        return;
+    };
+    let size = rig.capture.size();
+    let mut view = View::new(cam, size, Culling::Frustum);
+    let whole = rig.frame(&mut view, &scene, &tree);
+    view.set_section(&[Plane::from_point_normal(
+        DVec3::new(10.0, 0.0, 0.0),
+        DVec3::X,
+    )]);
+    let cut = rig.frame(&mut view, &scene, &tree);
+    let image = rig.image();
+    image.save(image_path("grid_section.png")).unwrap();
+    // Column x = 0 (boxes at -2..2) is wholly cut away: 9 boxes of 12 triangles.
+    assert_eq!(cut.culled_section, 9, "{cut:?}");
+    assert_eq!(whole.triangles_drawn - cut.triangles_drawn, 9 * 12);
+    let ids = rig.ids(&mut view, &scene, &tree);
+    let column = |x: u32, y: u32| {
+        ids.at(x, y).map(|e| {
+            let part = tree.entries()[e.0 as usize].part;
+            scene.part_name(part).as_bytes()[4] - b'0'
+        })
+    };
+    let cap = RendererOptions::default().section_cap.map(srgb_byte);
+    let (mut caps, mut column0) = (0, 0);
+    for (x, y, px) in image.enumerate_pixels() {
+        let is_cap = (0..3).all(|c| px[c].abs_diff(cap[c]) <= 1);
+        if is_cap {
+            caps += 1;
+            assert_eq!(
+                column(x, y),
+                Some(1),
+                "cap colour at ({x},{y}) off the cut column"
+            );
+        }
+        column0 += usize::from(column(x, y) == Some(0));
+    }
+    assert_eq!(column0, 0, "the cut-away column shows");
+    assert!(caps > 300, "only {caps} pixels show the cut faces");
+}
+
+/// A linear colour channel as an sRGB byte.
+fn srgb_byte(linear: f32) -> u8 {
+    let s = if linear <= 0.003_130_8 {
+        linear * 12.92
+    } else {
+        1.055 * linear.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0).round() as u8
 }

@@ -2,7 +2,7 @@
 
 use std::collections::BinaryHeap;
 
-use dmu_geom::{Aabb3d, Containment, Frustum, Ray3d, RayBoxTest3d};
+use dmu_geom::{Aabb3d, Containment, Frustum, Plane, Ray3d, RayBoxTest3d};
 use dmu_scene::{ChunkId, PartId, Scene};
 use glam::DVec3;
 
@@ -81,12 +81,20 @@ impl Tree {
     /// each part's local frame and a per-chunk BVH finds the triangle. Hidden parts
     /// are skipped.
     pub fn pick(&self, scene: &Scene, ray: &Ray3d) -> Option<Hit> {
+        self.pick_kept(scene, ray, &[])
+    }
+
+    /// The nearest hit of a world ray on what a section keeps: hits on the
+    /// negative side of any of `section`'s planes (cut away, not drawn) are
+    /// passed through, as the eye sees through them. No planes: [`Tree::pick`].
+    pub fn pick_kept(&self, scene: &Scene, ray: &Ray3d, section: &[Plane]) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         self.ray_search(scene, ray, &mut |hit| {
-            if best.is_none_or(|b| hit.t < b.t) {
+            let kept = section.iter().all(|p| p.signed_distance(hit.point) >= 0.0);
+            if kept && best.is_none_or(|b| hit.t < b.t) {
                 best = Some(hit);
             }
-            hit.t
+            best.map_or(f64::INFINITY, |b| b.t)
         });
         best
     }

@@ -1,6 +1,6 @@
 //! Queries against brute force on random scenes, before and after random moves.
 
-use dmu_geom::{Aabb3d, Camera};
+use dmu_geom::{Aabb3d, Camera, Plane};
 use dmu_samples::Rng;
 use dmu_scene::Scene;
 use dmu_tree::{EntryVisibility, Tree, TreeOptions};
@@ -8,8 +8,8 @@ use glam::DVec3;
 use proptest::prelude::*;
 
 use crate::support::{
-    brute_parts_in_box, brute_pick, random_box, random_ray, random_scene, random_transform,
-    world_triangles,
+    brute_parts_in_box, brute_pick, brute_pick_where, random_box, random_ray, random_scene,
+    random_transform, world_triangles,
 };
 
 fn options() -> TreeOptions {
@@ -175,6 +175,71 @@ proptest! {
         }
         check_queries(&tree, &scene, &mut rng, 40)?;
     }
+}
+
+/// A pick through section planes is the nearest kept hit by brute force: hits
+/// on the cut-away side of any plane are seen through.
+#[test]
+fn picks_through_a_section_equal_brute_force() {
+    let scene = random_scene(5, 30, DVec3::ZERO);
+    let tree = Tree::build(&scene, options());
+    let tris = world_triangles(&scene);
+    let bounds = scene.world_bounds();
+    let mut rng = Rng::new(17);
+    let (mut hits, mut seen_through) = (0, 0);
+    for _ in 0..1000 {
+        let ray = random_ray(&mut rng, &bounds);
+        let planes: Vec<Plane> = (0..1 + rng.below(2))
+            .map(|_| {
+                let normal = DVec3::new(
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                );
+                let point = bounds.min + (bounds.max - bounds.min) * rng.unit();
+                Plane::from_point_normal(point, normal + DVec3::splat(1e-3))
+            })
+            .collect();
+        let keep = |p: DVec3| planes.iter().all(|pl| pl.signed_distance(p) >= 0.0);
+        let got = tree
+            .pick_kept(&scene, &ray, &planes)
+            .map(|h| (h.t, h.point));
+        let want = brute_pick_where(&tris, &ray, keep);
+        match (got, want) {
+            (None, None) => {}
+            (Some((t, point)), Some((w, _))) => {
+                hits += 1;
+                assert!(
+                    (t - w).abs() <= 1e-6 * w.max(1.0),
+                    "distance {t} vs brute {w}"
+                );
+                assert!(
+                    keep(point)
+                        || planes
+                            .iter()
+                            .any(|pl| pl.signed_distance(point).abs() < 1e-9 * w.max(1.0))
+                );
+                if tree
+                    .pick(&scene, &ray)
+                    .is_some_and(|h| h.t < t - 1e-9 * t.max(1.0))
+                {
+                    seen_through += 1;
+                }
+            }
+            (g, w) => {
+                let t = g.map(|h| h.0).or(w.map(|w| w.0)).unwrap_or(0.0);
+                let near = tris.iter().any(|(_, v)| grazes(&ray, *v, t))
+                    || planes
+                        .iter()
+                        .any(|pl| pl.signed_distance(ray.at(t)).abs() < 1e-9 * t.max(1.0));
+                assert!(near, "tree {g:?} vs brute {w:?}");
+            }
+        }
+    }
+    assert!(
+        hits > 50 && seen_through > 10,
+        "{hits} hits, {seen_through} through a cut"
+    );
 }
 
 #[test]

@@ -105,9 +105,19 @@ pub fn world_triangles(scene: &Scene) -> Vec<(PartId, [DVec3; 3])> {
 
 /// Nearest hit over all triangles: (t, part).
 pub fn brute_pick(triangles: &[(PartId, [DVec3; 3])], ray: &Ray3d) -> Option<(f64, PartId)> {
+    brute_pick_where(triangles, ray, |_| true)
+}
+
+/// Nearest hit over all triangles whose hit point `keep` accepts: (t, part).
+pub fn brute_pick_where(
+    triangles: &[(PartId, [DVec3; 3])],
+    ray: &Ray3d,
+    keep: impl Fn(DVec3) -> bool,
+) -> Option<(f64, PartId)> {
     triangles
         .iter()
         .filter_map(|(p, v)| moller_trumbore(ray, *v).map(|t| (t, *p)))
+        .filter(|(t, _)| keep(ray.at(*t)))
         .min_by(|a, b| a.0.total_cmp(&b.0))
 }
 

@@ -1,0 +1,220 @@
+//! Opening the window before the model: the model loads (and its cell tree
+//! builds) on a thread of its own while the window shows the progress, so a
+//! large file never leaves a frozen or missing window; then the viewer takes
+//! the window over.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::mpsc::{Receiver, TryRecvError};
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+use winit::application::ApplicationHandler;
+use winit::event::WindowEvent;
+use winit::event_loop::{ActiveEventLoop, ControlFlow};
+use winit::window::WindowId;
+
+use crate::app::{App, Options};
+use crate::gfx::Gfx;
+use crate::review::Review;
+
+/// How far loading has come: meshes imported of how many (0 of 0 while the
+/// total is unknown, or for the built-in plant).
+#[derive(Debug, Default)]
+pub struct LoadProgress {
+    /// Meshes imported.
+    pub done: AtomicUsize,
+    /// Meshes in the file.
+    pub total: AtomicUsize,
+}
+
+/// What the loading thread hands over: the review and the report's facts.
+pub type LoadResult = anyhow::Result<(Review, Value)>;
+
+/// The loading thread's end and its progress.
+#[derive(Debug)]
+pub struct Loading {
+    /// Receives the result once.
+    pub result: Receiver<LoadResult>,
+    /// Updated by the thread.
+    pub progress: Arc<LoadProgress>,
+    /// When loading began.
+    pub started: Instant,
+    /// What is loading, for the window.
+    pub what: String,
+}
+
+/// Runs the event loop: the loading screen, then the viewer.
+pub struct Launcher {
+    instance: wgpu::Instance,
+    options: Option<Options>,
+    loading: Loading,
+    /// The window, opened while the model loads.
+    window: Option<(Gfx, egui_winit::State)>,
+    egui_ctx: egui::Context,
+    app: Option<App>,
+    frames_while_loading: u64,
+    error: Option<anyhow::Error>,
+}
+
+impl std::fmt::Debug for Launcher {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Launcher")
+            .field("loading", &self.loading)
+            .field("app", &self.app)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Launcher {
+    /// A launcher that opens the viewer with `options` once `loading` ends.
+    pub fn new(instance: wgpu::Instance, options: Options, loading: Loading) -> Self {
+        Self {
+            instance,
+            options: Some(options),
+            loading,
+            window: None,
+            egui_ctx: egui::Context::default(),
+            app: None,
+            frames_while_loading: 0,
+            error: None,
+        }
+    }
+
+    /// The error that ended the run, if any, and the report of an automated
+    /// run (with the frames the window drew while the model loaded).
+    pub fn finish(self) -> anyhow::Result<Option<Value>> {
+        if let Some(e) = self.error {
+            return Err(e);
+        }
+        let Some(app) = self.app else {
+            return Ok(None);
+        };
+        let frames = self.frames_while_loading;
+        Ok(app.finish()?.map(|mut report| {
+            report["frames_while_loading"] = frames.into();
+            report
+        }))
+    }
+
+    /// Takes the loading thread's result, if it is in: the viewer then takes
+    /// the window over. Returns whether loading is over (or failed).
+    fn poll(&mut self, event_loop: &ActiveEventLoop) -> bool {
+        let result = match self.loading.result.try_recv() {
+            Ok(r) => r,
+            Err(TryRecvError::Empty) => return false,
+            Err(TryRecvError::Disconnected) => {
+                Err(anyhow::anyhow!("the loading thread ended without a model"))
+            }
+        };
+        match result {
+            Ok((review, facts)) => {
+                let options = self.options.take().expect("the viewer starts once");
+                let mut app = App::new(self.instance.clone(), review, options, facts);
+                if let Some((gfx, state)) = self.window.take() {
+                    app.adopt(gfx, state, self.egui_ctx.clone());
+                }
+                self.app = Some(app);
+            }
+            Err(e) => {
+                self.error = Some(e);
+                event_loop.exit();
+            }
+        }
+        true
+    }
+
+    /// One frame of the loading screen.
+    fn draw_loading(&mut self) -> anyhow::Result<()> {
+        let Some((gfx, state)) = self.window.as_mut() else {
+            return Ok(());
+        };
+        let raw = state.take_egui_input(&gfx.window);
+        let (done, total) = (
+            self.loading.progress.done.load(Ordering::Relaxed),
+            self.loading.progress.total.load(Ordering::Relaxed),
+        );
+        let seconds = self.loading.started.elapsed().as_secs_f64();
+        let what = &self.loading.what;
+        let output = self.egui_ctx.run_ui(raw, |ui| {
+            egui::CentralPanel::default().show(ui, |ui| {
+                ui.vertical_centered(|ui| {
+                    ui.add_space(ui.available_height() * 0.4);
+                    ui.heading(format!("loading {what}"));
+                    let bar = if total > 0 {
+                        egui::ProgressBar::new(done as f32 / total as f32)
+                            .text(format!("{done} of {total} meshes · {seconds:.1} s"))
+                    } else {
+                        egui::ProgressBar::new(0.0)
+                            .animate(true)
+                            .text(format!("{seconds:.1} s"))
+                    };
+                    ui.add(bar.desired_width(360.0));
+                });
+            });
+        });
+        state.handle_platform_output(&gfx.window, output.platform_output.clone());
+        gfx.present(&self.egui_ctx, output, false)?;
+        self.frames_while_loading += 1;
+        Ok(())
+    }
+}
+
+impl ApplicationHandler for Launcher {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if let Some(app) = self.app.as_mut() {
+            return app.resumed(event_loop);
+        }
+        if self.window.is_some() {
+            return;
+        }
+        let options = self.options.as_ref().expect("the viewer has not started");
+        match crate::app::open_window(event_loop, &self.instance, options, &self.egui_ctx) {
+            Ok(window) => {
+                window.0.window.request_redraw();
+                self.window = Some(window);
+            }
+            Err(e) => {
+                self.error = Some(e);
+                event_loop.exit();
+            }
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, id: WindowId, event: WindowEvent) {
+        if let Some(app) = self.app.as_mut() {
+            return app.window_event(event_loop, id, event);
+        }
+        let Some((gfx, state)) = self.window.as_mut() else {
+            return;
+        };
+        let _ = state.on_window_event(&gfx.window, &event);
+        match event {
+            WindowEvent::CloseRequested => event_loop.exit(),
+            WindowEvent::Resized(size) => gfx.resize(size.width, size.height),
+            WindowEvent::RedrawRequested => {
+                if let Err(e) = self.draw_loading() {
+                    self.error = Some(e);
+                    event_loop.exit();
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
+        if self.app.is_none() && !self.poll(event_loop) {
+            // Redraw the progress a few times a second until the model is in.
+            event_loop.set_control_flow(ControlFlow::WaitUntil(
+                Instant::now() + Duration::from_millis(100),
+            ));
+            if let Some((gfx, _)) = &self.window {
+                gfx.window.request_redraw();
+            }
+            return;
+        }
+        if let Some(app) = self.app.as_mut() {
+            app.about_to_wait(event_loop);
+        }
+    }
+}

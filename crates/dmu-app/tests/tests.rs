@@ -1,0 +1,4 @@
+//! The one test binary of dmu-app.
+
+mod bcf;
+mod visibility;
