@@ -704,3 +704,16 @@ fn unwritable_topics_are_refused() {
     });
     check(&[nan], "not finite");
 }
+
+/// A missing file's error names the file and the cause once, even printed
+/// with its chain (`{:#}` as the applications print errors): the cause was
+/// both the message's and the error's source, and showed twice.
+#[test]
+fn a_missing_file_says_why_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("absent.bcfzip");
+    let err = anyhow::Error::from(read_bcfzip(&path, 1000.0).unwrap_err());
+    let text = format!("{err:#}");
+    assert!(text.starts_with(&path.display().to_string()), "{text}");
+    assert_eq!(text.matches("No such file").count(), 1, "{text}");
+}

@@ -290,12 +290,14 @@ pub fn new_guid() -> String {
 #[non_exhaustive]
 pub enum BcfError {
     /// The file could not be opened, read or written.
-    #[error("{}: {source}", path.display())]
+    // The cause is in the message and not a `source`: `{:#}` would print it
+    // twice.
+    #[error("{}: {cause}", path.display())]
     Io {
         /// The archive.
         path: PathBuf,
         /// The cause.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// The file is not a zip archive dmu can read as BCF.
     #[error("{}: not a BCF archive: {reason}", path.display())]

@@ -32,9 +32,9 @@ pub fn read_bcfzip(path: &Path, model_units_per_metre: f64) -> Result<Vec<Topic>
         model_units_per_metre.is_finite() && model_units_per_metre > 0.0,
         "model_units_per_metre must be finite and positive, not {model_units_per_metre}"
     );
-    let file = dmu_scene::open_regular_file(path).map_err(|source| BcfError::Io {
+    let file = dmu_scene::open_regular_file(path).map_err(|cause| BcfError::Io {
         path: path.to_owned(),
-        source,
+        cause,
     })?;
     Archive::open(file, path)?.topics(model_units_per_metre)
 }

@@ -38,9 +38,9 @@ pub fn write_bcfzip(
         topic,
         reason,
     })?;
-    let io = |source| BcfError::Io {
+    let io = |cause| BcfError::Io {
         path: path.to_owned(),
-        source,
+        cause,
     };
     let mut file = dmu_scene::AtomicFile::create(path).map_err(io)?;
     write_archive(
