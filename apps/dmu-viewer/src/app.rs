@@ -412,7 +412,8 @@ impl App {
         // Snap within SNAP_PX pixels at the hit's depth.
         let pane = &self.panes[self.active];
         let depth = (hit.point - pane.nav.eye).dot(pane.nav.forward());
-        let px = 2.0 * depth * (pane.nav.fov_y_rad * 0.5).tan() / f64::from(pane.view.size.1);
+        let px =
+            crate::nav::world_per_pixel(pane.nav.fov_y_rad, depth, f64::from(pane.view.size.1));
         let point = crate::measure::snap(&self.review.scene, &hit, SNAP_PX * px);
         let scene = &self.review.scene;
         let result = self.ui.measure.click(&self.review, point);

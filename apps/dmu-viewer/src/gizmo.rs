@@ -145,13 +145,12 @@ pub struct Gizmo {
 impl Gizmo {
     /// The gizmo at `centre`, or `None` when the centre is behind the eye.
     pub fn new(camera: &Camera, size: (u32, u32), centre: DVec3) -> Option<Self> {
-        let h = f64::from(size.1.max(1));
         let depth = (centre - camera.eye).dot((camera.target - camera.eye).normalize());
         // NaN (a camera without a direction) fails this too.
         if depth.partial_cmp(&camera.near) != Some(std::cmp::Ordering::Greater) {
             return None;
         }
-        let world_per_px = 2.0 * depth * (camera.fov_y_rad * 0.5).tan() / h;
+        let world_per_px = crate::nav::world_per_pixel(camera.fov_y_rad, depth, f64::from(size.1));
         Some(Self {
             centre,
             length: ARROW_PX * world_per_px,

@@ -202,7 +202,7 @@ impl Navigator {
     /// view `height` pixels tall: the pivot follows the cursor.
     pub fn pan(&mut self, dx: f64, dy: f64, height: f64) {
         let distance = (self.pivot - self.eye).length().max(self.near);
-        let per_pixel = 2.0 * distance * (self.fov_y_rad * 0.5).tan() / height.max(1.0);
+        let per_pixel = world_per_pixel(self.fov_y_rad, distance, height);
         let delta = (-self.right() * dx + self.up() * dy) * per_pixel;
         self.eye += delta;
         self.pivot += delta;
@@ -255,6 +255,12 @@ impl Navigator {
     pub fn ray(&self, size: (u32, u32), x: f64, y: f64) -> Ray3d {
         ray_through(&self.camera(), size, x, y)
     }
+}
+
+/// The world length a pixel spans at `depth` ahead of the eye in a view
+/// `height` pixels tall with a vertical field of view of `fov_y_rad`.
+pub fn world_per_pixel(fov_y_rad: f64, depth: f64, height: f64) -> f64 {
+    2.0 * depth * (fov_y_rad * 0.5).tan() / height.max(1.0)
 }
 
 /// The world ray from `camera`'s eye through the point `(x, y)` of a view

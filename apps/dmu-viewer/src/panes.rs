@@ -120,6 +120,13 @@ pub fn drawn_cells(tree: &Tree, view: &View, out: &mut Vec<bool>) {
     }
 }
 
+/// World to clip of `nav`'s camera drawn into `rect` (its aspect).
+pub(crate) fn clip_from_world(nav: &Navigator, rect: Rect) -> glam::DMat4 {
+    let camera = nav.camera();
+    let aspect = f64::from(rect.width()) / f64::from(rect.height().max(1.0));
+    camera.projection(aspect) * camera.view_matrix()
+}
+
 /// Where a world point lands in `rect` through `clip_from_world`, or `None`
 /// behind the eye.
 pub(crate) fn project(clip_from_world: &glam::DMat4, rect: Rect, p: DVec3) -> Option<Pos2> {
@@ -172,9 +179,7 @@ pub fn paint_cells(
     tree: &Tree,
     drawn: &[bool],
 ) {
-    let camera = pane.nav.camera();
-    let aspect = f64::from(rect.width()) / f64::from(rect.height().max(1.0));
-    let clip_from_world = camera.projection(aspect) * camera.view_matrix();
+    let clip_from_world = clip_from_world(&pane.nav, rect);
     let (drawn_stroke, culled_stroke) = (
         Stroke::new(1.0, Color32::from_rgba_unmultiplied(60, 230, 90, 200)),
         Stroke::new(1.0, Color32::from_rgba_unmultiplied(240, 60, 50, 140)),

@@ -334,8 +334,7 @@ pub fn paint(
         return;
     }
     let camera = pane.nav.camera();
-    let aspect = f64::from(rect.width()) / f64::from(rect.height());
-    let clip_from_world = camera.projection(aspect) * camera.view_matrix();
+    let clip_from_world = crate::panes::clip_from_world(&pane.nav, rect);
     paint_section(painter, rect, &clip_from_world, review);
     paint_measurement(painter, rect, &clip_from_world, &state.measure);
     if let Some(part) = review.selected.filter(|_| state.show_gizmo)
@@ -351,15 +350,13 @@ pub fn paint(
 
 fn paint_section(painter: &egui::Painter, rect: Rect, clip_from_world: &DMat4, review: &Review) {
     let stroke = Stroke::new(1.5, SECTION_COLOUR);
+    let size = review.tree.bounds().extent().length();
+    let handles = review.section.handles(&review.tree.bounds());
     // The handles that slide planes and box faces.
-    for (point, dir) in review.section.handles(&review.tree.bounds()) {
+    for &(point, dir) in &handles {
         if let Some(p) = crate::panes::project(clip_from_world, rect, point) {
             painter.circle_filled(p, 5.0, SECTION_COLOUR);
-            let tip = crate::panes::project(
-                clip_from_world,
-                rect,
-                point + dir * review.tree.bounds().extent().length() * 0.02,
-            );
+            let tip = crate::panes::project(clip_from_world, rect, point + dir * size * 0.02);
             if let Some(tip) = tip {
                 painter.line_segment([p, tip], stroke);
             }
@@ -369,12 +366,10 @@ fn paint_section(painter: &egui::Painter, rect: Rect, clip_from_world: &DMat4, r
         Section::Off => {}
         Section::Box(b) => crate::panes::box_edges(painter, clip_from_world, rect, b, stroke),
         Section::Planes(planes) => {
-            // Each plane as a square about the model's centre, a quarter of
-            // the model across.
-            let bounds = review.tree.bounds();
-            let half = bounds.extent().length() * 0.25;
-            for p in planes {
-                let c = bounds.center() - p.normal * p.signed_distance(bounds.center());
+            // Each plane as a square about its handle (the point nearest the
+            // model's centre), a quarter of the model across.
+            let half = size * 0.25;
+            for (p, &(c, _)) in planes.iter().zip(&handles) {
                 let u = p.normal.any_orthonormal_vector();
                 let v = p.normal.cross(u);
                 let corners: Vec<Option<Pos2>> =

@@ -869,19 +869,11 @@ fn clash_markers(painter: &egui::Painter, rect: Rect, review: &Review, nav: &Nav
     if review.report.clashes.is_empty() || rect.width() < 1.0 || rect.height() < 1.0 {
         return;
     }
-    let camera = nav.camera();
-    let aspect = f64::from(rect.width()) / f64::from(rect.height());
-    let clip_from_world = camera.projection(aspect) * camera.view_matrix();
+    let clip_from_world = crate::panes::clip_from_world(nav, rect);
     for clash in &review.report.clashes {
-        let clip = clip_from_world * clash.point.extend(1.0);
-        if clip.w <= 0.0 {
+        let Some(at) = crate::panes::project(&clip_from_world, rect, clash.point) else {
             continue;
-        }
-        let ndc = clip.truncate() / clip.w;
-        let at = Pos2::new(
-            rect.min.x + ((ndc.x + 1.0) * 0.5) as f32 * rect.width(),
-            rect.min.y + ((1.0 - ndc.y) * 0.5) as f32 * rect.height(),
-        );
+        };
         let colour = clash_colour(clash.kind);
         painter.circle_stroke(at, 7.0, egui::Stroke::new(2.0, colour));
         painter.circle_filled(at, 2.0, colour);
