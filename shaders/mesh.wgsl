@@ -87,6 +87,11 @@ fn mesh_vertex(position: vec3<f32>, normal: vec4<f32>, entry: u32, eye: u32) -> 
     let c2 = vec3<f32>(m.r0.z, m.r1.z, m.r2.z);
     let n = normal.xyz;
     let view_normal = cross(c1, c2) * n.x + cross(c2, c0) * n.y + cross(c0, c1) * n.z;
+    return mesh_out(view_pos, view_normal, entry, eye);
+}
+
+// What every mesh vertex passes on, from its view-space position and normal.
+fn mesh_out(view_pos: vec3<f32>, view_normal: vec3<f32>, entry: u32, eye: u32) -> MeshOut {
     var out: MeshOut;
     out.clip = view.proj * vec4<f32>(view_pos, 1.0);
     out.view_pos = view_pos;
@@ -117,6 +122,25 @@ fn vs_mesh(
     @builtin(instance_index) entry: u32,
 ) -> MeshOut {
     return mesh_vertex(position, normal, entry, view.eye);
+}
+
+// A proxy's vertex (a merged, simplified subtree): its position is relative
+// to the proxy's origin along the world axes, and boxes[frame] holds the
+// proxy's frame in the eye's view space (the origin, formed in f64 on the CPU,
+// and the world axes), so positions go through a rotation and a small
+// translation only. The entry it came from picks material and tints.
+@vertex
+fn vs_proxy(
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec4<f32>,
+    @location(2) entry: u32,
+    @builtin(instance_index) frame: u32,
+) -> MeshOut {
+    let f = boxes[frame];
+    let view_pos = f.center.xyz + f.axis_x.xyz * position.x + f.axis_y.xyz * position.y
+        + f.axis_z.xyz * position.z;
+    let view_normal = f.axis_x.xyz * normal.x + f.axis_y.xyz * normal.y + f.axis_z.xyz * normal.z;
+    return mesh_out(view_pos, view_normal, entry, view.eye);
 }
 
 @fragment

@@ -139,6 +139,8 @@ struct ScriptFrame {
 
 /// The viewer.
 pub struct App {
+    /// Proxies for the renderer, until it is made.
+    pub proxies: Option<dmu_render::Proxies>,
     options: Options,
     instance: wgpu::Instance,
     review: Review,
@@ -218,6 +220,7 @@ impl App {
             ..Runner::default()
         };
         Self {
+            proxies: None,
             options,
             instance,
             review,
@@ -301,7 +304,7 @@ impl App {
     /// Takes over an open window (its egui state made with `ctx`): makes the
     /// renderer for the model and asks for the first frame.
     pub fn adopt(&mut self, gfx: Gfx, state: egui_winit::State, ctx: egui::Context) {
-        let renderer = Renderer::new(
+        let mut renderer = Renderer::new(
             &gfx.device,
             &gfx.queue,
             &self.review.scene,
@@ -315,6 +318,9 @@ impl App {
                 ..Default::default()
             },
         );
+        if let Some(proxies) = self.proxies.take() {
+            renderer.set_proxies(proxies);
+        }
         gfx.window.request_redraw();
         self.egui_ctx = ctx;
         self.renderer = Some(renderer);
@@ -1296,6 +1302,8 @@ impl App {
                     "render_gpu_ms": main.gpu_ms,
                     "triangles_drawn": main.triangles_drawn,
                     "chunks_drawn": main.chunks_drawn,
+                    "proxies_drawn": main.proxies_drawn,
+                    "proxies_stale": main.proxies_stale,
                     "culled_section": main.culled_section,
                     "draw_calls": main.draw_calls,
                     "lod_error_px": main.lod_error_px,

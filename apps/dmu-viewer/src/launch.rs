@@ -28,8 +28,9 @@ pub struct LoadProgress {
     pub total: AtomicUsize,
 }
 
-/// What the loading thread hands over: the review and the report's facts.
-pub type LoadResult = anyhow::Result<(Review, Value)>;
+/// What the loading thread hands over: the review, the report's facts and
+/// the model's proxies (merged subtrees) when they were asked for.
+pub type LoadResult = anyhow::Result<(Review, Value, Option<dmu_render::Proxies>)>;
 
 /// The loading thread's end and its progress.
 #[derive(Debug)]
@@ -108,9 +109,10 @@ impl Launcher {
             }
         };
         match result {
-            Ok((review, facts)) => {
+            Ok((review, facts, proxies)) => {
                 let options = self.options.take().expect("the viewer starts once");
                 let mut app = App::new(self.instance.clone(), review, options, facts);
+                app.proxies = proxies;
                 if let Some((gfx, state)) = self.window.take() {
                     app.adopt(gfx, state, self.egui_ctx.clone());
                 }

@@ -97,6 +97,12 @@ struct Cli {
     /// projects to at most this many pixels (0: every chunk whole, the exact image).
     #[arg(long, default_value_t = 1.0, value_parser = dmu_app::units::number_in(0.0, 1e6))]
     lod_error_px: f64,
+    /// Do not merge subtrees into simplified proxies. By default (with a LOD
+    /// error above 0) each subtree of the cell tree gets one merged,
+    /// simplified mesh while the model loads, drawn in one call instead of its
+    /// chunks where its error projects within --lod-error-px.
+    #[arg(long)]
+    no_proxies: bool,
     /// A frame-time budget for the 3D view, ms (e.g. 100 for 10 frames a
     /// second): each frame then chooses its LOD error (from 0, exact) and
     /// coverage threshold after the last frame's time; the stats overlay shows
@@ -147,10 +153,16 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
     let progress = Arc::new(launch::LoadProgress::default());
     let (send, result) = std::sync::mpsc::channel();
     let (model, record_path, shared) = (cli.model.clone(), cli.record.clone(), progress.clone());
+    let proxies = cli.lod_error_px > 0.0 && !cli.no_proxies;
     std::thread::Builder::new()
         .name("dmu load".into())
         .spawn(move || {
-            let _ = send.send(load_review(&model, record_path.as_deref(), &shared));
+            let _ = send.send(load_review(
+                &model,
+                record_path.as_deref(),
+                &shared,
+                proxies,
+            ));
         })
         .context("starting the loading thread")?;
     let automated = cli.frames.is_some() || !script.is_empty();
@@ -227,10 +239,11 @@ fn run_xr(cli: &Cli) -> anyhow::Result<()> {
             ..Default::default()
         },
     };
-    let (review, facts) = load_review(
+    let (review, facts, _) = load_review(
         &cli.model,
         cli.record.as_deref(),
         &launch::LoadProgress::default(),
+        false,
     )?;
     let report = xr::run(review, args, facts)?;
     if cli.json {
@@ -245,6 +258,7 @@ fn load_review(
     model: &dmu_app::load::ModelArgs,
     record_path: Option<&std::path::Path>,
     progress: &launch::LoadProgress,
+    proxies: bool,
 ) -> launch::LoadResult {
     let loaded = dmu_app::load::load_reporting(model, &|done, total| {
         progress.total.store(total, Ordering::Relaxed);
@@ -254,6 +268,10 @@ fn load_review(
     let mut review = review::Review::new(loaded.scene, loaded.source);
     review.recorder = record_path.map(record::Recorder::create).transpose()?;
     let tree_ms = tree_start.elapsed().as_secs_f64() * 1e3;
+    let proxies = proxies.then(|| {
+        let r = &review;
+        dmu_app::progress::build_proxies(&r.scene, &r.tree, &r.scene, true)
+    });
     let b = review.scene.world_bounds();
     let facts = json!({
         "model": {
@@ -263,11 +281,12 @@ fn load_review(
             "parts": review.scene.parts().len(),
             "load_ms": loaded.load_ms,
             "tree_ms": tree_ms,
+            "proxies": proxies.as_ref().map(|p| dmu_app::progress::proxies_json(&p.stats())),
             "cells": review.tree.cell_count(),
             "bounds": { "min": b.min.to_array(), "max": b.max.to_array() },
         },
     });
-    Ok((review, facts))
+    Ok((review, facts, proxies))
 }
 
 #[expect(unsafe_code, reason = "quiet_device_select runs before any thread")]

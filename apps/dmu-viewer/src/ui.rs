@@ -887,7 +887,7 @@ fn stats_overlay(painter: &egui::Painter, rect: Rect, o: &Overlay, review: &Revi
          ui {:.1} · 3D {:.1} · paint {:.1} ms ({})\n\
          3D: cpu {:.1} ms · gpu {:.1} ms\n\
          triangles {} drawn / {} in frustum / {} model\n\
-         chunks {} drawn · {} queries in {} rounds · LOD {:.2} px · min {:.1} px\n\
+         chunks {} drawn · proxies {} ({} stale) · {} queries in {} rounds · LOD {:.2} px · min {:.1} px\n\
          culled: frustum {} · coverage {} · occlusion {} · hidden {} · section {}\n\
          occlusion {} (cost {:.2} ms, saves {:.2} ms)\n\
          GPU geometry {:.1} MiB\n\
@@ -909,6 +909,8 @@ fn stats_overlay(painter: &egui::Painter, rect: Rect, o: &Overlay, review: &Revi
         s.triangles_in_frustum,
         o.model_triangles,
         s.chunks_drawn,
+        s.proxies_drawn,
+        s.proxies_stale,
         s.queries,
         s.rounds,
         s.lod_error_px,

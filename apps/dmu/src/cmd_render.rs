@@ -50,6 +50,13 @@ pub struct Args {
     /// projects to at most this many pixels (0: every chunk whole, the exact image).
     #[arg(long, default_value_t = 1.0, value_parser = number_in(0.0, 1e6))]
     lod_error_px: f64,
+    /// Do not merge subtrees into simplified proxies. By default, with a LOD
+    /// error above 0, each subtree of the cell tree gets one merged,
+    /// simplified mesh, drawn in one call instead of its chunks where its
+    /// error projects within --lod-error-px (frustum culling, and chc views
+    /// whose queries are off).
+    #[arg(long)]
+    no_proxies: bool,
     /// Frames rendered from the viewpoint (occlusion culling converges over a
     /// few); the image and stats are the last frame's.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10_000))]
@@ -215,6 +222,8 @@ fn stats_json(s: &FrameStats) -> serde_json::Value {
         "rounds": s.rounds,
         "passes": s.passes,
         "chunks_drawn": s.chunks_drawn,
+        "proxies_drawn": s.proxies_drawn,
+        "proxies_stale": s.proxies_stale,
         "draw_calls": s.draw_calls,
         "upload_ms": s.upload_ms,
         "triangles_drawn": s.triangles_drawn,
@@ -294,6 +303,10 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         ..Default::default()
     };
     let mut renderer = Renderer::new(&device, &queue, scene, &tree, options);
+    if culling_options.may_draw_lods() && !args.no_proxies {
+        let proxies = dmu_app::progress::build_proxies(scene, &tree, scene, args.json);
+        renderer.set_proxies(proxies);
+    }
     let stereo_camera = StereoCamera {
         center: camera,
         ipd: args.ipd,
@@ -414,6 +427,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             "lod_error_px": args.lod_error_px,
             "scene_triangles": scene.triangle_count(),
             "load_ms": loaded.load_ms,
+            "proxies": renderer.proxy_stats().as_ref().map(dmu_app::progress::proxies_json),
             "last": stats_json(last),
             "oracle": oracle,
             "stereo": stereo_json,

@@ -64,6 +64,11 @@ pub struct Args {
     /// --render. With --compare, `none` stays exact: the reference.
     #[arg(long, default_value_t = 1.0, value_parser = number_in(0.0, 1e6))]
     lod_error_px: f64,
+    /// With --render --compare: do not merge subtrees into simplified proxies
+    /// (by default each subtree gets one, drawn in a single call instead of
+    /// its chunks where its error projects within --lod-error-px).
+    #[arg(long)]
+    no_proxies: bool,
     /// With --render: a frame-time budget, ms. Each frame then chooses its LOD
     /// error (from 0, exact, up to 8 px) and coverage threshold after the last
     /// frame's time, and the report gives the choice per frame (the --compare
@@ -256,6 +261,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 &[Culling::None, Culling::Frustum, Culling::Occlusion],
                 true,
                 culling_options,
+                !args.no_proxies,
             )?
         } else {
             let order = args.order.first().unwrap_or(&Order::Visibility);

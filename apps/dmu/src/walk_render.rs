@@ -29,6 +29,8 @@ struct ModeFrame {
     gpu_ms: f64,
     triangles_drawn: u64,
     chunks_drawn: u64,
+    /// Proxies drawn (merged subtrees).
+    proxies_drawn: u64,
     draw_calls: u64,
     queries: u64,
     rounds: u32,
@@ -108,6 +110,7 @@ fn mode_frame(stats: &FrameStats, differing: Option<(u64, u64)>) -> ModeFrame {
         gpu_ms: stats.gpu_ms,
         triangles_drawn: stats.triangles_drawn,
         chunks_drawn: stats.chunks_drawn,
+        proxies_drawn: stats.proxies_drawn,
         draw_calls: stats.draw_calls,
         queries: stats.queries,
         lod_error_px: stats.lod_error_px,
@@ -169,6 +172,10 @@ fn lod_options(culling: &CullingOptions) -> RendererOptions {
 /// Renders `path` with each of `modes` (the first is the reference when
 /// `compare`, drawn exact whatever `culling.lod_error_px`) and returns the
 /// JSON report.
+#[expect(
+    clippy::too_many_arguments,
+    reason = "the walk's settings from the command line, passed through once"
+)]
 pub fn run(
     scene: &Scene,
     tree: &Tree,
@@ -177,9 +184,13 @@ pub fn run(
     modes: &[Culling],
     compare: bool,
     culling: CullingOptions,
+    proxies: bool,
 ) -> anyhow::Result<serde_json::Value> {
     let (device, queue, adapter) = headless_device().context("opening a GPU device")?;
     let mut renderer = Renderer::new(&device, &queue, scene, tree, lod_options(&culling));
+    if proxies && culling.may_draw_lods() {
+        renderer.set_proxies(dmu_app::progress::build_proxies(scene, tree, scene, false));
+    }
     let camera = |f: &CameraFrame| camera(f, tree);
     let captures: Vec<Capture> = modes.iter().map(|_| Capture::new(&device, size)).collect();
     let mut views: Vec<View> = modes
@@ -288,6 +299,7 @@ pub fn run(
         "lod_error_px": culling.lod_error_px,
         "target_ms": culling.target_ms,
         "max_rounds": culling.max_rounds,
+        "proxies": renderer.proxy_stats().as_ref().map(dmu_app::progress::proxies_json),
         "totals": totals,
         "frustum_over_chc_frame_time": ratio("frustum", "chc"),
         "none_over_chc_frame_time": ratio("none", "chc"),

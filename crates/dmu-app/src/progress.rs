@@ -38,3 +38,49 @@ pub fn peak_rss_bytes() -> Option<u64> {
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kib * 1024)
 }
+
+/// Makes the proxies of every subtree of `tree` (`dmu_render::Proxies`) from
+/// the chunks in `source`, with a progress bar on standard error unless
+/// `quiet`.
+pub fn build_proxies(
+    scene: &dmu_scene::Scene,
+    tree: &dmu_tree::Tree,
+    source: &dyn dmu_render::GeometrySource,
+    quiet: bool,
+) -> dmu_render::Proxies {
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(0)
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} merging subtrees {pos}/{len} [{bar:30}] {elapsed}")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    let proxies = dmu_render::Proxies::build(
+        scene,
+        tree,
+        source,
+        dmu_render::ProxyOptions::default(),
+        &mut |done, total| {
+            bar.set_length(total as u64);
+            bar.set_position(done as u64);
+        },
+    );
+    bar.finish_and_clear();
+    proxies
+}
+
+/// A proxy build's figures as JSON: current proxies, their triangles and
+/// bytes, and the build time.
+pub fn proxies_json(stats: &dmu_render::ProxyStats) -> serde_json::Value {
+    serde_json::json!({
+        "proxies": stats.proxies,
+        "stale": stats.stale,
+        "triangles": stats.triangles,
+        "bytes": stats.bytes,
+        "made": stats.made,
+        "ms": stats.ms,
+    })
+}

@@ -12,7 +12,10 @@ use crate::capture::{Capture, IdImage};
 use crate::geometry::GeometrySource;
 use crate::gpu::QueryBox;
 use crate::hierarchy::{Hierarchy, NodeKind};
-use crate::renderer::{Draw, FrameTarget, LodPick, Renderer, RoundResult, RoundTarget, Shading};
+use crate::proxy::proxy_fits;
+use crate::renderer::{
+    Draw, FrameTarget, LodPick, ProxyRound, Renderer, RoundResult, RoundTarget, Shading,
+};
 use crate::stereo::StereoCamera;
 use crate::view::{Culling, EntryState, FrameStats, View};
 use crate::{KnobsInEffect, RenderError};
@@ -117,6 +120,24 @@ impl Cull {
             .contains_point(self.eye())
     }
 
+    /// Each proxy's frame in each eye's view space (eye-major): its origin
+    /// there, formed in f64, and the world axes, as the proxy pipeline reads
+    /// them.
+    fn proxy_frames(&self, origins: &[DVec3]) -> Vec<QueryBox> {
+        let v = |d: DVec3| [d.x as f32, d.y as f32, d.z as f32, 0.0];
+        let mut frames = Vec::with_capacity(origins.len() * self.eye_count);
+        for view_matrix in self.eye_views() {
+            let m = view_matrix.matrix3;
+            frames.extend(origins.iter().map(|&o| QueryBox {
+                center: v(view_matrix.transform_point3(o)),
+                axis_x: v(m.x_axis),
+                axis_y: v(m.y_axis),
+                axis_z: v(m.z_axis),
+            }));
+        }
+        frames
+    }
+
     /// The boxes as the query pipeline draws them, in each eye's view space:
     /// all of the first eye's, then all of the second's.
     fn query_boxes(&self, bounds: &[Aabb3d]) -> Vec<QueryBox> {
@@ -175,6 +196,7 @@ impl Renderer {
         let start = Instant::now();
         view.frame += 1;
         self.hierarchy.sync(tree);
+        let proxy_time = self.sync_proxies(scene, tree, geometry);
         if view.entries.len() != tree.entries().len() {
             view.entries = vec![EntryState::default(); tree.entries().len()];
         }
@@ -209,17 +231,45 @@ impl Renderer {
                 &mut stats,
             )
         } else {
+            let with_proxies = self.proxies.is_some()
+                && cull.lod().is_some()
+                && !target.is_multiview()
+                && view.culling != Culling::None;
+            let mut proxy_nodes = Vec::new();
             let mut draws = match view.culling {
                 Culling::None => self.all_draws(scene, tree, &cull, &mut stats),
+                Culling::Frustum | Culling::Occlusion if with_proxies => {
+                    let (draws, nodes) = self.proxy_draws(scene, tree, &cull, &mut stats);
+                    proxy_nodes = nodes;
+                    draws
+                }
                 Culling::Frustum | Culling::Occlusion => {
                     self.frustum_draws(scene, tree, &cull, &mut stats)
                 }
             };
             sort_draws(&self.hierarchy, &cell_distance, &mut draws);
-            stats.triangles_in_frustum = draws
+            if !with_proxies {
+                stats.triangles_in_frustum = draws
+                    .iter()
+                    .map(|d| u64::from(tree.entries()[d.entry as usize].triangles))
+                    .sum();
+            }
+            let h = &self.hierarchy;
+            proxy_nodes.sort_by(|&a, &b| {
+                let d = |n: u32| box_distance_sq(&h.nodes[n as usize].bounds, cull.eye());
+                d(a).total_cmp(&d(b)).then(a.cmp(&b))
+            });
+            let origins: Vec<DVec3> = proxy_nodes
                 .iter()
-                .map(|d| u64::from(tree.entries()[d.entry as usize].triangles))
-                .sum();
+                .map(|&n| {
+                    self.proxies.as_ref().expect("proxies").cpu.nodes[n as usize]
+                        .as_ref()
+                        .expect("a drawn proxy exists")
+                        .origin
+                })
+                .collect();
+            let frames = cull.proxy_frames(&origins);
+            stats.proxies_drawn = proxy_nodes.len() as u64;
             view.drawn.extend(draws.iter().map(|d| d.entry));
             stats.rounds = 1;
             self.run_round(
@@ -232,11 +282,17 @@ impl Renderer {
                 &draws,
                 &[],
                 cull.lod(),
+                ProxyRound {
+                    nodes: &proxy_nodes,
+                    frames: &frames,
+                },
             )
             .map(|r| add_round(&mut stats, &r))
         };
         view.gpu = Some(gpu_state);
         outcome?;
+        stats.upload_ms += proxy_time.as_secs_f64() * 1e3;
+        stats.proxies_stale = self.proxies.as_ref().map_or(0, |p| p.cpu.stats().stale);
         stats.cpu_ms = start.elapsed().as_secs_f64() * 1e3;
         view.knobs = Some(knobs.next(&view.options, stats.cpu_ms - stats.upload_ms));
         self.decide(view, &mut stats);
@@ -291,6 +347,7 @@ impl Renderer {
             &draws,
             &[],
             None,
+            ProxyRound::default(),
         );
         view.gpu = Some(gpu_state);
         result?;
@@ -368,6 +425,56 @@ impl Renderer {
         stats.culled_frustum += nodes.culled_frustum;
         stats.culled_coverage += nodes.culled_coverage;
         draws
+    }
+
+    /// Frustum and coverage culling on the renderer's mirror of the tree,
+    /// stopping at nodes whose current proxy's error projects within the
+    /// frame's LOD error: the chunk instances to draw and the proxies (mirror
+    /// nodes) drawn instead of the rest. Counts the triangles of both, and of
+    /// what the proxies stand for, in `triangles_in_frustum`.
+    fn proxy_draws(
+        &self,
+        scene: &Scene,
+        tree: &Tree,
+        cull: &Cull,
+        stats: &mut FrameStats,
+    ) -> (Vec<Draw>, Vec<u32>) {
+        let h = &self.hierarchy;
+        let proxies = &self.proxies.as_ref().expect("called with proxies").cpu;
+        let mut walk = Walk {
+            h,
+            scene,
+            tree,
+            cull,
+            stats,
+            draws: Vec::new(),
+            queries: Vec::new(),
+            in_frustum_entries: 0,
+        };
+        let mut nodes = Vec::new();
+        if h.nodes.is_empty() {
+            return (Vec::new(), nodes);
+        }
+        let mut stack = vec![h.root];
+        while let Some(n) = stack.pop() {
+            let Some(kind) = walk.admit(n) else { continue };
+            if let NodeKind::Entry(e) = kind {
+                walk.draws.push(Draw {
+                    entry: e.0,
+                    query: false,
+                });
+                continue;
+            }
+            let node = &h.nodes[n as usize];
+            match proxies.current(n) {
+                Some(p) if proxy_fits(&cull.coverage, &node.bounds, p.error, cull.lod_error_px) => {
+                    nodes.push(n);
+                    walk.count_below(n);
+                }
+                _ => stack.extend_from_slice(h.children(n)),
+            }
+        }
+        (walk.draws, nodes)
     }
 
     /// Coherent hierarchical culling (CHC, Bittner et al. 2004, with CHC++'s
@@ -483,6 +590,7 @@ impl Renderer {
                 &draws,
                 &boxes,
                 cull.lod(),
+                ProxyRound::default(),
             ) {
                 Ok(r) => r,
                 Err(e) => {

@@ -18,6 +18,7 @@ use crate::gpu::{
     STEREO_SHADER, ViewUniform,
 };
 use crate::hierarchy::Hierarchy;
+use crate::proxy::{Proxies, ProxyStats, ProxyVertex};
 use crate::view::{MAX_SECTION_PLANES, View};
 
 /// The lavapipe bug in Mesa 22.3 returns wrong counts past about 536 occlusion
@@ -297,6 +298,25 @@ pub struct Renderer {
     timestamp_period_ns: Option<f64>,
     /// Reused per-round scratch: resolved slots of the round's draws.
     slots: Vec<(u32, crate::geometry::ChunkSlot)>,
+    /// Shading of proxies (merged subtrees), uncut and cut.
+    proxy: [wgpu::RenderPipeline; 2],
+    /// Proxies of the tree's subtrees and their GPU buffers, once set.
+    pub(crate) proxies: Option<ProxyGpu>,
+}
+
+/// Proxies and the vertex and index buffer of each current one (by mirror node).
+#[derive(Debug)]
+pub(crate) struct ProxyGpu {
+    pub cpu: Proxies,
+    buffers: Vec<Option<(wgpu::Buffer, wgpu::Buffer)>>,
+}
+
+/// A round's proxies: mirror nodes, and each one's frame in each eye's view
+/// space (eye-major), as [`crate::gpu::QueryBox`]es.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct ProxyRound<'a> {
+    pub nodes: &'a [u32],
+    pub frames: &'a [QueryBox],
 }
 
 impl Renderer {
@@ -423,6 +443,24 @@ impl Renderer {
                 cache: None,
             })
         };
+        let proxy_buffers = [Some(wgpu::VertexBufferLayout {
+            array_stride: size_of::<ProxyVertex>() as u64,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Snorm8x4, 2 => Uint32],
+        })];
+        let proxy = [false, true].map(|cut| {
+            pipeline(
+                "dmu shade proxies",
+                &module,
+                "vs_proxy",
+                &proxy_buffers,
+                "fs_shade",
+                options.color_format,
+                true,
+                None,
+                cut,
+            )
+        });
         let shade = [false, true].map(|cut| {
             pipeline(
                 "dmu shade",
@@ -527,6 +565,8 @@ impl Renderer {
                 as u64,
             ids,
             boxes_color,
+            proxy,
+            proxies: None,
             pool: GeometryPool::new(scene.chunks().len(), options.page_bytes, options.lod_levels),
             hierarchy: Hierarchy::default(),
             timestamp_period_ns: device
@@ -534,6 +574,84 @@ impl Renderer {
                 .contains(wgpu::Features::TIMESTAMP_QUERY)
                 .then(|| f64::from(queue.get_timestamp_period())),
             slots: Vec::new(),
+        }
+    }
+
+    /// Draws subtrees far enough away as their proxies ([`Proxies`], made
+    /// for this renderer's scene and tree) from now on, in frames that may
+    /// draw simplified levels (a LOD error above 0) into single-view or
+    /// layer-at-a-time passes; proxies that go stale are remade as frames go.
+    pub fn set_proxies(&mut self, proxies: Proxies) {
+        let mut gpu = ProxyGpu {
+            buffers: Vec::new(),
+            cpu: proxies,
+        };
+        let all: Vec<u32> = (0..gpu.cpu.nodes.len() as u32).collect();
+        self.upload_proxies(&mut gpu, &all);
+        self.proxies = Some(gpu);
+    }
+
+    /// The proxies' state: how many are current and stale, their size, and
+    /// what the last build or refresh made (`None` without proxies).
+    pub fn proxy_stats(&self) -> Option<ProxyStats> {
+        self.proxies.as_ref().map(|p| p.cpu.stats())
+    }
+
+    /// Brings the proxies up to date with the tree and scene for a frame and
+    /// remakes those due (within their time budget), uploading what changed;
+    /// the upload time counts as the frame's chunk uploads do.
+    pub(crate) fn sync_proxies(
+        &mut self,
+        scene: &Scene,
+        tree: &Tree,
+        geometry: &dyn GeometrySource,
+    ) -> std::time::Duration {
+        let Some(mut gpu) = self.proxies.take() else {
+            return std::time::Duration::ZERO;
+        };
+        let start = std::time::Instant::now();
+        gpu.cpu.sync(&self.hierarchy, scene, tree);
+        let spent = if gpu.cpu.refresh(&self.hierarchy, scene, tree, geometry) {
+            let dirty = std::mem::take(&mut gpu.cpu.dirty);
+            self.upload_proxies(&mut gpu, &dirty);
+            start.elapsed()
+        } else {
+            std::time::Duration::ZERO
+        };
+        self.proxies = Some(gpu);
+        spent
+    }
+
+    fn upload_proxies(&self, gpu: &mut ProxyGpu, nodes: &[u32]) {
+        gpu.buffers.resize_with(gpu.cpu.nodes.len(), || None);
+        for &n in nodes {
+            gpu.buffers[n as usize] = gpu.cpu.nodes[n as usize]
+                .as_ref()
+                .filter(|p| !p.indices.is_empty())
+                .map(|p| {
+                    let buffer = |label, contents: &[u8], usage| {
+                        let b = self.device.create_buffer(&wgpu::BufferDescriptor {
+                            label: Some(label),
+                            size: contents.len() as u64,
+                            usage: usage | wgpu::BufferUsages::COPY_DST,
+                            mapped_at_creation: false,
+                        });
+                        self.queue.write_buffer(&b, 0, contents);
+                        b
+                    };
+                    (
+                        buffer(
+                            "dmu proxy vertices",
+                            bytemuck::cast_slice(&p.vertices),
+                            wgpu::BufferUsages::VERTEX,
+                        ),
+                        buffer(
+                            "dmu proxy indices",
+                            bytemuck::cast_slice(&p.indices),
+                            wgpu::BufferUsages::INDEX,
+                        ),
+                    )
+                });
         }
     }
 
@@ -812,10 +930,15 @@ impl Renderer {
         draws: &[Draw],
         boxes: &[QueryBox],
         lod: Option<LodPick>,
+        proxies: ProxyRound<'_>,
     ) -> Result<RoundResult, RenderError> {
         assert!(
             !target.is_multiview() || (shading == Shading::Color && draws.iter().all(|d| !d.query)),
             "a multiview pass shades and carries no queries"
+        );
+        assert!(
+            proxies.nodes.is_empty() || (shading == Shading::Color && !target.is_multiview()),
+            "proxies are shaded in single-layer passes"
         );
         let eyes = target.eye_count();
         assert_eq!(boxes.len() % eyes, 0, "one run of boxes per eye");
@@ -847,11 +970,31 @@ impl Renderer {
             }
         }
         result.upload_ms = (self.pool.upload_time - uploaded_before).as_secs_f64() * 1e3;
-        if !boxes.is_empty() {
-            self.ensure_capacity(gpu, 0, boxes.len());
+        // The proxies' frames follow the query boxes in the same buffer.
+        if !boxes.is_empty() || !proxies.frames.is_empty() {
+            self.ensure_capacity(gpu, 0, boxes.len() + proxies.frames.len());
             self.queue
                 .write_buffer(&gpu.boxes, 0, bytemuck::cast_slice(boxes));
+            self.queue.write_buffer(
+                &gpu.boxes,
+                std::mem::size_of_val(boxes) as u64,
+                bytemuck::cast_slice(proxies.frames),
+            );
         }
+        let proxy_buffers: Vec<_> = match &self.proxies {
+            Some(p) => proxies
+                .nodes
+                .iter()
+                .enumerate()
+                .filter_map(|(k, &n)| {
+                    let proxy = p.cpu.nodes[n as usize].as_ref()?;
+                    let (v, i) = p.buffers.get(n as usize)?.as_ref()?;
+                    Some((k as u32, v, i, proxy.indices.len() as u32))
+                })
+                .collect(),
+            None => Vec::new(),
+        };
+        let mut proxies_drawn_in = [false; 2];
         let passes = target.plan(&queried, per_eye, clear);
         let query_count: u32 = passes.iter().map(|p| p.queries).sum();
         while gpu.query_sets.len() < passes.len() {
@@ -994,6 +1137,22 @@ impl Renderer {
                     result.draw_calls += 1;
                     pass.end_occlusion_query();
                     q += 1;
+                }
+            }
+            // Proxies go into the first pass of each layer, after its chunks.
+            let eye = pass_plan.layer.unwrap_or(0);
+            if !proxy_buffers.is_empty() && !std::mem::replace(&mut proxies_drawn_in[eye], true) {
+                pass.set_pipeline(&self.proxy[usize::from(gpu.sectioned)]);
+                let first_frame = (boxes.len() + eye * proxies.nodes.len()) as u32;
+                for &(k, vertices, indices, count) in &proxy_buffers {
+                    pass.set_vertex_buffer(0, vertices.slice(..));
+                    pass.set_index_buffer(indices.slice(..), wgpu::IndexFormat::Uint32);
+                    let frame = first_frame + k;
+                    pass.draw_indexed(0..count, 0, frame..frame + 1);
+                    result.draw_calls += 1;
+                    if eye == 0 {
+                        result.triangles += u64::from(count / 3);
+                    }
                 }
             }
             debug_assert_eq!(q, pass_plan.queries);

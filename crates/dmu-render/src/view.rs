@@ -117,6 +117,12 @@ pub struct FrameStats {
     pub passes: u32,
     /// Chunk instances drawn.
     pub chunks_drawn: u64,
+    /// Proxies drawn, each instead of a subtree's chunk instances
+    /// ([`crate::Proxies`]; their triangles are in `triangles_drawn`).
+    pub proxies_drawn: u64,
+    /// Proxies stale after this frame (their subtree changed; they are
+    /// remade once it is calm and meanwhile not drawn).
+    pub proxies_stale: u64,
     /// The LOD error bound the frame drew with, pixels (chosen by the budget
     /// under [`CullingOptions::target_ms`]).
     pub lod_error_px: f64,

@@ -3,5 +3,6 @@ mod depth_split;
 mod fov;
 mod hierarchy;
 mod images;
+mod proxies;
 mod stereo;
 mod support;

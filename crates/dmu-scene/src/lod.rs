@@ -79,6 +79,40 @@ pub fn lod_levels(geometry: &ChunkGeometry<'_>) -> Vec<LodLevel> {
     levels
 }
 
+/// Simplifies a mesh (any triangles, several pieces welded or not) until its
+/// error would pass `target_error` (in the positions' units), pruning pieces
+/// smaller than that: the kept triangles' indices into `positions` and
+/// meshoptimizer's error estimate for them (not a bound: claim a margin over
+/// it, as [`lod_levels`] does). For merged stand-ins of many chunks, whose
+/// borders need not be kept.
+pub fn simplify_to_error(
+    positions: &[[f32; 3]],
+    indices: &[u32],
+    target_error: f32,
+) -> (Vec<u32>, f32) {
+    if indices.is_empty() {
+        return (Vec::new(), 0.0);
+    }
+    let options = meshopt::SimplifyOptions::ErrorAbsolute | meshopt::SimplifyOptions::Prune;
+    let mut error = 0.0f32;
+    let kept = meshopt::simplify_decoder(
+        indices,
+        positions,
+        0,
+        target_error,
+        options,
+        Some(&mut error),
+    );
+    (
+        kept,
+        if error.is_finite() {
+            error
+        } else {
+            target_error
+        },
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

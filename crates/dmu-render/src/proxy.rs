@@ -1,0 +1,747 @@
+//! Merged, simplified stand-ins for whole subtrees of the cell tree
+//! (hierarchical LOD): one draw where the subtree's chunk instances would
+//! take hundreds.
+//!
+//! Seen from afar a cell, or a subtree of cells, covers a few hundred pixels
+//! but costs one draw per chunk instance, and on a CPU rasterizer each draw
+//! costs about as much as a few thousand small triangles. A proxy is the
+//! geometry of every chunk instance below a tree node, placed in world space
+//! (f32 relative to the node's centre, an f64 origin), merged into one mesh
+//! and simplified (meshoptimizer, small pieces pruned) until its error
+//! reaches a fraction of the node's diagonal ([`ProxyOptions`]). A cell's
+//! proxy is made from its chunks, an inner node's from its children's
+//! proxies, so the errors add up the tree and each proxy claims the sum. A
+//! frame draws a node's proxy instead of descending where that error
+//! projects within the LOD error in pixels, the same bound the chunks' own
+//! levels keep.
+//!
+//! Each vertex keeps its chunk instance's entry id, so materials, selection,
+//! clash and hover tints still follow the part. What a proxy shows is its
+//! subtree's content when it was made; that content is summed in a
+//! signature (entry ids, their parts' transforms and hidden flags), and a
+//! proxy whose signature no longer matches its node is stale: never drawn
+//! (the frame descends to what is current), remade once its node has been
+//! calm for [`CALM_TICKS`] frames, within a time budget per frame.
+
+use std::time::{Duration, Instant};
+
+use bytemuck::{Pod, Zeroable};
+use dmu_geom::Aabb3d;
+use dmu_scene::Scene;
+use dmu_tree::Tree;
+use glam::{DVec3, Vec3};
+
+use crate::geometry::GeometrySource;
+use crate::hierarchy::{Hierarchy, NodeKind};
+
+/// meshoptimizer's error is an estimate, not a bound (`dmu_scene::lod`
+/// measured up to 1.82x it on a sphere), and welding and pruning merged CAD
+/// pieces stray further: proxies claim this multiple of it. With 2, pixels
+/// showing another surface at 1 px of LOD error were 1.2-1.8 % of the image
+/// on the 400k plant's viewpoints, with 4 0.5-1.1 % (chunk levels alone:
+/// 0.3-0.9 %; test `proxies_draw_far_subtrees_in_few_calls_within_the_pixel_bound`).
+const ERROR_MARGIN: f64 = 4.0;
+
+/// Levels between proxies: a proxy is made of the proxies this many levels
+/// below (about twice smaller across in a binary tree of boxes), so the
+/// errors that add up the tree stay near twice a level's own, and memory
+/// goes to a third of the levels.
+pub const LEVEL_STEP: u8 = 3;
+
+/// A changed node's proxy is remade once its content has stayed the same for
+/// this many frames (a drag changes it every frame: remaking it each time
+/// would be wasted).
+pub const CALM_TICKS: u64 = 2;
+
+/// How proxies are made.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ProxyOptions {
+    /// The simplification error each proxy aims at, as a fraction of its
+    /// node's box diagonal (it claims [`ERROR_MARGIN`] times what the
+    /// simplifier reports, plus its children's). With 1/256, a proxy is
+    /// drawn at 1 px of LOD error once its node covers under ~128 px.
+    pub error_fraction: f64,
+    /// Time a frame may spend remaking stale proxies (at least one is made
+    /// when any is due).
+    pub refresh_budget: Duration,
+}
+
+impl Default for ProxyOptions {
+    fn default() -> Self {
+        Self {
+            error_fraction: 1.0 / 512.0,
+            refresh_budget: Duration::from_millis(4),
+        }
+    }
+}
+
+/// A proxy vertex: position relative to the proxy's origin, normal in
+/// snorm8 and the chunk instance (entry) it came from.
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub(crate) struct ProxyVertex {
+    pub position: [f32; 3],
+    pub normal: [i8; 4],
+    pub entry: u32,
+}
+const _: () = assert!(size_of::<ProxyVertex>() == 20);
+
+/// The stand-in of one tree node's subtree.
+#[derive(Clone, Debug)]
+pub(crate) struct Proxy {
+    /// World point the vertices are relative to (the node box's centre).
+    pub origin: DVec3,
+    pub vertices: Vec<ProxyVertex>,
+    pub indices: Vec<u32>,
+    /// How far the proxy may lie from the subtree's surface, world units.
+    pub error: f64,
+    /// The content it shows ([`Proxies`]'s signature of its node then).
+    signature: u64,
+    /// Triangles of the chunk instances it stands for.
+    pub source_triangles: u64,
+}
+
+impl Proxy {
+    pub(crate) fn triangles(&self) -> u64 {
+        self.indices.len() as u64 / 3
+    }
+}
+
+/// What building or refreshing proxies did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ProxyStats {
+    /// Nodes with a current proxy.
+    pub proxies: u64,
+    /// Nodes whose proxy is stale or missing.
+    pub stale: u64,
+    /// Triangles in all current proxies.
+    pub triangles: u64,
+    /// Bytes of proxy geometry (kept once on the CPU and once on the GPU).
+    pub bytes: u64,
+    /// Proxies made by the last build or refresh.
+    pub made: u64,
+    /// Time the last build or refresh took, ms.
+    pub ms: f64,
+}
+
+/// Proxies of every tree node, kept current with the scene (see the module
+/// docs). Made on the CPU alone ([`Proxies::build`]), so an application can
+/// make them on a loading thread, then hand them to
+/// [`crate::Renderer::set_proxies`].
+#[derive(Debug, Default)]
+pub struct Proxies {
+    pub(crate) options: ProxyOptions,
+    /// By mirror node id ([`Hierarchy`]'s numbering: entries, then the
+    /// tree's node slots); entries have none.
+    pub(crate) nodes: Vec<Option<Box<Proxy>>>,
+    /// Current content signature per mirror node.
+    signature: Vec<u64>,
+    /// Frame tick a node's signature last changed.
+    changed: Vec<u64>,
+    /// Per part: the hash of its transform and hidden flag.
+    part_hash: Vec<u64>,
+    /// The tree revision and hidden flags the signatures were summed for.
+    seen: Option<(dmu_tree::Revision, Vec<bool>)>,
+    /// Frame ticks ([`Proxies::sync`] calls).
+    tick: u64,
+    /// Per mirror node: whether it gets a proxy ([`Proxies::is_level`]).
+    level: Vec<bool>,
+    /// Nodes whose proxy changed since the renderer last uploaded them.
+    pub(crate) dirty: Vec<u32>,
+    /// What the last build or refresh did.
+    pub(crate) last: ProxyStats,
+}
+
+/// A 64-bit mix (splitmix64's finaliser).
+fn mix(mut x: u64) -> u64 {
+    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    x ^ (x >> 31)
+}
+
+impl Proxies {
+    /// Proxies of every node of `tree`, from the chunk geometry in `source`
+    /// (a node any of whose chunks the source lacks gets none, nor do its
+    /// ancestors); `progress` is told (nodes done, nodes).
+    pub fn build(
+        scene: &Scene,
+        tree: &Tree,
+        source: &dyn GeometrySource,
+        options: ProxyOptions,
+        progress: &mut dyn FnMut(usize, usize),
+    ) -> Self {
+        let start = Instant::now();
+        let mut h = Hierarchy::default();
+        h.sync(tree);
+        let mut proxies = Self {
+            options,
+            ..Self::default()
+        };
+        proxies.sync(&h, scene, tree);
+        let order: Vec<u32> = post_order(&h)
+            .into_iter()
+            .filter(|&n| proxies.is_level(n))
+            .collect();
+        let total = order.len();
+        let mut made = 0;
+        for (i, &n) in order.iter().enumerate() {
+            if proxies.remake(&h, scene, tree, source, n) {
+                made += 1;
+            }
+            if i % 16 == 0 || i + 1 == total {
+                progress(i + 1, total);
+            }
+        }
+        proxies.dirty.clear();
+        proxies.last = ProxyStats {
+            made,
+            ms: start.elapsed().as_secs_f64() * 1e3,
+            ..proxies.stats()
+        };
+        proxies
+    }
+
+    /// What is current now, and what the last build or refresh did.
+    pub fn stats(&self) -> ProxyStats {
+        let mut s = ProxyStats {
+            made: self.last.made,
+            ms: self.last.ms,
+            ..ProxyStats::default()
+        };
+        for (n, p) in self.nodes.iter().enumerate() {
+            match p {
+                Some(p) if p.signature == self.signature[n] => {
+                    s.proxies += 1;
+                    s.triangles += p.triangles();
+                    s.bytes +=
+                        (p.vertices.len() * size_of::<ProxyVertex>() + p.indices.len() * 4) as u64;
+                }
+                _ if self.level[n] => s.stale += 1,
+                _ => {}
+            }
+        }
+        s
+    }
+
+    /// The node's proxy when it shows the node's current content.
+    pub(crate) fn current(&self, node: u32) -> Option<&Proxy> {
+        let p = self.nodes.get(node as usize)?.as_ref()?;
+        (p.signature == self.signature[node as usize]).then_some(p)
+    }
+
+    /// Brings the content signatures up to date with the tree and the
+    /// scene's transforms and hidden flags (summed again only when the tree's
+    /// revision or a hidden flag changed), and advances the frame tick.
+    pub(crate) fn sync(&mut self, h: &Hierarchy, scene: &Scene, tree: &Tree) {
+        self.tick += 1;
+        let hidden_same = self.seen.as_ref().is_some_and(|(r, hidden)| {
+            *r == tree.revision()
+                && hidden.len() == scene.parts().len()
+                && hidden
+                    .iter()
+                    .zip(scene.parts())
+                    .all(|(&a, p)| a == p.hidden)
+        });
+        if hidden_same {
+            return;
+        }
+        self.part_hash.clear();
+        self.part_hash.extend(scene.part_ids().map(|p| {
+            let world = scene.part_world(p);
+            let cols = world.to_cols_array();
+            let mut hash = mix(u64::from(scene.part(p).hidden) + 1);
+            for x in cols {
+                hash = mix(hash ^ x.to_bits());
+            }
+            hash
+        }));
+        let mut signature = vec![0u64; h.nodes.len()];
+        let mut height = vec![0u8; h.nodes.len()];
+        for n in post_order(h) {
+            if let NodeKind::Internal = h.nodes[n as usize].kind {
+                let below = h.children(n).iter().map(|&c| height[c as usize]).max();
+                height[n as usize] = below.unwrap_or(0).saturating_add(1);
+            }
+            signature[n as usize] = match h.nodes[n as usize].kind {
+                NodeKind::Entry(e) => {
+                    let part = tree.entries()[e.0 as usize].part;
+                    // Never 0 (0 is "no content"): an entry's hash is odd.
+                    mix(self.part_hash[part.index()] ^ mix(u64::from(e.0))) | 1
+                }
+                _ => h
+                    .children(n)
+                    .iter()
+                    .fold(0u64, |s, &c| s.wrapping_add(signature[c as usize])),
+            };
+        }
+        self.level = (0..h.nodes.len())
+            .map(|n| match h.nodes[n].kind {
+                NodeKind::Entry(_) | NodeKind::Free => false,
+                _ if n as u32 == h.root => true,
+                _ => height[n] > 0 && height[n].is_multiple_of(LEVEL_STEP),
+            })
+            .collect();
+        self.changed.resize(h.nodes.len(), 0);
+        self.nodes.resize_with(h.nodes.len(), || None);
+        for (n, (&new, old)) in signature.iter().zip(&self.signature).enumerate() {
+            if new != *old {
+                self.changed[n] = self.tick;
+            }
+        }
+        for n in self.signature.len()..signature.len() {
+            self.changed[n] = self.tick;
+        }
+        self.signature = signature;
+        self.seen = Some((
+            tree.revision(),
+            scene.parts().iter().map(|p| p.hidden).collect(),
+        ));
+    }
+
+    /// Remakes stale proxies whose nodes have been calm for [`CALM_TICKS`],
+    /// children first, until the time budget is spent (at least one when any
+    /// is due); true when any was made.
+    pub(crate) fn refresh(
+        &mut self,
+        h: &Hierarchy,
+        scene: &Scene,
+        tree: &Tree,
+        source: &dyn GeometrySource,
+    ) -> bool {
+        let due = |p: &Self, n: u32| {
+            let n = n as usize;
+            p.level[n]
+                && p.nodes[n]
+                    .as_ref()
+                    .is_none_or(|x| x.signature != p.signature[n])
+                && p.tick >= p.changed[n] + CALM_TICKS
+        };
+        if !(0..self.nodes.len() as u32).any(|n| due(self, n)) {
+            return false;
+        }
+        let start = Instant::now();
+        let mut made = 0;
+        for n in post_order(h) {
+            if !due(self, n) {
+                continue;
+            }
+            if made > 0 && start.elapsed() >= self.options.refresh_budget {
+                break;
+            }
+            if self.remake(h, scene, tree, source, n) {
+                made += 1;
+            }
+        }
+        self.last = ProxyStats {
+            made,
+            ms: start.elapsed().as_secs_f64() * 1e3,
+            ..ProxyStats::default()
+        };
+        made > 0
+    }
+
+    /// Whether node `n` gets a proxy: the root, and nodes [`LEVEL_STEP`]
+    /// levels apart above the cells (cells themselves hold too little to
+    /// simplify), as the tree stood at the last [`Proxies::sync`].
+    pub(crate) fn is_level(&self, n: u32) -> bool {
+        self.level.get(n as usize).copied().unwrap_or(false)
+    }
+
+    /// Makes node `n`'s proxy from its current content: the proxies of the
+    /// nearest levels below, and the chunk instances of cells with none
+    /// between. False (and no proxy) when a chunk is not in `source` or a
+    /// level below has no current proxy.
+    fn remake(
+        &mut self,
+        h: &Hierarchy,
+        scene: &Scene,
+        tree: &Tree,
+        source: &dyn GeometrySource,
+        n: u32,
+    ) -> bool {
+        let node = &h.nodes[n as usize];
+        let mut merged = Merged {
+            origin: node.bounds.center(),
+            ..Merged::default()
+        };
+        let complete = match node.kind {
+            NodeKind::Cell(_) => merged.add_cell(h, scene, tree, source, n),
+            _ => h
+                .children(n)
+                .iter()
+                .all(|&c| self.gather(h, scene, tree, source, c, &mut merged)),
+        };
+        if !complete {
+            self.nodes[n as usize] = None;
+            return false;
+        }
+        let target = self.options.error_fraction * node.bounds.extent().length();
+        let (vertices, indices, error) = simplify(merged.vertices, &merged.indices, target);
+        self.nodes[n as usize] = Some(Box::new(Proxy {
+            origin: merged.origin,
+            vertices,
+            indices,
+            error: merged.error + ERROR_MARGIN * error,
+            signature: self.signature[n as usize],
+            source_triangles: merged.source_triangles,
+        }));
+        self.dirty.push(n);
+        true
+    }
+
+    /// Adds what stands below node `c` to `merged`: its proxy at a level,
+    /// a cell's chunk instances, or what its children add.
+    fn gather(
+        &self,
+        h: &Hierarchy,
+        scene: &Scene,
+        tree: &Tree,
+        source: &dyn GeometrySource,
+        c: u32,
+        merged: &mut Merged,
+    ) -> bool {
+        if self.is_level(c) {
+            return match self.current(c) {
+                Some(p) => {
+                    merged.add_proxy(p);
+                    true
+                }
+                None => false,
+            };
+        }
+        match h.nodes[c as usize].kind {
+            NodeKind::Cell(_) => merged.add_cell(h, scene, tree, source, c),
+            NodeKind::Internal => h
+                .children(c)
+                .iter()
+                .all(|&g| self.gather(h, scene, tree, source, g, merged)),
+            NodeKind::Entry(_) | NodeKind::Free => true,
+        }
+    }
+}
+
+/// A proxy's input being merged.
+#[derive(Default)]
+struct Merged {
+    origin: DVec3,
+    vertices: Vec<ProxyVertex>,
+    indices: Vec<u32>,
+    /// The largest error of the proxies merged.
+    error: f64,
+    source_triangles: u64,
+}
+
+impl Merged {
+    /// A cell's chunk instances, in entry order (the same content makes the
+    /// same proxy, whatever order the cell took its entries in), placed in
+    /// world space relative to the origin; hidden parts left out. False when
+    /// the source lacks a chunk.
+    fn add_cell(
+        &mut self,
+        h: &Hierarchy,
+        scene: &Scene,
+        tree: &Tree,
+        source: &dyn GeometrySource,
+        cell: u32,
+    ) -> bool {
+        let mut entries = h.children(cell).to_vec();
+        entries.sort_unstable();
+        for e in entries {
+            let entry = &tree.entries()[e as usize];
+            if scene.part(entry.part).hidden {
+                continue;
+            }
+            let Some(g) = source.chunk_geometry(entry.chunk) else {
+                return false;
+            };
+            self.source_triangles += u64::from(entry.triangles);
+            let world = scene.part_world(entry.part);
+            // Normals through the cofactor matrix (inverse transpose up to
+            // scale), as the mesh shader does.
+            let m = world.matrix3;
+            let cofactor = glam::DMat3::from_cols(
+                m.y_axis.cross(m.z_axis),
+                m.z_axis.cross(m.x_axis),
+                m.x_axis.cross(m.y_axis),
+            );
+            let base = self.vertices.len() as u32;
+            let origin = self.origin;
+            self.vertices
+                .extend(g.positions.iter().zip(g.normals).map(|(p, nrm)| {
+                    let w = world.transform_point3(p.as_dvec3()) - origin;
+                    let nn = (cofactor * nrm.as_dvec3()).normalize_or_zero();
+                    ProxyVertex {
+                        position: w.as_vec3().to_array(),
+                        normal: pack_normal(nn.as_vec3()),
+                        entry: e,
+                    }
+                }));
+            self.indices.extend(g.indices.iter().map(|&i| base + i));
+        }
+        true
+    }
+
+    /// A proxy of a level below, moved to this origin.
+    fn add_proxy(&mut self, p: &Proxy) {
+        let offset = p.origin - self.origin;
+        let base = self.vertices.len() as u32;
+        self.vertices.extend(p.vertices.iter().map(|v| {
+            ProxyVertex {
+                position: (Vec3::from(v.position).as_dvec3() + offset)
+                    .as_vec3()
+                    .to_array(),
+                ..*v
+            }
+        }));
+        self.indices.extend(p.indices.iter().map(|&i| base + i));
+        self.error = self.error.max(p.error);
+        self.source_triangles += p.source_triangles;
+    }
+}
+
+/// The mirror's nodes under the root, children before parents.
+fn post_order(h: &Hierarchy) -> Vec<u32> {
+    let mut order = h.pre_order();
+    order.reverse();
+    order
+}
+
+fn pack_normal(n: Vec3) -> [i8; 4] {
+    let snorm = |x: f32| (x.clamp(-1.0, 1.0) * 127.0).round() as i8;
+    [snorm(n.x), snorm(n.y), snorm(n.z), 0]
+}
+
+/// Simplifies a merged mesh until its error reaches `target_error` (world
+/// units), pruning pieces smaller than that; the used vertices, the indices
+/// into them and the simplifier's error estimate.
+///
+/// CAD chunks repeat a vertex per face at every hard edge (a box has 24), so
+/// to the simplifier every face would be a piece of its own that cannot
+/// collapse: it simplifies the positions welded (equal positions are one
+/// vertex), and each kept triangle's corner then takes, of the vertices
+/// welded there, the one whose normal best matches the triangle's, so hard
+/// edges keep their shading.
+fn simplify(
+    vertices: Vec<ProxyVertex>,
+    indices: &[u32],
+    target_error: f64,
+) -> (Vec<ProxyVertex>, Vec<u32>, f64) {
+    // Weld: one canonical vertex per distinct position.
+    let mut canonical: std::collections::HashMap<[u32; 3], u32> =
+        std::collections::HashMap::with_capacity(vertices.len());
+    let mut positions: Vec<[f32; 3]> = Vec::new();
+    let weld: Vec<u32> = vertices
+        .iter()
+        .map(|v| {
+            let key = v.position.map(f32::to_bits);
+            *canonical.entry(key).or_insert_with(|| {
+                positions.push(v.position);
+                positions.len() as u32 - 1
+            })
+        })
+        .collect();
+    // The vertices welded into each canonical one (compressed rows).
+    let mut start = vec![0u32; positions.len() + 1];
+    for &c in &weld {
+        start[c as usize + 1] += 1;
+    }
+    for i in 0..positions.len() {
+        start[i + 1] += start[i];
+    }
+    let mut members = vec![0u32; vertices.len()];
+    let mut fill = start.clone();
+    for (v, &c) in weld.iter().enumerate() {
+        members[fill[c as usize] as usize] = v as u32;
+        fill[c as usize] += 1;
+    }
+    let welded: Vec<u32> = indices.iter().map(|&i| weld[i as usize]).collect();
+    let (simplified, error) =
+        dmu_scene::simplify_to_error(&positions, &welded, target_error as f32);
+    // Back to real vertices, keeping only those used, in first-use order.
+    let mut remap = vec![u32::MAX; vertices.len()];
+    let mut kept = Vec::new();
+    let mut out = Vec::with_capacity(simplified.len());
+    for t in simplified.chunks_exact(3) {
+        let p = |c: u32| Vec3::from(positions[c as usize]);
+        let face = (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0]));
+        for &c in t {
+            let candidates = &members[start[c as usize] as usize..start[c as usize + 1] as usize];
+            let normal = |v: u32| {
+                let n = vertices[v as usize].normal;
+                Vec3::new(f32::from(n[0]), f32::from(n[1]), f32::from(n[2]))
+            };
+            let best = candidates
+                .iter()
+                .copied()
+                .max_by(|&a, &b| {
+                    face.dot(normal(a))
+                        .abs()
+                        .total_cmp(&face.dot(normal(b)).abs())
+                })
+                .expect("a canonical vertex welds at least one");
+            let slot = &mut remap[best as usize];
+            if *slot == u32::MAX {
+                *slot = kept.len() as u32;
+                kept.push(vertices[best as usize]);
+            }
+            out.push(*slot);
+        }
+    }
+    (kept, out, f64::from(error))
+}
+
+/// Whether `bounds` is drawn by its proxy of `error` world units at
+/// `max_error_px` pixels, as `coverage` measures it.
+pub(crate) fn proxy_fits(
+    coverage: &dmu_geom::Coverage,
+    bounds: &Aabb3d,
+    error: f64,
+    max_error_px: f64,
+) -> bool {
+    let diagonal = bounds.extent().length();
+    diagonal > 0.0 && coverage.size_px(bounds) * error / diagonal <= max_error_px
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dmu_samples::{PlantOptions, Rng, plant};
+    use dmu_scene::PartId;
+    use dmu_tree::TreeOptions;
+    use glam::DAffine3;
+
+    /// A fresh build on the current state: the brute-force answer.
+    fn fresh(scene: &Scene, tree: &Tree) -> Proxies {
+        Proxies::build(scene, tree, scene, ProxyOptions::default(), &mut |_, _| {})
+    }
+
+    fn same(a: &Proxy, b: &Proxy) -> bool {
+        a.origin == b.origin
+            && a.vertices == b.vertices
+            && a.indices == b.indices
+            && a.error == b.error
+            && a.source_triangles == b.source_triangles
+    }
+
+    /// Kept current through random moves, hides and frames, every proxy the
+    /// renderer would draw is the one a fresh build makes of what its node
+    /// holds now; once calm, all of them are there again.
+    #[test]
+    fn kept_proxies_equal_a_fresh_build_through_moves_and_hides() {
+        let mut scene = plant(&PlantOptions {
+            triangles: 250_000,
+            ..Default::default()
+        });
+        let mut tree = Tree::build(&scene, TreeOptions::default());
+        let mut h = Hierarchy::default();
+        h.sync(&tree);
+        let mut kept = fresh(&scene, &tree);
+        let first = kept.stats();
+        assert!(first.proxies > 0 && first.stale == 0, "{first:?}");
+        assert!(
+            first.triangles > 0 && kept.current(h.root).is_some(),
+            "the root has a proxy"
+        );
+        let mut rng = Rng::new(7);
+        let parts = scene.parts().len() as u32;
+        for round in 0..12 {
+            // A few edits, then frames: some too few to calm down.
+            for _ in 0..3 {
+                let part = PartId(rng.below(u64::from(parts)) as u32);
+                if rng.below(4) == 0 {
+                    let hidden = !scene.part(part).hidden;
+                    scene.set_part_hidden(part, hidden);
+                } else {
+                    let by = DVec3::new(
+                        rng.range(-20_000.0, 20_000.0),
+                        rng.range(-20_000.0, 20_000.0),
+                        rng.range(-2_000.0, 2_000.0),
+                    );
+                    let world = DAffine3::from_translation(by) * scene.part_world(part);
+                    tree.move_part(&mut scene, part, world);
+                }
+            }
+            let frames = 1 + round % 4;
+            for _ in 0..frames {
+                h.sync(&tree);
+                kept.sync(&h, &scene, &tree);
+                kept.refresh(&h, &scene, &tree, &scene);
+            }
+            let truth = fresh(&scene, &tree);
+            let mut current = 0;
+            for n in 0..h.nodes.len() as u32 {
+                if let Some(p) = kept.current(n) {
+                    current += 1;
+                    let t = truth.nodes[n as usize]
+                        .as_ref()
+                        .expect("a fresh build has it");
+                    assert!(
+                        same(p, t),
+                        "round {round}: node {n} differs from a fresh build"
+                    );
+                }
+            }
+            println!("round {round}: {current} current, {:?}", kept.stats());
+        }
+        // Calm: every node's proxy is made again.
+        for _ in 0..200 {
+            h.sync(&tree);
+            kept.sync(&h, &scene, &tree);
+            kept.refresh(&h, &scene, &tree, &scene);
+        }
+        let truth = fresh(&scene, &tree);
+        assert_eq!(kept.stats().stale, 0);
+        assert_eq!(kept.stats().proxies, truth.stats().proxies);
+    }
+
+    /// Proxies are simpler than what they stand for, claim an error no larger
+    /// than their aim plus their children's, and keep each vertex's entry one
+    /// of their subtree's.
+    #[test]
+    fn proxies_simplify_within_their_claim_and_keep_entries() {
+        let scene = plant(&PlantOptions {
+            triangles: 250_000,
+            ..Default::default()
+        });
+        let tree = Tree::build(&scene, TreeOptions::default());
+        let mut h = Hierarchy::default();
+        h.sync(&tree);
+        let proxies = fresh(&scene, &tree);
+        let root = proxies.current(h.root).expect("root proxy");
+        assert!(
+            root.triangles() * 4 < root.source_triangles,
+            "{} of {}",
+            root.triangles(),
+            root.source_triangles
+        );
+        let mut below = Vec::new();
+        for n in 0..h.nodes.len() as u32 {
+            let Some(p) = proxies.current(n) else {
+                continue;
+            };
+            below.clear();
+            h.leaves(n, &mut below);
+            below.sort_unstable();
+            for v in &p.vertices {
+                assert!(below.binary_search(&v.entry).is_ok(), "node {n}");
+            }
+            assert!(p.indices.iter().all(|&i| (i as usize) < p.vertices.len()));
+            let aim = ProxyOptions::default().error_fraction
+                * h.nodes[n as usize].bounds.extent().length();
+            // What it was made of: the proxies of the levels below.
+            let mut stack = h.children(n).to_vec();
+            let mut children_error = 0f64;
+            while let Some(c) = stack.pop() {
+                match proxies.current(c) {
+                    Some(p) => children_error = children_error.max(p.error),
+                    None => stack.extend_from_slice(h.children(c)),
+                }
+            }
+            assert!(
+                p.error <= children_error + ERROR_MARGIN * aim * 1.0001 + 1e-9,
+                "node {n}"
+            );
+            assert!(p.triangles() <= p.source_triangles, "node {n}");
+        }
+    }
+}
