@@ -588,31 +588,39 @@ fn a_streamed_import_names_the_broken_element() {
     let good = gltf("tri.bin", &nodes);
     let text = serde_json::to_vec(&good).unwrap();
     let cut = text.windows(6).position(|w| w == b"\"n100\"").unwrap();
-    let mut cases: Vec<(Vec<u8>, &str)> = vec![(text[..cut].to_vec(), "EOF while parsing")];
-    let mut edit = |change: &dyn Fn(&mut Value), needle| {
+    let mut cases: Vec<(Vec<u8>, &'static str)> = vec![(text[..cut].to_vec(), "EOF while parsing")];
+    let mut edit = |change: &dyn Fn(&mut Value), needle: &'static str| {
         let mut doc = good.clone();
         change(&mut doc);
         cases.push((serde_json::to_vec(&doc).unwrap(), needle));
     };
     edit(
-        &|d| d["accessors"][0]["count"] = json!(4_000_000_000u64),
+        &|d: &mut Value| d["accessors"][0]["count"] = json!(4_000_000_000u64),
         "accessors[0]: 4000000000 elements",
     );
+    // A count near 2^64 used to overflow the streaming import's batch estimate
+    // (a panic in a debug build).
     edit(
-        &|d| d["nodes"][0]["children"] = json!([1_000_000_000_000_000u64]),
+        &|d: &mut Value| d["accessors"][0]["count"] = json!(10_000_000_000_000_000_000u64),
+        "accessors[0]: 10000000000000000000 elements",
+    );
+    edit(
+        &|d: &mut Value| d["nodes"][0]["children"] = json!([1_000_000_000_000_000u64]),
         "nodes[0].children 1000000000000000 is out of range",
     );
     edit(
-        &|d| d["accessors"][0]["bufferView"] = json!(9),
+        &|d: &mut Value| d["accessors"][0]["bufferView"] = json!(9),
         "accessors[0]: bufferView 9 does not exist",
     );
     edit(
-        &|d| d["nodes"][199]["mesh"] = json!(7),
+        &|d: &mut Value| d["nodes"][199]["mesh"] = json!(7),
         "nodes[199].mesh: mesh 7 does not exist",
     );
-    edit(&|d| d["nodes"][5] = json!("n5"), "nodes[5]");
+    edit(&|d: &mut Value| d["nodes"][5] = json!("n5"), "nodes[5]");
     edit(
-        &|d| d["nodes"][3]["matrix"] = json!([1, 0, 0, 1, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]),
+        &|d: &mut Value| {
+            d["nodes"][3]["matrix"] = json!([1, 0, 0, 1, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1])
+        },
         "nodes[3].matrix: the last row",
     );
     for (i, (bytes, needle)) in cases.iter().enumerate() {

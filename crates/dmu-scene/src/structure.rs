@@ -1,7 +1,8 @@
 //! A scene's structure without its geometry as flat arrays: what a store's
-//! skeleton holds and what the streaming glTF import makes, a few dozen bytes a
-//! node, a part and a chunk and no allocation per element (names live in one
-//! string table per kind).
+//! skeleton holds and what the streaming glTF import makes. No allocation per
+//! element (names live in one string table per kind): 112 bytes a node (96 of
+//! them its f64 transform) and its name, 12 a part, 36 a chunk, 8 a mesh;
+//! chunk instances are not stored (a part instances all its mesh's chunks).
 
 use bytemuck::{Pod, Zeroable};
 use dmu_geom::Aabb3f;

@@ -121,6 +121,7 @@ impl FileNodes {
 /// A node as it is streamed: only what the import reads; every other member
 /// (extras, extensions, camera, skin, weights) is skipped unread.
 #[derive(Deserialize)]
+#[serde(expecting = "a node (an object)")]
 struct StreamNode {
     name: Option<String>,
     mesh: Option<JsonIndex>,

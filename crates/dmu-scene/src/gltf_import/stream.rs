@@ -371,7 +371,11 @@ fn mesh_working_set(root: &json::Root, mesh: &json::Mesh) -> u64 {
             .get(&Checked::Valid(Semantic::Positions))
             .map_or(0, |a| count(a.value()));
         let indices = prim.indices.map_or(positions, |a| count(a.value()));
-        bytes += PER_VERTEX * positions + PER_INDEX * indices;
+        // Saturating: a hostile count (up to 2^64 - 1) must not overflow here;
+        // decoding refuses it with the accessor's name.
+        bytes = bytes
+            .saturating_add(PER_VERTEX.saturating_mul(positions))
+            .saturating_add(PER_INDEX.saturating_mul(indices));
     }
     bytes
 }
@@ -381,18 +385,18 @@ fn mesh_working_set(root: &json::Root, mesh: &json::Mesh) -> u64 {
 fn batches(root: &json::Root, used: &[bool], batch_bytes: u64) -> Vec<Vec<usize>> {
     let mut out: Vec<Vec<usize>> = Vec::new();
     let mut current = Vec::new();
-    let mut bytes = 0;
+    let mut bytes = 0u64;
     for (m, mesh) in root.meshes.iter().enumerate() {
         if !used[m] {
             continue;
         }
         let need = mesh_working_set(root, mesh);
-        if !current.is_empty() && bytes + need > batch_bytes {
+        if !current.is_empty() && bytes.saturating_add(need) > batch_bytes {
             out.push(std::mem::take(&mut current));
             bytes = 0;
         }
         current.push(m);
-        bytes += need;
+        bytes = bytes.saturating_add(need);
     }
     if !current.is_empty() {
         out.push(current);
