@@ -312,7 +312,8 @@ fn with_skeleton(bytes: &[u8], change: impl FnOnce(&mut [u8])) -> Vec<u8> {
 fn a_crafted_skeleton_is_refused_by_its_own_checks() {
     let (_dir, path, bytes) = small_store();
     let node = |i: usize| 64 + 104 * i;
-    let cases: [(&str, Box<dyn Fn(&mut [u8])>); 4] = [
+    type Change = Box<dyn Fn(&mut [u8])>;
+    let cases: [(&str, Change); 4] = [
         ("do not make its", Box::new(|s| s[0] += 1)),
         (
             "do not make its",
