@@ -19,7 +19,8 @@ pub fn run(data: &[u8]) {
     std::fs::write(&path, data).expect("temporary file");
     let options = StreamOptions {
         chunk_triangles: dmu_scene::DEFAULT_CHUNK_TRIANGLES,
-        batch_bytes: 1 << 20,
+        memory_budget_bytes: 0,
+        min_batch_bytes: 1 << 20,
         progress: None,
     };
     let _ = import_gltf_streaming::<ImportError>(&path, &options, &mut |_, _| Ok(()));

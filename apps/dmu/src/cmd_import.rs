@@ -11,10 +11,10 @@ use crate::units::parse_bytes;
 
 /// Import a glTF file (.glb or .gltf) into a dmu store (.dmu).
 ///
-/// Meshes are decoded, chunked and written one batch at a time and dropped, so
-/// peak memory stays near the budget whatever the geometry's size (the glTF's
-/// JSON and the assembly structure are held whole). The store replaces OUTPUT
-/// only when complete.
+/// The JSON is read as a stream (nodes straight into flat arrays, a few dozen
+/// bytes each), and meshes are decoded, chunked and written one batch at a time
+/// and dropped, so peak memory stays near the budget whatever the geometry's
+/// size. The store replaces OUTPUT only when complete.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// The glTF file.
@@ -67,7 +67,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let peak_rss = peak_rss_bytes();
     if summary.fixed_bytes > args.memory_budget {
         eprintln!(
-            "dmu: warning: this model's structure (parsed glTF JSON, parts, assembly) needs about {:.0} MB on its own, over the {:.0} MB budget; geometry was streamed in the smallest batches",
+            "dmu: warning: this model's structure (nodes, parts, the JSON of meshes and accessors) needs about {:.0} MB on its own, over the {:.0} MB budget; geometry was streamed in the smallest batches",
             summary.fixed_bytes as f64 / 1e6,
             args.memory_budget as f64 / 1e6
         );
@@ -82,13 +82,13 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     }
     let s = &summary.store;
     println!(
-        "wrote {}: {} parts, {} triangles ({} unique), {} chunks, {} cells",
+        "wrote {}: {} parts, {} triangles ({} unique), {} chunks, {} chunk instances",
         s.path.display(),
         summary.parts,
         summary.triangles,
         summary.unique_triangles,
         s.chunks,
-        summary.cells
+        summary.chunk_instances
     );
     println!(
         "  {:.1} MB on disk ({:.1} MB of geometry, {:.1} MB decoded); imported in {:.1} s, peak memory {}",

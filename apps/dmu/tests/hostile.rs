@@ -575,3 +575,64 @@ fn a_far_part_does_not_clip_what_is_near() {
     let drawn = frames[0]["triangles_drawn"].as_u64().unwrap();
     assert!(drawn > 100, "{drawn} triangles drawn near the eye");
 }
+
+/// `dmu import` reads the JSON as a stream (issue 14): a document cut short,
+/// counts far beyond the file, and broken accessors and nodes each give one
+/// line naming the file and the element (exit 2), and no store.
+#[test]
+fn a_streamed_import_names_the_broken_element() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("tri.bin"), triangle_bytes()).unwrap();
+    let store = path(dir.path(), "out.dmu");
+    let nodes: Vec<Value> = (0..200).map(|i| named(&format!("n{i}"))).collect();
+    let good = gltf("tri.bin", &nodes);
+    let text = serde_json::to_vec(&good).unwrap();
+    let cut = text.windows(6).position(|w| w == b"\"n100\"").unwrap();
+    let mut cases: Vec<(Vec<u8>, &'static str)> = vec![(text[..cut].to_vec(), "EOF while parsing")];
+    let mut edit = |change: &dyn Fn(&mut Value), needle: &'static str| {
+        let mut doc = good.clone();
+        change(&mut doc);
+        cases.push((serde_json::to_vec(&doc).unwrap(), needle));
+    };
+    edit(
+        &|d: &mut Value| d["accessors"][0]["count"] = json!(4_000_000_000u64),
+        "accessors[0]: 4000000000 elements",
+    );
+    // A count near 2^64 used to overflow the streaming import's batch estimate
+    // (a panic in a debug build).
+    edit(
+        &|d: &mut Value| d["accessors"][0]["count"] = json!(10_000_000_000_000_000_000u64),
+        "accessors[0]: 10000000000000000000 elements",
+    );
+    edit(
+        &|d: &mut Value| d["nodes"][0]["children"] = json!([1_000_000_000_000_000u64]),
+        "nodes[0].children 1000000000000000 is out of range",
+    );
+    edit(
+        &|d: &mut Value| d["accessors"][0]["bufferView"] = json!(9),
+        "accessors[0]: bufferView 9 does not exist",
+    );
+    edit(
+        &|d: &mut Value| d["nodes"][199]["mesh"] = json!(7),
+        "nodes[199].mesh: mesh 7 does not exist",
+    );
+    edit(&|d: &mut Value| d["nodes"][5] = json!("n5"), "nodes[5]");
+    edit(
+        &|d: &mut Value| {
+            d["nodes"][3]["matrix"] = json!([1, 0, 0, 1, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1])
+        },
+        "nodes[3].matrix: the last row",
+    );
+    for (i, (bytes, needle)) in cases.iter().enumerate() {
+        let name = format!("case{i}.gltf");
+        let file = path(dir.path(), &name);
+        std::fs::write(&file, bytes).unwrap();
+        let err = refused(&dmu(&["import", &file, "-o", &store]), needle);
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+        assert!(err.contains(&name), "{err}");
+        assert!(!Path::new(&store).exists(), "{name}: a store was written");
+    }
+    // The unbroken file imports.
+    let file = write_gltf(dir.path(), "good.gltf", &good);
+    json(&dmu(&["import", &file, "-o", &store, "--json"]));
+}

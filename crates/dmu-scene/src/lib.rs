@@ -41,6 +41,7 @@ mod gltf_import;
 mod ids;
 mod lod;
 mod scene;
+mod structure;
 
 pub use atomic::{AtomicFile, open_regular_file, read_regular_file, write_file_atomically};
 pub use chunking::{ChunkData, ChunkedMesh, MeshData, MeshGroup, chunk_mesh, compute_normals};
@@ -49,10 +50,11 @@ pub use gltf_export::export_gltf;
 pub use gltf_import::{
     ImportOptions, ImportReport, SUPPORTED_REQUIRED, import_gltf, import_gltf_slice,
 };
-pub use gltf_import::{StreamOptions, import_gltf_streaming};
+pub use gltf_import::{StreamOptions, Streamed, import_gltf_streaming};
 pub use ids::{ChunkId, MaterialId, MeshId, NodeId, PartId};
 pub use lod::{LodLevel, MAX_LOD_LEVELS, MIN_LOD_TRIANGLES, lod_levels, simplify_to_error};
 pub use scene::{
     AssemblyNode, Chunk, ChunkGeometry, DEFAULT_CHUNK_TRIANGLES, MAX_WORLD_COORDINATE, Material,
     Mesh, Part, Scene, SceneBuilder, limits,
 };
+pub use structure::{ChunkEntry, MeshEntry, NO_PARENT, Names, NodeEntry, PartEntry, Structure};

@@ -555,15 +555,21 @@ impl Scene {
     /// far beyond it do). Every part of a valid scene has one; inputs that set
     /// one (an import, a typed move, a record's pose) are checked with this first.
     pub fn is_valid_world(&self, id: PartId, world: &DAffine3) -> bool {
-        let inside = |v: glam::DVec3| v.abs().max_element() <= MAX_WORLD_COORDINATE;
         let mesh = self.part_mesh(id);
-        world.is_finite()
-            && inside(world.translation)
-            && (mesh.triangles == 0 || {
-                let b = mesh.bounds.transformed(world);
-                inside(b.min) && inside(b.max)
-            })
+        world_is_valid(world, &mesh.bounds, mesh.triangles)
     }
+}
+
+/// Whether `world` is a valid world transform for a part whose mesh has the
+/// local box `bounds` and `triangles` triangles (see [`Scene::is_valid_world`]).
+pub(crate) fn world_is_valid(world: &DAffine3, bounds: &Aabb3f, triangles: u32) -> bool {
+    let inside = |v: glam::DVec3| v.abs().max_element() <= MAX_WORLD_COORDINATE;
+    world.is_finite()
+        && inside(world.translation)
+        && (triangles == 0 || {
+            let b = bounds.transformed(world);
+            inside(b.min) && inside(b.max)
+        })
 }
 
 /// The largest world coordinate a part may reach, in model units: 1e15 mm is a

@@ -29,7 +29,11 @@ compile_error!(
 /// The first eight bytes of every store.
 pub(crate) const MAGIC: [u8; 8] = *b"DMUSTORE";
 /// The format version this build writes and reads.
-pub const FORMAT_VERSION: u32 = 1;
+///
+/// Version 2 (issue 14) holds the skeleton as flat arrays (see `skeleton.rs`);
+/// version 1 stores (a bincode skeleton) are refused with a request to
+/// re-import the model.
+pub const FORMAT_VERSION: u32 = 2;
 /// Written as a native `u32` by a little-endian writer: reads back swapped on a
 /// big-endian one.
 const BYTE_ORDER_MARK: u32 = 0x0102_0304;
@@ -342,6 +346,8 @@ pub(crate) trait ReadAt {
     fn read_exact_at(&self, offset: u64, len: u64) -> std::io::Result<Vec<u8>>;
     /// Up to `len` bytes at `offset` (fewer at the end of the file).
     fn read_at_most(&self, offset: u64, len: u64) -> std::io::Result<Vec<u8>>;
+    /// Fills `buf` from `offset`; `UnexpectedEof` when the file is shorter.
+    fn read_into(&self, offset: u64, buf: &mut [u8]) -> std::io::Result<()>;
 }
 
 impl ReadAt for std::fs::File {
@@ -351,8 +357,12 @@ impl ReadAt for std::fs::File {
 
     fn read_exact_at(&self, offset: u64, len: u64) -> std::io::Result<Vec<u8>> {
         let mut buf = vec![0; usize::try_from(len).map_err(std::io::Error::other)?];
-        std::os::unix::fs::FileExt::read_exact_at(self, &mut buf, offset)?;
+        self.read_into(offset, &mut buf)?;
         Ok(buf)
+    }
+
+    fn read_into(&self, offset: u64, buf: &mut [u8]) -> std::io::Result<()> {
+        std::os::unix::fs::FileExt::read_exact_at(self, buf, offset)
     }
 
     fn read_at_most(&self, offset: u64, len: u64) -> std::io::Result<Vec<u8>> {
@@ -384,7 +394,7 @@ fn io_error(path: &Path, source: std::io::Error) -> StoreError {
 
 /// A failed read of `what`, which ends at byte `end`: a file that became shorter
 /// than its table of contents says (truncated while open) is `Truncated`.
-fn read_error(
+pub(crate) fn read_error(
     path: &Path,
     source: std::io::Error,
     what: &str,

@@ -1,23 +1,27 @@
-//! Streaming import of glTF into a store: each mesh is chunked, written and
-//! dropped as it is decoded; the skeleton and the tree come from chunk boxes.
+//! Streaming import of glTF into a store: the JSON is read as a stream into the
+//! structure's flat arrays, each mesh is chunked, written and dropped as it is
+//! decoded, and the skeleton is written from the flat arrays as they are.
 
 use std::path::Path;
 
 use dmu_scene::{ImportReport, StreamOptions, import_gltf_streaming};
-use dmu_tree::{Tree, TreeOptions};
 
 use crate::error::StoreError;
 use crate::write::{StoreSummary, StoreWriter, WriteOptions};
+
+/// The smallest decoding batch, whatever the budget leaves.
+const MIN_BATCH_BYTES: u64 = 16 << 20;
 
 /// Settings of [`import_gltf`].
 #[derive(Clone, Copy)]
 pub struct ImportOptions<'a> {
     /// Maximum triangles per chunk.
     pub chunk_triangles: u32,
-    /// Peak memory to stay within. The parsed glTF JSON and the scene's
-    /// structure are needed whole (they grow with the node count, not with the
-    /// geometry); decoding batches get half of what remains after an estimate
-    /// of them, the other half is headroom for the allocator and the writer.
+    /// Peak memory to stay within. The structure (the nodes as flat arrays,
+    /// the typed JSON of meshes, accessors and materials) is held whole: it
+    /// grows with the node count, not with the geometry; decoding batches get
+    /// half of what remains after it (at least 16 MiB), the other half is
+    /// headroom for the allocator and the writer.
     pub memory_budget_bytes: u64,
     /// How geometry is written.
     pub write: WriteOptions,
@@ -42,66 +46,65 @@ pub struct ImportSummary {
     pub store: StoreSummary,
     /// What the glTF import skipped or repaired.
     pub report: ImportReport,
+    /// Assembly nodes (the root included).
+    pub nodes: u64,
     /// Parts.
     pub parts: u64,
+    /// Chunk instances over all parts (what the cell tree holds once opened).
+    pub chunk_instances: u64,
     /// Triangles, instances counted.
     pub triangles: u64,
     /// Triangles stored once per mesh.
     pub unique_triangles: u64,
-    /// Cells of the tree built from the chunk boxes.
-    pub cells: u64,
     /// Bytes each decoding batch was allowed.
     pub batch_bytes: u64,
-    /// Estimated bytes of what is held whole whatever the budget: the parsed
-    /// JSON and the scene's structure. Over the budget, the budget cannot hold.
+    /// Estimated bytes held beside the batches whatever the budget: the nodes'
+    /// flat arrays and the typed JSON of the other members. Over the budget,
+    /// the budget cannot hold.
     pub fixed_bytes: u64,
+    /// The most bytes the structure's flat arrays held at once (counted).
+    pub structure_peak_bytes: u64,
 }
 
 /// Imports a .glb or .gltf file into a store at `output`, never holding more
-/// than a batch of meshes' geometry (see [`ImportOptions::memory_budget_bytes`]).
-/// The store replaces `output` only once complete.
+/// than a batch of meshes' geometry (see [`ImportOptions::memory_budget_bytes`])
+/// nor the glTF's JSON as a document. The store replaces `output` only once
+/// complete.
 pub fn import_gltf(
     input: &Path,
     output: &Path,
     options: &ImportOptions<'_>,
 ) -> Result<ImportSummary, StoreError> {
-    let json_bytes = json_size(input).map_err(|source| StoreError::Io {
-        path: input.to_owned(),
-        source,
-    })?;
-    // Measured on the 100M-triangle plant: the JSON parsed twice (a value tree,
-    // then typed) peaks near ten times its size, and the skeleton of its nodes is
-    // about a third of it again.
-    let fixed = json_bytes.saturating_mul(14);
-    let batch_bytes = (options.memory_budget_bytes.saturating_sub(fixed) / 2).max(16 << 20);
     let mut writer = StoreWriter::create(output, options.write)?;
     let stream = StreamOptions {
         chunk_triangles: options.chunk_triangles,
-        batch_bytes,
+        memory_budget_bytes: options.memory_budget_bytes,
+        min_batch_bytes: MIN_BATCH_BYTES,
         progress: options.progress,
     };
-    let import_error = |source| StoreError::Import {
-        path: input.to_owned(),
-        source,
-    };
-    let (skeleton, report) = import_gltf_streaming::<Wrapped>(input, &stream, &mut |_, mesh| {
+    let streamed = import_gltf_streaming::<Wrapped>(input, &stream, &mut |_, mesh| {
         writer.add_mesh(&mesh).map_err(Wrapped::Store)
     })
     .map_err(|e| match e {
         Wrapped::Store(e) => e,
-        Wrapped::Import(e) => import_error(e),
+        Wrapped::Import(source) => StoreError::Import {
+            path: input.to_owned(),
+            source,
+        },
     })?;
-    let tree = Tree::build(&skeleton, TreeOptions::default());
-    let store = writer.finish(&skeleton)?.commit()?;
+    let structure = &streamed.structure;
+    let store = writer.finish(structure)?.commit()?;
     Ok(ImportSummary {
         store,
-        report,
-        parts: skeleton.parts().len() as u64,
-        triangles: skeleton.triangle_count(),
-        unique_triangles: skeleton.unique_triangle_count(),
-        cells: tree.cell_count() as u64,
-        batch_bytes,
-        fixed_bytes: fixed,
+        report: streamed.report,
+        nodes: structure.nodes.len() as u64,
+        parts: structure.parts.len() as u64,
+        chunk_instances: structure.chunk_instance_count(),
+        triangles: structure.triangle_count(),
+        unique_triangles: structure.unique_triangle_count(),
+        batch_bytes: streamed.batch_bytes,
+        fixed_bytes: streamed.fixed_bytes,
+        structure_peak_bytes: streamed.structure_peak_bytes,
     })
 }
 
@@ -115,18 +118,4 @@ impl From<dmu_scene::ImportError> for Wrapped {
     fn from(e: dmu_scene::ImportError) -> Self {
         Wrapped::Import(e)
     }
-}
-
-/// Bytes of the glTF JSON: the GLB's JSON chunk, or the whole .gltf file.
-fn json_size(path: &Path) -> std::io::Result<u64> {
-    use std::io::Read as _;
-    let mut head = [0u8; 20];
-    let mut file = dmu_scene::open_regular_file(path)?;
-    let len = file.metadata()?.len();
-    let n = file.read(&mut head)?;
-    Ok(if n == 20 && head.starts_with(b"glTF") {
-        u64::from(u32::from_le_bytes([head[12], head[13], head[14], head[15]]))
-    } else {
-        len
-    })
 }

@@ -9,7 +9,10 @@
 //!   for the header (the SJT layout of the MMDr thesis, 3.1.5).
 //! - One segment per chunk's geometry (the unit of loading everywhere) and one
 //!   skeleton segment with everything else: materials, the assembly tree and its
-//!   f64 transforms, parts, each mesh's chunk table with the chunk boxes. The
+//!   f64 transforms, parts, each mesh's chunk table with the chunk boxes, as
+//!   flat aligned arrays ([`dmu_scene::Structure`]: a few dozen bytes a node,
+//!   part and chunk, names in one string table) written as they are and read
+//!   back with `pread` straight into them (format version 2; issue 14). The
 //!   skeleton opens as a [`dmu_scene::Scene`] whose geometry is not loaded, and
 //!   the cell tree is built from it (chunk boxes alone, about 80 ms for 100M
 //!   triangles) rather than stored: it is derived data, and rebuilding it cannot

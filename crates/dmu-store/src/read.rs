@@ -58,12 +58,13 @@ impl Store {
         let file = dmu_scene::open_regular_file(path).map_err(io)?;
         let layout = format::parse(&file, path)?;
         let file_bytes = format::ReadAt::len(&file).map_err(io)?;
-        let bytes = format::verified(&file, &layout.skeleton, || "the skeleton".into(), path)?;
         let corrupt = |what: String| StoreError::Corrupt {
             path: path.to_owned(),
             what,
         };
-        let skeleton = skeleton::decode(&bytes).map_err(corrupt)?;
+        let skeleton = skeleton::read(&file, &layout.skeleton, path)?
+            .into_scene()
+            .map_err(|e| corrupt(format!("the skeleton: {e}")))?;
         if skeleton.chunks().len() != layout.chunks.len() {
             return Err(corrupt(format!(
                 "the skeleton has {} chunks, the table of contents {}",

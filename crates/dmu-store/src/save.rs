@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use dmu_scene::{ChunkId, Scene};
+use dmu_scene::{ChunkId, Scene, Structure};
 
 use crate::error::StoreError;
 use crate::read::Store;
@@ -40,7 +40,7 @@ pub fn prepare_save(store: &Store, scene: &Scene) -> Result<PendingStore, StoreE
             chunk.triangle_count(),
         )?;
     }
-    writer.finish(scene)
+    writer.finish(&Structure::of(scene))
 }
 
 /// The format a model is saved in, named by the output's extension.

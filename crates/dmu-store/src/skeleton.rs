@@ -1,245 +1,213 @@
 //! The skeleton segment: everything but the geometry (materials, the assembly
-//! tree with f64 transforms, parts, each mesh's chunk table with boxes), bincode
-//! encoded. Decoding checks every index and count before the scene is built, so
-//! a crafted skeleton gives an error and never a panic.
+//! tree with f64 transforms, parts, each mesh's chunk table with boxes) as flat
+//! little-endian arrays, each at a 16-byte boundary:
+//!
+//! ```text
+//! header     8 counts (u64): nodes, node name bytes, parts, meshes,
+//!            mesh name bytes, chunks, materials, material name bytes
+//! nodes      NodeEntry x nodes          parent u32, 0 u32, world 12 x f64
+//! node names u64 end x nodes, then the UTF-8 bytes
+//! parts      PartEntry x parts          node u32, mesh u32, hidden u32
+//! meshes     MeshEntry x meshes         chunks u32, degenerate triangles u32
+//! mesh names u64 end x meshes, then the bytes
+//! chunks     ChunkEntry x chunks        material, vertices, triangles u32, min, max 3 x f32
+//! materials  [f32; 4] x materials, then their names as above
+//! ```
+//!
+//! It is written from a [`Structure`]'s arrays as they are (no encoding copy)
+//! and read with `pread` straight into them, array by array, while its checksum
+//! is computed; the counts must account for the segment's length exactly,
+//! which bounds what a corrupt count can make the reader allocate. Every index,
+//! count and number is checked ([`Structure::check`]) before the scene is
+//! built, so a crafted skeleton gives an error and never a panic.
 
-use dmu_geom::Aabb3f;
+use std::path::Path;
+
+use bytemuck::{Pod, Zeroable};
 use dmu_scene::{
-    ChunkData, ChunkId, ChunkedMesh, DEFAULT_CHUNK_TRIANGLES, MaterialId, MeshId, NodeId, PartId,
-    Scene, SceneBuilder,
+    ChunkData, ChunkEntry, ChunkId, ChunkedMesh, DEFAULT_CHUNK_TRIANGLES, MeshEntry, MeshId, Names,
+    NodeEntry, PartEntry, PartId, Scene, SceneBuilder, Structure,
 };
-use glam::{DAffine3, Vec3};
-use serde::{Deserialize, Serialize};
+use xxhash_rust::xxh3::Xxh3;
 
 use crate::error::StoreError;
+use crate::format::{ALIGN, ReadAt, TocEntry, read_error};
 use crate::geometry::OwnedChunkGeometry;
 
-/// The largest skeleton decoded: a bound on what a corrupt length prefix can
-/// make the decoder allocate. A million parts take about 150 MB.
-const MAX_SKELETON_BYTES: usize = 1 << 30;
-
-fn config() -> impl bincode::config::Config {
-    bincode::config::standard().with_limit::<MAX_SKELETON_BYTES>()
+/// The counts that open the skeleton segment.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct Counts {
+    nodes: u64,
+    node_name_bytes: u64,
+    parts: u64,
+    meshes: u64,
+    mesh_name_bytes: u64,
+    chunks: u64,
+    materials: u64,
+    material_name_bytes: u64,
 }
+const _: () = assert!(size_of::<Counts>() == 64);
 
-#[derive(Serialize, Deserialize)]
-struct Record {
-    name: String,
-    materials: Vec<(String, [f32; 4])>,
-    /// Nodes after the root, in id order (parents first).
-    nodes: Vec<NodeRecord>,
-    meshes: Vec<MeshRecord>,
-    /// All chunks in id order; each mesh takes the next `chunks` of them.
-    chunks: Vec<ChunkRecord>,
-    parts: Vec<PartRecord>,
-}
+impl Counts {
+    fn of(s: &Structure) -> Self {
+        Self {
+            nodes: s.nodes.len() as u64,
+            node_name_bytes: s.node_names.bytes.len() as u64,
+            parts: s.parts.len() as u64,
+            meshes: s.meshes.len() as u64,
+            mesh_name_bytes: s.mesh_names.bytes.len() as u64,
+            chunks: s.chunks.len() as u64,
+            materials: s.materials.len() as u64,
+            material_name_bytes: s.material_names.bytes.len() as u64,
+        }
+    }
 
-#[derive(Serialize, Deserialize)]
-struct NodeRecord {
-    name: String,
-    /// The parent's node id (0 is the root), below this node's id.
-    parent: u32,
-    /// Column-major 3x4 world transform.
-    world: [f64; 12],
-}
+    /// Bytes of each array after the counts, in file order; `None` on overflow.
+    fn array_bytes(&self) -> Option<[u64; 11]> {
+        let n = |count: u64, size: usize| count.checked_mul(size as u64);
+        Some([
+            n(self.nodes, size_of::<NodeEntry>())?,
+            n(self.nodes, 8)?,
+            self.node_name_bytes,
+            n(self.parts, size_of::<PartEntry>())?,
+            n(self.meshes, size_of::<MeshEntry>())?,
+            n(self.meshes, 8)?,
+            self.mesh_name_bytes,
+            n(self.chunks, size_of::<ChunkEntry>())?,
+            n(self.materials, 16)?,
+            n(self.materials, 8)?,
+            self.material_name_bytes,
+        ])
+    }
 
-#[derive(Serialize, Deserialize)]
-struct MeshRecord {
-    name: String,
-    chunks: u32,
-    degenerate_triangles: u32,
-}
-
-#[derive(Serialize, Deserialize)]
-struct ChunkRecord {
-    material: u32,
-    vertices: u32,
-    triangles: u32,
-    min: [f32; 3],
-    max: [f32; 3],
-}
-
-#[derive(Serialize, Deserialize)]
-struct PartRecord {
-    node: u32,
-    mesh: u32,
-    hidden: bool,
-}
-
-/// The skeleton of a scene, loaded or not.
-pub(crate) fn encode(scene: &Scene) -> Vec<u8> {
-    let record = Record {
-        name: scene.name().to_owned(),
-        materials: scene
-            .materials()
+    /// The segment's length: the counts and every array padded to [`ALIGN`]
+    /// but the last (the segment's own padding follows it).
+    fn segment_bytes(&self) -> Option<u64> {
+        let arrays = self.array_bytes()?;
+        let padded = arrays
             .iter()
-            .map(|m| (m.name.clone(), m.base_color))
-            .collect(),
-        nodes: scene.nodes()[1..]
-            .iter()
-            .map(|n| NodeRecord {
-                name: n.name.clone(),
-                parent: n.parent.map_or(0, |p| p.0),
-                world: n.world.to_cols_array(),
-            })
-            .collect(),
-        meshes: scene
-            .meshes()
-            .iter()
-            .map(|m| MeshRecord {
-                name: m.name.clone(),
-                chunks: m.chunks.len() as u32,
-                degenerate_triangles: m.degenerate_triangles,
-            })
-            .collect(),
-        chunks: scene
-            .chunks()
-            .iter()
-            .map(|c| ChunkRecord {
-                material: c.material.0,
-                vertices: c.vertices.end - c.vertices.start,
-                triangles: c.triangle_count(),
-                min: c.bounds.min.to_array(),
-                max: c.bounds.max.to_array(),
-            })
-            .collect(),
-        parts: scene
-            .parts()
-            .iter()
-            .map(|p| PartRecord {
-                node: p.node.0,
-                mesh: p.mesh.0,
-                hidden: p.hidden,
-            })
-            .collect(),
+            .try_fold(size_of::<Self>() as u64, |total, &b| {
+                total.checked_add(b.checked_next_multiple_of(ALIGN)?)
+            })?;
+        let last = arrays[arrays.len() - 1];
+        Some(padded - (last.next_multiple_of(ALIGN) - last))
+    }
+}
+
+/// The skeleton segment of `s`, as the byte slices to write one after the other,
+/// each padded to [`ALIGN`] with zeros by the writer.
+pub(crate) fn pieces(s: &Structure) -> ([u8; 64], [&[u8]; 11]) {
+    let counts = bytemuck::cast(Counts::of(s));
+    let pieces = [
+        bytemuck::cast_slice(&s.nodes),
+        bytemuck::cast_slice(&s.node_names.ends),
+        &s.node_names.bytes[..],
+        bytemuck::cast_slice(&s.parts),
+        bytemuck::cast_slice(&s.meshes),
+        bytemuck::cast_slice(&s.mesh_names.ends),
+        &s.mesh_names.bytes[..],
+        bytemuck::cast_slice(&s.chunks),
+        bytemuck::cast_slice(&s.materials),
+        bytemuck::cast_slice(&s.material_names.ends),
+        &s.material_names.bytes[..],
+    ];
+    (counts, pieces)
+}
+
+/// Reads the skeleton segment `entry` of `file` into a [`Structure`], checking
+/// its checksum and its layout (not yet its contents: [`Structure::check`]).
+pub(crate) fn read(
+    file: &impl ReadAt,
+    entry: &TocEntry,
+    path: &Path,
+) -> Result<Structure, StoreError> {
+    let corrupt = |what: String| StoreError::Corrupt {
+        path: path.to_owned(),
+        what: format!("the skeleton: {what}"),
     };
-    bincode::serde::encode_to_vec(&record, config()).expect("encoding to memory cannot fail")
-}
-
-/// Decodes a skeleton into a scene whose geometry is not loaded.
-pub(crate) fn decode(bytes: &[u8]) -> Result<Scene, String> {
-    let (record, used): (Record, usize) = bincode::serde::decode_from_slice(bytes, config())
-        .map_err(|e| format!("skeleton does not decode: {e}"))?;
-    if used != bytes.len() {
-        return Err(format!(
-            "skeleton has {} bytes after its end",
-            bytes.len() - used
-        ));
+    let end = entry.offset + entry.padded_len();
+    let mut hash = Xxh3::new();
+    let mut at = entry.offset;
+    let mut read = |buf: &mut [u8]| -> Result<(), StoreError> {
+        let padded = (buf.len() as u64).next_multiple_of(ALIGN);
+        let result = file.read_into(at, buf).and_then(|()| {
+            let mut pad = [0u8; ALIGN as usize];
+            let pad = &mut pad[..(padded - buf.len() as u64) as usize];
+            file.read_into(at + buf.len() as u64, pad)?;
+            hash.update(buf);
+            hash.update(pad);
+            Ok(())
+        });
+        result.map_err(|source| {
+            let actual = file.len().unwrap_or(0);
+            read_error(path, source, "the skeleton", end, actual)
+        })?;
+        at += padded;
+        Ok(())
+    };
+    if entry.length < size_of::<Counts>() as u64 {
+        return Err(corrupt(format!(
+            "{} bytes, shorter than its counts",
+            entry.length
+        )));
     }
-    check(&record)?;
-    let mut b = SceneBuilder::new(record.name, DEFAULT_CHUNK_TRIANGLES);
-    for (name, color) in record.materials {
-        b.add_material(name, color);
+    let mut counts = Counts::zeroed();
+    read(bytemuck::bytes_of_mut(&mut counts))?;
+    if counts.segment_bytes() != Some(entry.length) {
+        return Err(corrupt(format!(
+            "its counts ({} nodes, {} parts, {} meshes, {} chunks, {} materials) do not make its {} bytes",
+            counts.nodes,
+            counts.parts,
+            counts.meshes,
+            counts.chunks,
+            counts.materials,
+            entry.length
+        )));
     }
-    for n in record.nodes {
-        b.add_node(
-            NodeId(n.parent),
-            n.name,
-            DAffine3::from_cols_array(&n.world),
-        );
+    // Every count is now bounded by the segment's length, which the table of
+    // contents bounds by the file's.
+    fn array<T: Pod>(
+        n: u64,
+        read: &mut dyn FnMut(&mut [u8]) -> Result<(), StoreError>,
+    ) -> Result<Vec<T>, StoreError> {
+        let mut v = vec![T::zeroed(); n as usize];
+        read(bytemuck::cast_slice_mut(&mut v))?;
+        Ok(v)
     }
-    let mut chunks = record.chunks.into_iter();
-    for m in record.meshes {
-        let (mut tri, mut vert) = (0u32, 0u32);
-        let table = chunks
-            .by_ref()
-            .take(m.chunks as usize)
-            .map(|c| {
-                let data = ChunkData {
-                    material: MaterialId(c.material),
-                    triangles: tri..tri + c.triangles,
-                    vertices: vert..vert + c.vertices,
-                    bounds: Aabb3f {
-                        min: Vec3::from_array(c.min),
-                        max: Vec3::from_array(c.max),
-                    },
-                };
-                (tri, vert) = (data.triangles.end, data.vertices.end);
-                data
-            })
-            .collect();
-        b.add_unloaded_mesh(m.name, table, m.degenerate_triangles);
+    let names = |n: u64, bytes: u64, read: &mut dyn FnMut(&mut [u8]) -> Result<(), StoreError>| {
+        Ok::<_, StoreError>(Names {
+            ends: array(n, read)?,
+            bytes: array(bytes, read)?,
+        })
+    };
+    let nodes = array(counts.nodes, &mut read)?;
+    let node_names = names(counts.nodes, counts.node_name_bytes, &mut read)?;
+    let parts = array(counts.parts, &mut read)?;
+    let meshes = array(counts.meshes, &mut read)?;
+    let mesh_names = names(counts.meshes, counts.mesh_name_bytes, &mut read)?;
+    let chunks = array(counts.chunks, &mut read)?;
+    let materials = array(counts.materials, &mut read)?;
+    let material_names = names(counts.materials, counts.material_name_bytes, &mut read)?;
+    let computed = hash.digest();
+    if computed != entry.checksum {
+        return Err(StoreError::Checksum {
+            path: path.to_owned(),
+            segment: "the skeleton".into(),
+            stored: entry.checksum,
+            computed,
+        });
     }
-    let mut hidden = Vec::new();
-    for p in record.parts {
-        let part = b.add_part(NodeId(p.node), MeshId(p.mesh));
-        if p.hidden {
-            hidden.push(part);
-        }
-    }
-    let mut scene = b.finish();
-    for part in hidden {
-        scene.set_part_hidden(part, true);
-    }
-    scene.validate().map_err(|e| e.to_string())?;
-    Ok(scene)
-}
-
-/// Everything the builder would panic on, and everything `Scene::validate`
-/// checks that the builder does not make true by construction.
-fn check(r: &Record) -> Result<(), String> {
-    let node_count = r.nodes.len() + 1;
-    for (i, n) in r.nodes.iter().enumerate() {
-        let id = i + 1;
-        if n.parent as usize >= id {
-            return Err(format!(
-                "node {id}: parent {} is not stored before it",
-                n.parent
-            ));
-        }
-        if !n.world.iter().all(|v| v.is_finite()) {
-            return Err(format!("node {id}: transform is not finite"));
-        }
-    }
-    let mut chunk_total = 0usize;
-    for (m, mesh) in r.meshes.iter().enumerate() {
-        let first = chunk_total;
-        chunk_total = chunk_total
-            .checked_add(mesh.chunks as usize)
-            .filter(|&t| t <= r.chunks.len())
-            .ok_or_else(|| format!("mesh {m}: its chunks run past the chunk table"))?;
-        let (mut tri, mut vert) = (0u32, 0u32);
-        for (k, c) in r.chunks[first..chunk_total].iter().enumerate() {
-            let id = first + k;
-            if c.material as usize >= r.materials.len() {
-                return Err(format!("chunk {id}: material {} out of range", c.material));
-            }
-            // Chunks are never empty; an empty one would make a mesh of no
-            // triangles whose vertex ranges point at nothing.
-            if c.triangles == 0 || c.vertices == 0 {
-                return Err(format!("chunk {id}: empty"));
-            }
-            tri = tri
-                .checked_add(c.triangles)
-                .ok_or_else(|| format!("mesh {m}: over 4G triangles"))?;
-            vert = vert
-                .checked_add(c.vertices)
-                .ok_or_else(|| format!("mesh {m}: over 4G vertices"))?;
-            let finite = c.min.iter().chain(&c.max).all(|v| v.is_finite());
-            if !finite || (0..3).any(|k| c.min[k] > c.max[k]) {
-                return Err(format!("chunk {id}: box empty or not finite"));
-            }
-        }
-    }
-    if chunk_total != r.chunks.len() {
-        return Err(format!(
-            "{} chunks belong to no mesh",
-            r.chunks.len() - chunk_total
-        ));
-    }
-    let mut has_part = vec![false; node_count];
-    for (i, p) in r.parts.iter().enumerate() {
-        if p.node == 0 || p.node as usize >= node_count {
-            return Err(format!("part {i}: node {} out of range", p.node));
-        }
-        if std::mem::replace(&mut has_part[p.node as usize], true) {
-            return Err(format!("part {i}: node {} already has a part", p.node));
-        }
-        if p.mesh as usize >= r.meshes.len() {
-            return Err(format!("part {i}: mesh {} out of range", p.mesh));
-        }
-    }
-    Ok(())
+    Ok(Structure {
+        nodes,
+        node_names,
+        parts,
+        meshes,
+        mesh_names,
+        chunks,
+        materials,
+        material_names,
+    })
 }
 
 /// The scene of `skeleton` with its geometry, chunk by chunk from `geometry`.

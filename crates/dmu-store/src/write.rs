@@ -7,7 +7,7 @@ use std::io::{BufWriter, Seek as _, SeekFrom, Write as _};
 use std::path::{Path, PathBuf};
 
 use dmu_geom::Aabb3f;
-use dmu_scene::{AtomicFile, ChunkGeometry, ChunkedMesh, Scene};
+use dmu_scene::{AtomicFile, ChunkGeometry, ChunkedMesh, Scene, Structure};
 use xxhash_rust::xxh3::Xxh3;
 
 use crate::error::StoreError;
@@ -95,24 +95,31 @@ impl StoreWriter {
         }
     }
 
-    /// Appends one segment, zero padded to the alignment; returns its entry.
-    fn segment(&mut self, id: u32, kind: u32, payload: &[u8]) -> Result<TocEntry, StoreError> {
+    /// Appends one segment made of `pieces`, each zero padded to the alignment
+    /// (the segment's length counts the padding between pieces, not after the
+    /// last); returns its entry.
+    fn segment(&mut self, id: u32, kind: u32, pieces: &[&[u8]]) -> Result<TocEntry, StoreError> {
         let padding = [0u8; ALIGN as usize];
-        let pad = &padding[..(payload.len().next_multiple_of(ALIGN as usize) - payload.len())];
         let mut hash = Xxh3::new();
-        hash.update(payload);
-        hash.update(pad);
+        let (mut length, mut last_pad) = (0, 0);
+        for piece in pieces {
+            let pad = &padding[..(piece.len().next_multiple_of(ALIGN as usize) - piece.len())];
+            last_pad = pad.len() as u64;
+            hash.update(piece);
+            hash.update(pad);
+            self.file
+                .write_all(piece)
+                .and_then(|()| self.file.write_all(pad))
+                .map_err(|e| self.io(e))?;
+            length += (piece.len() + pad.len()) as u64;
+        }
         let entry = TocEntry {
             id,
             kind,
             offset: self.offset,
-            length: payload.len() as u64,
+            length: length - last_pad,
             checksum: hash.digest(),
         };
-        self.file
-            .write_all(payload)
-            .and_then(|()| self.file.write_all(pad))
-            .map_err(|e| self.io(e))?;
         self.offset += entry.padded_len();
         self.toc.push(entry);
         Ok(entry)
@@ -138,7 +145,7 @@ impl StoreWriter {
         triangles: u32,
     ) -> Result<(), StoreError> {
         let id = u32::try_from(self.shapes.len()).expect("over 4G chunks");
-        let entry = self.segment(id, KIND_CHUNK, bytes)?;
+        let entry = self.segment(id, KIND_CHUNK, &[bytes])?;
         self.shapes.push((vertices, triangles));
         self.summary.chunks += 1;
         self.summary.geometry_file_bytes += entry.padded_len();
@@ -168,26 +175,29 @@ impl StoreWriter {
         self.shapes.len()
     }
 
-    /// Writes the skeleton of `scene` (its structure, transforms and chunk
-    /// tables; its geometry, if loaded, is not read) and the table of contents,
-    /// and syncs the file; nothing is in place until [`PendingStore::commit`].
+    /// Writes the skeleton (`structure`: the scene's nodes, transforms, parts
+    /// and chunk tables) and the table of contents, and syncs the file; nothing
+    /// is in place until [`PendingStore::commit`].
     ///
     /// # Panics
-    /// When the chunks written are not those of `scene`'s chunk table.
-    pub fn finish(mut self, scene: &Scene) -> Result<PendingStore, StoreError> {
-        let shapes: Vec<(u32, u32)> = scene
-            .chunks()
-            .iter()
-            .map(|c| (c.vertices.end - c.vertices.start, c.triangle_count()))
-            .collect();
+    /// When the chunks written are not those of the structure's chunk table.
+    pub fn finish(mut self, structure: &Structure) -> Result<PendingStore, StoreError> {
+        let written = self.shapes.len() == structure.chunks.len()
+            && self
+                .shapes
+                .iter()
+                .zip(&structure.chunks)
+                .all(|(&shape, c)| shape == (c.vertices, c.triangles));
         assert!(
-            shapes == self.shapes,
-            "the chunks written ({}) are not the scene's ({})",
+            written,
+            "the chunks written ({}) are not the structure's ({})",
             self.shapes.len(),
-            shapes.len()
+            structure.chunks.len()
         );
-        let skeleton = skeleton::encode(scene);
-        let entry = self.segment(0, KIND_SKELETON, &skeleton)?;
+        let (counts, arrays) = skeleton::pieces(structure);
+        let mut pieces = vec![&counts[..]];
+        pieces.extend(arrays);
+        let entry = self.segment(0, KIND_SKELETON, &pieces)?;
         self.summary.skeleton_bytes = entry.length;
         let toc_offset = self.offset;
         let toc = std::mem::take(&mut self.toc);
@@ -249,5 +259,5 @@ pub fn write_scene(
             writer.chunk(g, &chunk.bounds)?;
         }
     }
-    writer.finish(scene)?.commit()
+    writer.finish(&Structure::of(scene))?.commit()
 }

@@ -71,10 +71,34 @@ fn a_flipped_geometry_byte_names_its_chunk_when_touched() {
     store.chunk_geometry(dmu_scene::ChunkId(1)).unwrap();
 }
 
+/// A store of format version 1 (bincode skeleton; `dmu generate grid --n 1`
+/// before issue 14) is refused by version with a request to re-import, never
+/// read as version 2's flat arrays.
+#[test]
+fn a_version_1_store_asks_to_be_reimported() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/grid1_version1.dmu");
+    let err = Store::open(&path).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            StoreError::UnsupportedVersion {
+                found: 1,
+                supported: 2,
+                ..
+            }
+        ),
+        "{err}"
+    );
+    let msg = err.to_string();
+    assert!(msg.contains("grid1_version1.dmu"), "{msg}");
+    assert!(msg.contains("re-import"), "{msg}");
+    assert_eq!(msg.lines().count(), 1, "{msg}");
+}
+
 #[test]
 fn other_versions_and_other_files_are_named() {
     let (dir, path, bytes) = small_store();
-    // Version 2 with a correct header checksum: refused by version.
+    // The next version with a correct header checksum: refused by version.
     let mut v2 = bytes.clone();
     v2[8..12].copy_from_slice(&(FORMAT_VERSION + 1).to_le_bytes());
     std::fs::write(&path, &v2).unwrap();
@@ -252,4 +276,70 @@ fn issue_20_a_store_changed_while_open_gives_errors_not_signals() {
     std::fs::write(&path, &flipped).unwrap();
     let err = store.load_scene().expect_err("every segment changed");
     assert!(matches!(err, StoreError::Checksum { .. }), "{err}");
+}
+
+/// `bytes` (a whole store) with its skeleton segment changed by `change` and
+/// every checksum above it recomputed, so only the skeleton's own checks see it.
+fn with_skeleton(bytes: &[u8], change: impl FnOnce(&mut [u8])) -> Vec<u8> {
+    use xxhash_rust::xxh3::xxh3_64;
+    let mut out = bytes.to_vec();
+    let word = |b: &[u8], at: usize| u64::from_le_bytes(b[at..at + 8].try_into().unwrap());
+    let (toc, entries) = (word(&out, 24) as usize, word(&out, 32) as usize);
+    let entry = (0..entries)
+        .map(|e| toc + 32 * e)
+        .find(|&e| u32::from_le_bytes(out[e + 4..e + 8].try_into().unwrap()) == 1)
+        .expect("a skeleton entry");
+    let (offset, length) = (
+        word(&out, entry + 8) as usize,
+        word(&out, entry + 16) as usize,
+    );
+    let padded = length.next_multiple_of(16);
+    change(&mut out[offset..offset + length]);
+    let sum = xxh3_64(&out[offset..offset + padded]);
+    out[entry + 24..entry + 32].copy_from_slice(&sum.to_le_bytes());
+    let sum = xxh3_64(&out[toc..toc + 32 * entries]);
+    out[40..48].copy_from_slice(&sum.to_le_bytes());
+    let sum = xxh3_64(&out[..56]);
+    out[56..64].copy_from_slice(&sum.to_le_bytes());
+    out
+}
+
+/// A skeleton whose checksums hold but whose counts or contents lie (crafted,
+/// not damaged) is refused naming what is wrong: counts that do not make its
+/// length (so no count can make the reader allocate more than the file holds),
+/// a parent after its child, a name past its table.
+#[test]
+fn a_crafted_skeleton_is_refused_by_its_own_checks() {
+    let (_dir, path, bytes) = small_store();
+    let node = |i: usize| 64 + 104 * i;
+    type Change = Box<dyn Fn(&mut [u8])>;
+    let cases: [(&str, Change); 4] = [
+        ("do not make its", Box::new(|s| s[0] += 1)),
+        (
+            "do not make its",
+            Box::new(|s| s[16..24].copy_from_slice(&u64::MAX.to_le_bytes())),
+        ),
+        (
+            "node 1: parent 7 is not stored before it",
+            Box::new(move |s| s[node(1)..node(1) + 4].copy_from_slice(&7u32.to_le_bytes())),
+        ),
+        (
+            "node 2: transform is not finite",
+            Box::new(move |s| {
+                s[node(2) + 8..node(2) + 16].copy_from_slice(&f64::NAN.to_le_bytes());
+            }),
+        ),
+    ];
+    // The unchanged skeleton passes through the helper intact.
+    assert_eq!(with_skeleton(&bytes, |_| {}), bytes);
+    for (needle, change) in cases {
+        std::fs::write(&path, with_skeleton(&bytes, change)).unwrap();
+        let err = Store::open(&path).unwrap_err();
+        let msg = err.to_string();
+        assert!(matches!(err, StoreError::Corrupt { .. }), "{msg}");
+        assert!(
+            msg.contains("the skeleton") && msg.contains(needle),
+            "{msg}"
+        );
+    }
 }

@@ -101,16 +101,19 @@ fn streaming_in_many_batches_equals_the_whole_import() {
     let progress = |done: usize, total: usize| assert!(done <= total);
     let options = StreamOptions {
         chunk_triangles: dmu_scene::DEFAULT_CHUNK_TRIANGLES,
-        batch_bytes: 1,
+        memory_budget_bytes: 0,
+        min_batch_bytes: 1,
         progress: Some(&progress),
     };
-    let (skeleton, _) =
+    let streamed =
         dmu_scene::import_gltf_streaming::<dmu_scene::ImportError>(&glb, &options, &mut |id, m| {
             calls += 1;
             meshes.push((id, m));
             Ok(())
         })
         .unwrap();
+    assert_eq!(streamed.batch_bytes, 1);
+    let skeleton = streamed.structure.into_scene().unwrap();
     assert_eq!(calls, reference.meshes().len());
     assert_eq!(skeleton.triangle_count(), reference.triangle_count());
     for (id, mesh) in &meshes {

@@ -3,6 +3,7 @@ mod files;
 mod fuzz_replay;
 #[path = "../../../fuzz/bodies/store_open.rs"]
 mod fuzz_store_open;
+mod import;
 mod residency;
 mod round_trip;
 mod support;

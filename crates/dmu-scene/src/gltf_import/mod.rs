@@ -1,13 +1,15 @@
 //! glTF 2.0 import (.gltf with external or data-URI buffers, .glb).
 //!
-//! The `gltf` crate parses the JSON; buffers, accessors and the node graph are
-//! read here with every reference checked, so a broken file gives an error naming
-//! the element at fault and never a panic. Node transforms are read a second time
-//! as f64, because the `gltf` crate keeps them in f32, which cannot hold a
-//! millimetre offset of 1e7.
+//! The JSON is read as a stream (`nodes.rs`): nodes, the one member that grows
+//! with the assembly, go one at a time into flat arrays with their transforms
+//! as f64 (the `gltf` crate keeps them in f32, which cannot hold a millimetre
+//! offset of 1e7); the other members are parsed by the `gltf` crate. Buffers,
+//! accessors and the node graph are read here with every reference checked, so
+//! a broken file gives an error naming the element at fault and never a panic.
 
 mod accessor;
 mod buffers;
+mod nodes;
 mod stream;
 
 use std::path::Path;
@@ -22,10 +24,12 @@ use self::accessor::{Data, read_indices, read_vectors};
 use self::buffers::{invalid, load_buffers, resolve_views, split_container};
 use crate::chunking::{ChunkedMesh, MeshData, chunk_mesh, compute_normals};
 use crate::error::ImportError;
-use crate::ids::{MaterialId, MeshId, NodeId};
+use crate::ids::{MaterialId, MeshId, NodeId, PartId};
 use crate::scene::{Scene, SceneBuilder};
+use crate::structure::StructureBuilder;
 
-pub use stream::{StreamOptions, import_gltf_streaming};
+use self::nodes::{FileNodes, UNUSED_MEMBERS};
+pub use stream::{StreamOptions, Streamed, import_gltf_streaming};
 
 /// Required extensions dmu reads. Material, texture and light extensions change
 /// only shading that dmu does not draw (it shows base colours), so geometry is
@@ -167,57 +171,68 @@ impl ImportReport {
     }
 }
 
-/// A parsed glTF document: the typed JSON, the node transforms again as f64, and
-/// the scene to import.
+/// A parsed glTF document: the typed JSON without its nodes, the nodes flat
+/// (transforms as f64), and the scene to import.
 struct Document {
     root: json::Root,
-    transforms: RawTransforms,
+    nodes: FileNodes,
     scene_index: Option<usize>,
 }
 
 impl Document {
+    /// Parses JSON held in memory (the in-memory import), as
+    /// [`Document::parse_stream`] reads it.
     fn parse(json_bytes: &[u8]) -> Result<Self, ImportError> {
-        let malformed = |e: serde_json::Error| ImportError::Malformed {
-            message: format!("JSON: {e}"),
-        };
-        let mut value: serde_json::Value = serde_json::from_slice(json_bytes).map_err(malformed)?;
-        if !value.is_object() {
-            return Err(ImportError::Malformed {
-                message: "the JSON is not a glTF document (an object with \"asset\")".into(),
-            });
-        }
-        // Node transforms first, as f64 from the untouched numbers.
-        let transforms = RawTransforms::deserialize(&value).map_err(malformed)?;
-        integral_floats_to_integers(&mut value);
+        Self::read(&mut serde_json::Deserializer::from_slice(json_bytes), &|| 0)
+    }
+
+    /// Reads the JSON as a stream: nodes go straight into flat arrays, one at a
+    /// time; only the other members (a few per mesh) are held as values.
+    /// `position` tells how far the reader has read (for the nodes' JSON size).
+    fn parse_stream(
+        reader: impl std::io::Read,
+        position: &dyn Fn() -> u64,
+    ) -> Result<Self, ImportError> {
+        Self::read(&mut serde_json::Deserializer::from_reader(reader), position)
+    }
+
+    fn read<'de, R: serde_json::de::Read<'de>>(
+        de: &mut serde_json::Deserializer<R>,
+        position: &dyn Fn() -> u64,
+    ) -> Result<Self, ImportError> {
+        let (top, nodes) = nodes::read_document(&mut *de, position).map_err(malformed)?;
+        de.end().map_err(malformed)?;
+        Self::finish(top, nodes)
+    }
+
+    /// The typed document of the members other than the nodes.
+    fn finish(
+        mut top: serde_json::Map<String, serde_json::Value>,
+        nodes: FileNodes,
+    ) -> Result<Self, ImportError> {
         // dmu shows geometry and base colours only: sections it never reads are dropped
         // before typed parsing, so their schema quirks (e.g. an animation target
         // without a node, valid since KHR_animation_pointer) cannot fail an import.
-        if let Some(top) = value.as_object_mut() {
-            for unused in [
-                "animations",
-                "skins",
-                "cameras",
-                "images",
-                "textures",
-                "samplers",
-            ] {
-                top.remove(unused);
-            }
-            // `scene.nodes` is optional in the spec but required by the `gltf` crate.
-            for scene in top
-                .get_mut("scenes")
-                .and_then(|s| s.as_array_mut())
-                .into_iter()
-                .flatten()
-            {
-                if let Some(scene) = scene.as_object_mut() {
-                    scene
-                        .entry("nodes")
-                        .or_insert_with(|| serde_json::json!([]));
-                }
+        for unused in UNUSED_MEMBERS {
+            top.remove(unused);
+        }
+        let mut value = serde_json::Value::Object(top);
+        integral_floats_to_integers(&mut value);
+        // `scene.nodes` is optional in the spec but required by the `gltf` crate.
+        for scene in value
+            .get_mut("scenes")
+            .and_then(|s| s.as_array_mut())
+            .into_iter()
+            .flatten()
+        {
+            if let Some(scene) = scene.as_object_mut() {
+                scene
+                    .entry("nodes")
+                    .or_insert_with(|| serde_json::json!([]));
             }
         }
         let root = json::Root::deserialize(&value).map_err(malformed)?;
+        drop(value);
         if let Some(name) = root
             .extensions_required
             .iter()
@@ -237,7 +252,7 @@ impl Document {
         }
         Ok(Self {
             root,
-            transforms,
+            nodes,
             scene_index,
         })
     }
@@ -246,18 +261,22 @@ impl Document {
         self.scene_index.map(|s| &self.root.scenes[s])
     }
 
-    /// A builder named after the scene holding the file's materials, and the
-    /// material for primitives that name none (a grey added only when needed).
-    fn start(&self, default_name: &str, chunk_triangles: u32) -> (SceneBuilder, MaterialId) {
+    /// The scene's name, and the material for primitives that name none (a
+    /// grey added after the file's materials, only when needed), calling
+    /// `add_material` for each material.
+    fn materials(
+        &self,
+        default_name: &str,
+        add_material: &mut dyn FnMut(&str, [f32; 4]),
+    ) -> (String, MaterialId) {
         let root = &self.root;
         let name = self
             .scene_json()
             .and_then(|s| s.name.clone())
             .unwrap_or_else(|| default_name.to_owned());
-        let mut builder = SceneBuilder::new(name, chunk_triangles);
         for (i, m) in root.materials.iter().enumerate() {
             let name = m.name.clone().unwrap_or_else(|| format!("material{i}"));
-            builder.add_material(name, base_color(m));
+            add_material(&name, base_color(m));
         }
         let default_material = MaterialId::from_index(root.materials.len());
         if root
@@ -266,27 +285,182 @@ impl Document {
             .flat_map(|m| &m.primitives)
             .any(|p| p.material.is_none())
         {
-            builder.add_material("default", [0.8, 0.8, 0.8, 1.0]);
+            add_material("default", [0.8, 0.8, 0.8, 1.0]);
+        }
+        (name, default_material)
+    }
+
+    /// A builder named after the scene holding the file's materials, and the
+    /// material for primitives that name none.
+    fn start(&self, default_name: &str, chunk_triangles: u32) -> (SceneBuilder, MaterialId) {
+        let mut materials = Vec::new();
+        let (name, default_material) =
+            self.materials(default_name, &mut |n, c| materials.push((n.to_owned(), c)));
+        let mut builder = SceneBuilder::new(name, chunk_triangles);
+        for (n, c) in materials {
+            builder.add_material(n, c);
         }
         (builder, default_material)
     }
 
     fn used_meshes(&self) -> Result<Vec<bool>, ImportError> {
-        used_meshes(&self.root, &self.transforms, self.scene_json())
+        let mut used = vec![false; self.root.meshes.len()];
+        self.walk_nodes(|n, _| {
+            if let Some(m) = self.nodes.mesh(n) {
+                *used.get_mut(m).ok_or_else(|| {
+                    invalid(format!("nodes[{n}].mesh: mesh {m} does not exist"))
+                })? = true;
+            }
+            Ok(())
+        })?;
+        Ok(used)
     }
 
+    /// The root nodes of the imported scene: the chosen scene's, or every parentless
+    /// node when the file has no scene (a CAD viewer shows what is there).
+    fn root_nodes(&self) -> Vec<usize> {
+        match self.scene_json() {
+            Some(s) => s.nodes.iter().map(|n| n.value()).collect(),
+            None => {
+                let mut has_parent = vec![false; self.nodes.len()];
+                for n in 0..self.nodes.len() {
+                    for &c in self.nodes.children(n) {
+                        if let Some(p) = has_parent.get_mut(c as usize) {
+                            *p = true;
+                        }
+                    }
+                }
+                (0..self.nodes.len()).filter(|&i| !has_parent[i]).collect()
+            }
+        }
+    }
+
+    /// Walks the node graph once, checking references, cycles and shared children,
+    /// and calls `visit(node, parent_slot)` parents first.
+    fn walk_nodes(
+        &self,
+        mut visit: impl FnMut(usize, Option<usize>) -> Result<(), ImportError>,
+    ) -> Result<(), ImportError> {
+        let mut seen = vec![false; self.nodes.len()];
+        let mut stack: Vec<(usize, Option<usize>)> = self
+            .root_nodes()
+            .into_iter()
+            .rev()
+            .map(|n| (n, None))
+            .collect();
+        while let Some((n, parent)) = stack.pop() {
+            if n >= self.nodes.len() {
+                return Err(invalid(format!("node {n} does not exist")));
+            }
+            if std::mem::replace(&mut seen[n], true) {
+                return Err(invalid(format!(
+                    "nodes[{n}] is reached twice: the node graph has a cycle or a shared child"
+                )));
+            }
+            visit(n, parent)?;
+            for &c in self.nodes.children(n).iter().rev() {
+                stack.push((c as usize, Some(n)));
+            }
+        }
+        Ok(())
+    }
+
+    /// Adds the scene's nodes (parents first, absolute f64 transforms) and a
+    /// part for each node whose mesh was imported (`mesh_ids`).
     fn add_nodes(
         &self,
         mesh_ids: &[Option<MeshId>],
-        builder: &mut SceneBuilder,
+        builder: &mut dyn Assembly,
     ) -> Result<(), ImportError> {
-        add_nodes(
-            &self.root,
-            &self.transforms,
-            self.scene_json(),
-            mesh_ids,
-            builder,
-        )
+        let root = &self.root;
+        let mut ids: Vec<Option<NodeId>> = vec![None; self.nodes.len()];
+        self.walk_nodes(|n, parent| {
+            let parent_id = parent.and_then(|p| ids[p]).unwrap_or(SceneBuilder::ROOT);
+            let world = builder.node_world(parent_id) * self.nodes.local(n)?;
+            let mesh_index = self.nodes.mesh(n);
+            let generated;
+            let name = match self.nodes.name(n) {
+                Some(name) => name,
+                None => {
+                    // Stable names from file indices: unnamed instances of a named
+                    // mesh keep the mesh's name.
+                    generated = match mesh_index.and_then(|m| root.meshes[m].name.as_ref()) {
+                        Some(mesh_name) => format!("{mesh_name}.{n}"),
+                        None => format!("node{n}"),
+                    };
+                    generated.as_str()
+                }
+            };
+            let id = builder.add_node(parent_id, name, world);
+            ids[n] = Some(id);
+            let non_finite = |builder: &dyn Assembly, what| ImportError::NonFiniteWorld {
+                node: n,
+                path: builder.node_path(id),
+                what,
+            };
+            if !world.is_finite() {
+                return Err(non_finite(builder, "world transform"));
+            }
+            if let Some(mesh) = mesh_index.and_then(|m| mesh_ids[m]) {
+                let part = builder.add_part(id, mesh);
+                if !builder.part_world_is_valid(part) {
+                    return Err(non_finite(builder, "world box"));
+                }
+            }
+            Ok(())
+        })
+    }
+}
+
+/// Where the node walk puts nodes and parts: a scene's builder (the in-memory
+/// import) or a flat structure (the streaming one).
+trait Assembly {
+    fn add_node(&mut self, parent: NodeId, name: &str, world: DAffine3) -> NodeId;
+    fn node_world(&self, id: NodeId) -> DAffine3;
+    fn node_path(&self, id: NodeId) -> String;
+    fn add_part(&mut self, node: NodeId, mesh: MeshId) -> PartId;
+    fn part_world_is_valid(&self, part: PartId) -> bool;
+}
+
+impl Assembly for SceneBuilder {
+    fn add_node(&mut self, parent: NodeId, name: &str, world: DAffine3) -> NodeId {
+        SceneBuilder::add_node(self, parent, name, world)
+    }
+    fn node_world(&self, id: NodeId) -> DAffine3 {
+        SceneBuilder::node_world(self, id)
+    }
+    fn node_path(&self, id: NodeId) -> String {
+        SceneBuilder::node_path(self, id)
+    }
+    fn add_part(&mut self, node: NodeId, mesh: MeshId) -> PartId {
+        SceneBuilder::add_part(self, node, mesh)
+    }
+    fn part_world_is_valid(&self, part: PartId) -> bool {
+        SceneBuilder::part_world_is_valid(self, part)
+    }
+}
+
+impl Assembly for StructureBuilder {
+    fn add_node(&mut self, parent: NodeId, name: &str, world: DAffine3) -> NodeId {
+        self.structure.add_node(parent, name, world)
+    }
+    fn node_world(&self, id: NodeId) -> DAffine3 {
+        self.structure.node_world(id)
+    }
+    fn node_path(&self, id: NodeId) -> String {
+        self.structure.node_path(id)
+    }
+    fn add_part(&mut self, node: NodeId, mesh: MeshId) -> PartId {
+        self.structure.add_part(node, mesh)
+    }
+    fn part_world_is_valid(&self, part: PartId) -> bool {
+        StructureBuilder::part_world_is_valid(self, part)
+    }
+}
+
+fn malformed(e: serde_json::Error) -> ImportError {
+    ImportError::Malformed {
+        message: format!("JSON: {e}"),
     }
 }
 
@@ -328,13 +502,7 @@ fn base_color(m: &json::Material) -> [f32; 4] {
     })
 }
 
-/// The node transforms as f64 (the `gltf` crate holds them as f32).
-#[derive(Deserialize)]
-struct RawTransforms {
-    #[serde(default)]
-    nodes: Vec<RawNode>,
-}
-
+/// A node's transform as f64 (the `gltf` crate holds it as f32).
 #[derive(Deserialize)]
 struct RawNode {
     matrix: Option<[f64; 16]>,
@@ -368,120 +536,6 @@ impl RawNode {
             Err(invalid(format!("nodes[{index}]: transform is not finite")))
         }
     }
-}
-
-/// The root nodes of the imported scene: the chosen scene's, or every parentless
-/// node when the file has no scene (a CAD viewer shows what is there).
-fn root_nodes(root: &json::Root, scene: Option<&json::Scene>) -> Vec<usize> {
-    match scene {
-        Some(s) => s.nodes.iter().map(|n| n.value()).collect(),
-        None => {
-            let mut has_parent = vec![false; root.nodes.len()];
-            for n in &root.nodes {
-                for c in n.children.iter().flatten() {
-                    if let Some(p) = has_parent.get_mut(c.value()) {
-                        *p = true;
-                    }
-                }
-            }
-            (0..root.nodes.len()).filter(|&i| !has_parent[i]).collect()
-        }
-    }
-}
-
-/// Walks the node graph once, checking references, cycles and shared children,
-/// and calls `visit(node, parent_slot)` parents first.
-fn walk_nodes(
-    root: &json::Root,
-    scene: Option<&json::Scene>,
-    mut visit: impl FnMut(usize, Option<usize>) -> Result<(), ImportError>,
-) -> Result<(), ImportError> {
-    let mut seen = vec![false; root.nodes.len()];
-    let mut stack: Vec<(usize, Option<usize>)> = root_nodes(root, scene)
-        .into_iter()
-        .rev()
-        .map(|n| (n, None))
-        .collect();
-    while let Some((n, parent)) = stack.pop() {
-        let node = root
-            .nodes
-            .get(n)
-            .ok_or_else(|| invalid(format!("node {n} does not exist")))?;
-        if std::mem::replace(&mut seen[n], true) {
-            return Err(invalid(format!(
-                "nodes[{n}] is reached twice: the node graph has a cycle or a shared child"
-            )));
-        }
-        visit(n, parent)?;
-        for c in node.children.iter().flatten().rev() {
-            stack.push((c.value(), Some(n)));
-        }
-    }
-    Ok(())
-}
-
-fn used_meshes(
-    root: &json::Root,
-    raw: &RawTransforms,
-    scene: Option<&json::Scene>,
-) -> Result<Vec<bool>, ImportError> {
-    if raw.nodes.len() != root.nodes.len() {
-        return Err(invalid("node list read twice with different lengths"));
-    }
-    let mut used = vec![false; root.meshes.len()];
-    walk_nodes(root, scene, |n, _| {
-        if let Some(m) = root.nodes[n].mesh {
-            *used.get_mut(m.value()).ok_or_else(|| {
-                invalid(format!(
-                    "nodes[{n}].mesh: mesh {} does not exist",
-                    m.value()
-                ))
-            })? = true;
-        }
-        Ok(())
-    })?;
-    Ok(used)
-}
-
-fn add_nodes(
-    root: &json::Root,
-    raw: &RawTransforms,
-    scene: Option<&json::Scene>,
-    mesh_ids: &[Option<MeshId>],
-    builder: &mut SceneBuilder,
-) -> Result<(), ImportError> {
-    let mut ids: Vec<Option<NodeId>> = vec![None; root.nodes.len()];
-    walk_nodes(root, scene, |n, parent| {
-        let node = &root.nodes[n];
-        let parent_id = parent.and_then(|p| ids[p]).unwrap_or(SceneBuilder::ROOT);
-        let world = builder.node_world(parent_id) * raw.nodes[n].local(n)?;
-        let mesh_index = node.mesh.map(|m| m.value());
-        let name = node.name.clone().unwrap_or_else(|| {
-            // Stable names from file indices: unnamed instances of a named mesh keep
-            // the mesh's name.
-            match mesh_index.and_then(|m| root.meshes[m].name.as_ref()) {
-                Some(mesh_name) => format!("{mesh_name}.{n}"),
-                None => format!("node{n}"),
-            }
-        });
-        let id = builder.add_node(parent_id, name, world);
-        ids[n] = Some(id);
-        let non_finite = |builder: &SceneBuilder, what| ImportError::NonFiniteWorld {
-            node: n,
-            path: builder.node_path(id),
-            what,
-        };
-        if !world.is_finite() {
-            return Err(non_finite(builder, "world transform"));
-        }
-        if let Some(mesh) = mesh_index.and_then(|m| mesh_ids[m]) {
-            let part = builder.add_part(id, mesh);
-            if !builder.part_world_is_valid(part) {
-                return Err(non_finite(builder, "world box"));
-            }
-        }
-        Ok(())
-    })
 }
 
 /// Decodes and chunks one mesh; its primitives become material groups.

@@ -1,10 +1,13 @@
-//! Streaming import: meshes are decoded, chunked and handed to the caller a batch
-//! at a time, so peak memory is set by the batch size, not by the model.
+//! Streaming import: the JSON is read as a stream (nodes straight into flat
+//! arrays, never a document tree of them), and meshes are decoded, chunked and
+//! handed to the caller a batch at a time, so peak memory is set by the
+//! structure's flat arrays and the batch size, not by the model.
 //!
 //! The GLB file and external buffer files are memory-mapped rather than read, and
 //! mapped anew for each batch: the file pages a batch touched leave the process's
-//! resident set when its mapping is dropped. Data-URI buffers are decoded into
-//! memory once (they live inside the JSON, which is parsed whole anyway).
+//! resident set when its mapping is dropped. The JSON is read through a small
+//! buffer, not the mapping, so its pages never count. Data-URI buffers are
+//! decoded into memory once.
 
 use std::borrow::Cow;
 use std::fs::File;
@@ -21,18 +24,20 @@ use super::{Document, ImportReport, decode_mesh};
 use crate::chunking::ChunkedMesh;
 use crate::error::ImportError;
 use crate::ids::MeshId;
-use crate::scene::Scene;
+use crate::structure::{Structure, StructureBuilder};
 
 /// Settings of [`import_gltf_streaming`].
 #[derive(Clone, Copy)]
 pub struct StreamOptions<'a> {
     /// Maximum triangles per chunk.
     pub chunk_triangles: u32,
-    /// Estimated bytes of decoding work in flight at once: meshes are decoded in
-    /// parallel batches whose estimated working sets (file pages, decoded arrays,
-    /// chunking scratch, chunked copy) add up to at most this. A mesh larger than
-    /// the whole budget is still decoded, alone.
-    pub batch_bytes: u64,
+    /// Peak memory to stay within. Once the JSON is read, what the structure
+    /// holds (see [`Streamed::fixed_bytes`]) is taken off; decoding batches get
+    /// half of the rest, the other half is headroom for the allocator and the
+    /// caller's writer.
+    pub memory_budget_bytes: u64,
+    /// The smallest batch, whatever the budget leaves.
+    pub min_batch_bytes: u64,
     /// Called with (meshes done, meshes total) after each mesh is handed over.
     pub progress: Option<&'a (dyn Fn(usize, usize) + Sync)>,
 }
@@ -41,46 +46,90 @@ impl std::fmt::Debug for StreamOptions<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("StreamOptions")
             .field("chunk_triangles", &self.chunk_triangles)
-            .field("batch_bytes", &self.batch_bytes)
+            .field("memory_budget_bytes", &self.memory_budget_bytes)
+            .field("min_batch_bytes", &self.min_batch_bytes)
             .finish_non_exhaustive()
     }
 }
 
+/// What [`import_gltf_streaming`] made.
+#[derive(Debug)]
+pub struct Streamed {
+    /// The scene's structure (nodes, parts, materials, transforms, chunk tables).
+    pub structure: Structure,
+    /// What the import skipped or repaired.
+    pub report: ImportReport,
+    /// Estimated bytes of decoding work each batch was allowed (see
+    /// [`StreamOptions::memory_budget_bytes`]).
+    pub batch_bytes: u64,
+    /// Estimated bytes held beside the batches: the nodes' flat arrays (counted)
+    /// and the typed JSON of everything else (meshes, accessors, materials;
+    /// estimated at ten times its JSON).
+    pub fixed_bytes: u64,
+    /// The most bytes the structure's arrays held at once (counted from their
+    /// capacities: the file's nodes and the structure made from them).
+    pub structure_peak_bytes: u64,
+}
+
 /// Imports a .glb or .gltf file mesh by mesh. Each used mesh, chunked, goes to
-/// `sink` with the id it has in the returned scene, in id order, and is dropped
-/// after; the returned scene has the whole structure (nodes, parts, materials,
-/// transforms, chunk tables) with the geometry not loaded (see [`crate::Mesh`]).
-/// Loading the sunk geometry back into it gives what [`crate::import_gltf`]
-/// returns for the same file.
+/// `sink` with the id it has in the returned structure, in id order, and is
+/// dropped after; the returned structure has the whole scene but its geometry.
+/// Loading the sunk geometry into it gives what [`crate::import_gltf`] returns
+/// for the same file.
 ///
-/// Memory: the parsed JSON, the scene's structure, and one batch (see
-/// [`StreamOptions::batch_bytes`]).
+/// Memory: the nodes as flat arrays (about 130 bytes a node and its name, then
+/// as much again for the structure made from them), the other JSON members
+/// typed, and one batch (see [`StreamOptions::memory_budget_bytes`]).
 pub fn import_gltf_streaming<E: From<ImportError>>(
     path: &Path,
     options: &StreamOptions<'_>,
     sink: &mut dyn FnMut(MeshId, ChunkedMesh) -> Result<(), E>,
-) -> Result<(Scene, ImportReport), E> {
+) -> Result<Streamed, E> {
     let io = |source| ImportError::Io {
         path: path.to_owned(),
         source,
     };
     let file = crate::atomic::open_regular_file(path).map_err(io)?;
-    let (doc, blob) = {
+    let (json, blob) = {
         let map = map_file(&file).map_err(io)?;
         let (json_bytes, blob) = super::buffers::split_container(&map)?;
-        // Where the BIN chunk sits, to slice it out of each batch's mapping.
-        let blob = blob.map(|b| {
+        // Where the JSON and the BIN chunk sit, as ranges of the file.
+        let range = |b: &[u8]| {
             let start = b.as_ptr() as usize - map.as_ptr() as usize;
             start..start + b.len()
-        });
-        (Document::parse(json_bytes)?, blob)
+        };
+        (range(json_bytes), blob.map(range))
     };
+    let at = std::cell::Cell::new(json.start as u64);
+    let reader = std::io::BufReader::with_capacity(
+        1 << 16,
+        ReadRange {
+            file: &file,
+            at: &at,
+            end: json.end as u64,
+        },
+    );
+    let doc = Document::parse_stream(reader, &|| at.get())?;
     let root = &doc.root;
     let sources = buffer_sources(root, blob, path.parent());
     let name = path
         .file_stem()
         .map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned());
-    let (mut builder, default_material) = doc.start(&name, options.chunk_triangles);
+    let mut materials = Vec::new();
+    let (name, default_material) =
+        doc.materials(&name, &mut |n, c| materials.push((n.to_owned(), c)));
+    let mut builder = StructureBuilder::new(&name);
+    for (n, c) in &materials {
+        builder.structure.add_material(n, *c);
+    }
+
+    let nodes_bytes = doc.nodes.held_bytes();
+    // The typed members other than the nodes: a value tree and typed structs
+    // were measured near ten times their JSON.
+    let rest_json = (json.len() as u64).saturating_sub(doc.nodes.json_bytes());
+    let fixed = nodes_bytes + rest_json.saturating_mul(10);
+    let batch_bytes =
+        (options.memory_budget_bytes.saturating_sub(fixed) / 2).max(options.min_batch_bytes);
 
     let used = doc.used_meshes()?;
     let total = used.iter().filter(|&&u| u).count();
@@ -90,7 +139,7 @@ pub fn import_gltf_streaming<E: From<ImportError>>(
     };
     let mut mesh_ids = vec![None; root.meshes.len()];
     let mut done = 0;
-    for batch in batches(root, &used, options.batch_bytes) {
+    for batch in batches(root, &used, batch_bytes) {
         let maps = map_sources(&file, &sources).map_err(io)?;
         let buffers = batch_buffers(&sources, &maps);
         let needed = needed_views(root, &batch);
@@ -113,11 +162,7 @@ pub fn import_gltf_streaming<E: From<ImportError>>(
             .collect::<Result<_, ImportError>>()?;
         for (&m, (chunked, r)) in batch.iter().zip(decoded) {
             report.add(&r);
-            let id = builder.add_unloaded_mesh(
-                chunked.name.clone(),
-                chunked.chunks.clone(),
-                chunked.degenerate_triangles,
-            );
+            let id = builder.add_mesh(&chunked.name, &chunked.chunks, chunked.degenerate_triangles);
             mesh_ids[m] = Some(id);
             sink(id, chunked)?;
             done += 1;
@@ -127,7 +172,32 @@ pub fn import_gltf_streaming<E: From<ImportError>>(
         }
     }
     doc.add_nodes(&mesh_ids, &mut builder)?;
-    Ok((builder.finish(), report))
+    let structure_peak_bytes = nodes_bytes + builder.structure.held_bytes();
+    Ok(Streamed {
+        structure: builder.structure,
+        report,
+        batch_bytes,
+        fixed_bytes: fixed,
+        structure_peak_bytes,
+    })
+}
+
+/// A byte range of a file, read with positioned reads; `at` is where the next
+/// read starts.
+struct ReadRange<'a> {
+    file: &'a File,
+    at: &'a std::cell::Cell<u64>,
+    end: u64,
+}
+
+impl std::io::Read for ReadRange<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let at = self.at.get();
+        let want = buf.len().min((self.end - at) as usize);
+        let n = std::os::unix::fs::FileExt::read_at(self.file, &mut buf[..want], at)?;
+        self.at.set(at + n as u64);
+        Ok(n)
+    }
 }
 
 /// Maps a whole file read-only.
@@ -301,7 +371,11 @@ fn mesh_working_set(root: &json::Root, mesh: &json::Mesh) -> u64 {
             .get(&Checked::Valid(Semantic::Positions))
             .map_or(0, |a| count(a.value()));
         let indices = prim.indices.map_or(positions, |a| count(a.value()));
-        bytes += PER_VERTEX * positions + PER_INDEX * indices;
+        // Saturating: a hostile count (up to 2^64 - 1) must not overflow here;
+        // decoding refuses it with the accessor's name.
+        bytes = bytes
+            .saturating_add(PER_VERTEX.saturating_mul(positions))
+            .saturating_add(PER_INDEX.saturating_mul(indices));
     }
     bytes
 }
@@ -311,18 +385,18 @@ fn mesh_working_set(root: &json::Root, mesh: &json::Mesh) -> u64 {
 fn batches(root: &json::Root, used: &[bool], batch_bytes: u64) -> Vec<Vec<usize>> {
     let mut out: Vec<Vec<usize>> = Vec::new();
     let mut current = Vec::new();
-    let mut bytes = 0;
+    let mut bytes = 0u64;
     for (m, mesh) in root.meshes.iter().enumerate() {
         if !used[m] {
             continue;
         }
         let need = mesh_working_set(root, mesh);
-        if !current.is_empty() && bytes + need > batch_bytes {
+        if !current.is_empty() && bytes.saturating_add(need) > batch_bytes {
             out.push(std::mem::take(&mut current));
             bytes = 0;
         }
         current.push(m);
-        bytes += need;
+        bytes = bytes.saturating_add(need);
     }
     if !current.is_empty() {
         out.push(current);
