@@ -26,6 +26,8 @@ struct RenderKnob {
     full: &'static [f64],
     /// The culling mode and options of a setting.
     setup: fn(f64) -> (Culling, CullingOptions),
+    /// Drawn by a renderer with proxies (merged subtrees).
+    proxies: bool,
 }
 
 /// Occlusion knobs measure the knob itself: the adaptive switch, which would
@@ -58,6 +60,7 @@ const KNOBS: &[RenderKnob] = &[
                 },
             )
         },
+        proxies: false,
     },
     RenderKnob {
         name: "LOD error",
@@ -66,15 +69,18 @@ const KNOBS: &[RenderKnob] = &[
                projects within the setting (0: every chunk whole)",
         quick: &[0.0, 1.0, 4.0],
         full: &[0.0, 0.5, 1.0, 2.0, 4.0, 8.0],
-        setup: |px| {
-            (
-                Culling::Frustum,
-                CullingOptions {
-                    lod_error_px: px,
-                    ..CullingOptions::default()
-                },
-            )
-        },
+        setup: lod_error,
+        proxies: false,
+    },
+    RenderKnob {
+        name: "LOD error with proxies",
+        unit: "px",
+        note: "as LOD error, and where a merged, simplified subtree's error projects within the \
+               setting it is drawn in one call instead of its chunks (0: every chunk whole)",
+        quick: &[0.0, 1.0, 4.0],
+        full: &[0.0, 0.5, 1.0, 2.0, 4.0, 8.0],
+        setup: lod_error,
+        proxies: true,
     },
     RenderKnob {
         name: "occlusion re-check interval",
@@ -92,6 +98,7 @@ const KNOBS: &[RenderKnob] = &[
                 })
             }
         },
+        proxies: false,
     },
     RenderKnob {
         name: "occlusion rounds",
@@ -109,8 +116,20 @@ const KNOBS: &[RenderKnob] = &[
                 })
             }
         },
+        proxies: false,
     },
 ];
+
+/// Frustum culling drawing simplified geometry within `px` pixels of error.
+fn lod_error(px: f64) -> (Culling, CullingOptions) {
+    (
+        Culling::Frustum,
+        CullingOptions {
+            lod_error_px: px,
+            ..CullingOptions::default()
+        },
+    )
+}
 
 /// Knobs the issue asks for that the renderer does not have yet, and when
 /// they join [`KNOBS`].
@@ -161,6 +180,8 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<(Vec<Knob>, String)> {
         ..Default::default()
     };
     let mut renderer = Renderer::new(&device, &queue, scene, &tree, options);
+    let mut proxied = Renderer::new(&device, &queue, scene, &tree, options);
+    proxied.set_proxies(dmu_app::progress::build_proxies(scene, &tree, scene, true));
     let capture = Capture::new(&device, size);
     let cameras = path(&tree, bench.scale.render_frames);
     // The references: each frame unculled, and its exactly visible chunks.
@@ -185,6 +206,11 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<(Vec<Knob>, String)> {
         let mut points = Vec::new();
         for &setting in settings {
             let (culling, options) = (k.setup)(setting);
+            let renderer = if k.proxies {
+                &mut proxied
+            } else {
+                &mut renderer
+            };
             let mut view = View::new(cameras[0], size, culling);
             view.options = options;
             let mut ms = Vec::new();
