@@ -2,6 +2,13 @@
 //! passes and round trips, and save the triangles they cull. Both are measured
 //! every frame; a view where queries cost more than they save draws with
 //! frustum culling only and tries queries again later.
+//!
+//! Where proxies draw (a renderer with [`crate::Proxies`] and a LOD error
+//! above 0), frustum culling draws far fewer triangles than are in the
+//! frustum, so the triangles queries cull say little of what they save:
+//! there the frames without queries are timed, and queries are kept only
+//! while a frame with them is faster than those. A view measures that once
+//! before it can keep queries (its first probe ends in frustum frames).
 
 use crate::renderer::Renderer;
 use crate::view::{Culling, FrameStats, OcclusionDecision, View};
@@ -42,6 +49,7 @@ impl Renderer {
             let ns = draw_ms * 1e6 / stats.triangles_drawn as f64;
             view.ns_per_triangle = blend(view.ns_per_triangle, ns, view.ns_per_triangle == 0.0);
         }
+        let proxies = self.proxies.is_some() && stats.lod_error_px > 0.0;
         let d = &mut view.decision;
         if d.enabled {
             view.probe_frames += 1;
@@ -50,17 +58,34 @@ impl Renderer {
                 let culled = stats
                     .triangles_in_frustum
                     .saturating_sub(stats.triangles_drawn);
-                let saved = culled as f64 * view.ns_per_triangle * 1e-6;
+                let saved = if proxies {
+                    // What a frame without queries would draw beyond this
+                    // one's drawing (its overhead aside), so that cost >
+                    // saved is "slower than without".
+                    (view.frustum_frame_ms - view.baseline_overhead_ms - draw_ms).max(0.0)
+                } else {
+                    culled as f64 * view.ns_per_triangle * 1e-6
+                };
                 let cost = (overhead_ms - view.baseline_overhead_ms).max(0.0);
                 d.saved_ms = blend(d.saved_ms, saved, first);
                 d.cost_ms = blend(d.cost_ms, cost, first);
             }
-            if view.options.adaptive && view.probe_frames >= PROBE_FRAMES && d.cost_ms > d.saved_ms
+            let unmeasured = proxies && view.frustum_frame_ms == 0.0;
+            if view.options.adaptive
+                && view.probe_frames >= PROBE_FRAMES
+                && (d.cost_ms > d.saved_ms || unmeasured)
             {
                 d.enabled = false;
                 d.retry_in_frames = RETRY_FRAMES;
             }
         } else {
+            if proxies {
+                view.frustum_frame_ms = blend(
+                    view.frustum_frame_ms,
+                    stats.cpu_ms,
+                    view.frustum_frame_ms == 0.0,
+                );
+            }
             view.baseline_overhead_ms = blend(
                 view.baseline_overhead_ms,
                 overhead_ms,

@@ -198,6 +198,9 @@ pub struct View {
     pub(crate) probe_frames: u32,
     /// Average non-drawing time of frames without queries, ms.
     pub(crate) baseline_overhead_ms: f64,
+    /// Average frame time without queries, ms, measured where proxies draw
+    /// (0: not measured yet).
+    pub(crate) frustum_frame_ms: f64,
     pub(crate) last: FrameStats,
     /// The knobs the next frame draws with under a budget (`None` before the
     /// first frame).
@@ -230,6 +233,7 @@ impl View {
             ns_per_triangle: 0.0,
             probe_frames: 0,
             baseline_overhead_ms: 0.0,
+            frustum_frame_ms: 0.0,
             last: FrameStats::default(),
             knobs: None,
             drawn: Vec::new(),

@@ -179,3 +179,31 @@ fn an_edited_part_leaves_its_proxies_at_once() {
         assert!(changed * 20 <= region.len(), "{edit}, calm: {changed}");
     }
 }
+
+/// A chc view where proxies draw measures frames without queries before it
+/// may keep queries: its first probe ends in frustum frames that draw
+/// proxies, and the decision it reports then weighs those frames.
+#[test]
+fn a_chc_view_times_its_proxies_before_keeping_queries() {
+    let (scene, tree) = small_plant();
+    let size = (480, 270);
+    let Some(mut rig) = with_proxies(&scene, &tree, size) else {
+        return;
+    };
+    let mut view = View::new(overview(&tree), size, Culling::Occlusion);
+    view.options.lod_error_px = 1.0;
+    let stats: Vec<_> = (0..12)
+        .map(|_| rig.frame(&mut view, &scene, &tree))
+        .collect();
+    assert!(stats[0].occlusion.enabled && stats[0].proxies_drawn == 0);
+    let off = stats
+        .iter()
+        .position(|s| !s.occlusion.enabled)
+        .expect("the probe ends");
+    assert!(off <= 8, "after the probe's 8 frames: {off}");
+    assert!(
+        stats[off + 1..]
+            .iter()
+            .all(|s| s.proxies_drawn > 0 && s.queries == 0)
+    );
+}
