@@ -271,6 +271,10 @@ impl Renderer {
             let frames = cull.proxy_frames(&origins);
             stats.proxies_drawn = proxy_nodes.len() as u64;
             view.drawn.extend(draws.iter().map(|d| d.entry));
+            // A proxy draws the chunk instances below it, approximated.
+            for &n in &proxy_nodes {
+                self.hierarchy.leaves(n, &mut view.drawn);
+            }
             stats.rounds = 1;
             self.run_round(
                 &mut gpu_state,

@@ -318,7 +318,8 @@ impl View {
         &self.last
     }
 
-    /// The chunk instances the last frame drew, in draw order.
+    /// The chunk instances the last frame drew, in draw order (then those
+    /// its proxies drew, approximated).
     pub fn drawn_entries(&self) -> impl ExactSizeIterator<Item = dmu_tree::EntryId> + '_ {
         self.drawn.iter().map(|&e| dmu_tree::EntryId(e))
     }
