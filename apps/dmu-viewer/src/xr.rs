@@ -313,7 +313,10 @@ pub fn run(mut review: Review, args: XrArgs, facts: Value) -> anyhow::Result<Val
                 review.redo();
             }
             if step.last {
-                finish_step(&mut log, &review, &hands, step.action);
+                let mut entry = step_result(&mut log, &review, &hands, step.action);
+                entry["frame"] = json!(frame_no);
+                entry["placement"] = placement_json(&placement);
+                log.steps.push(entry);
             }
         }
         if recorded_lines(&review) > lines_before {
@@ -483,11 +486,7 @@ pub fn run(mut review: Review, args: XrArgs, facts: Value) -> anyhow::Result<Val
     report["events"] = json!(log.events);
     report["controllers"] = controllers_json(&session, &real);
     report["after"] = selection_json(&review);
-    report["placement"] = json!({
-        "origin": placement.origin.to_array(),
-        "heading_deg": placement.heading_rad.to_degrees(),
-        "units_per_metre": placement.units_per_metre,
-    });
+    report["placement"] = placement_json(&placement);
     if let Some(eyes) = &last_eyes {
         report["eye_fov"] = json!(eyes.map(|(_, e)| e.fov));
         report["eye_positions"] = json!(eyes.map(|(c, _)| c.eye.to_array()));
@@ -594,7 +593,7 @@ fn log_event(log: &mut Log, session: &XrSession, review: &Review, frame: u64, ev
 }
 
 /// The result of a script action that has run its last frame.
-fn finish_step(log: &mut Log, review: &Review, hands: &Interaction, action: &XrAction) {
+fn step_result(log: &mut Log, review: &Review, hands: &Interaction, action: &XrAction) -> Value {
     let mut entry = match action {
         XrAction::Aim(_) => {
             let hover = hands.hover[Hand::Right.index()];
@@ -627,7 +626,16 @@ fn finish_step(log: &mut Log, review: &Review, hands: &Interaction, action: &XrA
     };
     entry["action"] = json!(action.name());
     entry["clashes_now"] = clashes_json(&review.report);
-    log.steps.push(entry);
+    entry
+}
+
+/// Where the tracking space stands.
+fn placement_json(placement: &Placement) -> Value {
+    json!({
+        "origin": placement.origin.to_array(),
+        "heading_deg": placement.heading_rad.to_degrees(),
+        "units_per_metre": placement.units_per_metre,
+    })
 }
 
 /// Notes a frame's timing: late when it took longer than the display
