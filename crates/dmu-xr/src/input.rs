@@ -88,9 +88,12 @@ enum Act {
 }
 use Act::{Aim, Haptic, Thumbstick, Trigger, Undo};
 
-/// The actions' bindings per interaction profile: (profile, [(action,
-/// subpath under /user/hand/{left,right}, per hand)]).
-const PROFILES: &[(&str, &[(Act, [&str; 2])])] = &[
+/// A profile's bindings: each action with its subpath under
+/// `/user/hand/{left,right}`, per hand.
+type Bindings = &'static [(Act, [&'static str; 2])];
+
+/// The actions' bindings per interaction profile.
+const PROFILES: &[(&str, Bindings)] = &[
     (
         "/interaction_profiles/khr/simple_controller",
         &[
