@@ -388,10 +388,15 @@ check("haptic_on_hard_clash", entries >= 1 and len(pulses) == entries
       and all(p["result"] == "ok" for p in pulses) and all(p["other_id"] in hard_others for p in pulses),
       hard_clash_entries=entries, pulses=pulses)
 
-# Locomotion: full left stick walks MOVE_M_PER_S (2 m/s) over the floor
-# along where the head faces, full right stick turns TURN_DEG_PER_S (90 deg/s)
-# clockwise about the head, each frame's time step its predicted display
-# period: each controller action against the placement before and after it.
+# Locomotion: the left stick walks over the floor along where the head faces
+# at MOVE_M_PER_S (2 m/s) times the deflection, the right stick's x turns
+# clockwise about the head at TURN_DEG_PER_S (90 deg/s) times the deflection
+# (the stick's value past the 0.15 dead zone, scaled to reach 1), each
+# frame's time step its predicted display period: each controller action
+# against the placement before and after it. (Small deflections: the view at
+# the end stays near the walkthrough's, for the parallax check.)
+def deflection(v, dead=0.15):
+    return 0.0 if abs(v) <= dead else math.copysign((min(abs(v), 1.0) - dead) / (1 - dead), v)
 periods = {f["frame"]: f["display_period_ms"] / 1000 for f in report.get("frames", [])}
 steps = report.get("steps", [])
 moves = []
@@ -403,10 +408,10 @@ for i, (a, st) in enumerate(zip(script["actions"], steps)):
     t = sum(periods.get(st["frame"] - k, math.nan) for k in range(c["frames"]))
     if c.get("hand") == "left":
         got = math.dist(after["origin"][:2], before["origin"][:2])
-        want = 2000 * c["thumbstick"][1] * t
+        want = 2000 * deflection(c["thumbstick"][1]) * t
     else:
         got = before["heading_deg"] - after["heading_deg"]
-        want = 90 * c["thumbstick"][0] * t
+        want = 90 * deflection(c["thumbstick"][0]) * t
     moves.append({"hand": c.get("hand"), "got": got, "want": want, "seconds": t})
 # A turn is exact; a walk follows the head's forward, which the simulated
 # head turns a little frame by frame, so the straight line from start to end
