@@ -842,4 +842,63 @@ mod tests {
         assert!(forward.abs_diff_eq(want, 1e-12), "{forward} vs {want}");
         assert_eq!(p.point(DVec3::ZERO), nav.eye);
     }
+
+    /// Eyes side by side with one orientation and one field of view make a
+    /// parallel rig whose eyes are the eye cameras the runtime's poses give;
+    /// a turned eye, another field of view or an eye off the line do not.
+    #[test]
+    fn parallel_rig_matches_the_eye_cameras() {
+        let placement = Placement {
+            origin: DVec3::new(4.5e6, 5.3e6, 1.2e4),
+            heading_rad: -1.2,
+            units_per_metre: 1000.0,
+        };
+        let orientation = dmu_geom::glam::DQuat::from_rotation_y(0.3)
+            * dmu_geom::glam::DQuat::from_rotation_x(-0.2);
+        let fov = dmu_geom::Fov {
+            left: -0.74,
+            right: 0.74,
+            down: -0.78,
+            up: 0.78,
+        };
+        let eye = |x: f64| Eye {
+            pose: Pose {
+                position: DVec3::new(0.1, 1.6, -0.3) + orientation * DVec3::new(x, 0.0, 0.0),
+                orientation,
+            },
+            fov,
+        };
+        let eyes = [eye(-0.0315), eye(0.0315)];
+        let (stereo, shared) = parallel_rig(&eyes, &placement, 50.0).expect("a parallel rig");
+        assert_eq!(shared, fov);
+        assert!((stereo.ipd - 63.0).abs() < 1e-9, "{}", stereo.ipd);
+        for (rig, e) in stereo.eyes().iter().zip(&eyes) {
+            let want = placement.eye_camera(&e.pose, &e.fov, 50.0);
+            assert!(
+                rig.eye.distance(want.eye) < 1e-6,
+                "{} vs {}",
+                rig.eye,
+                want.eye
+            );
+            let (a, b) = (rig.target - rig.eye, want.target - want.eye);
+            assert!(a.normalize().abs_diff_eq(b.normalize(), 1e-12));
+            assert!(rig.up.normalize().abs_diff_eq(want.up.normalize(), 1e-12));
+        }
+        let mut turned = eyes;
+        turned[1].pose.orientation = orientation * dmu_geom::glam::DQuat::from_rotation_y(1e-3);
+        let mut other_fov = eyes;
+        other_fov[1].fov.left = -0.6;
+        let mut off_line = eyes;
+        off_line[1].pose.position += orientation * DVec3::new(0.0, 1e-3, 0.0);
+        let mut swapped = eyes;
+        swapped.swap(0, 1);
+        for (what, e) in [
+            ("turned", turned),
+            ("fov", other_fov),
+            ("off the line", off_line),
+            ("swapped", swapped),
+        ] {
+            assert!(parallel_rig(&e, &placement, 50.0).is_none(), "{what}");
+        }
+    }
 }

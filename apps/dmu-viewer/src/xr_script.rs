@@ -138,7 +138,7 @@ impl XrAction {
     pub fn frames(&self) -> u32 {
         match self {
             Self::Look(l) => l.frames.max(1),
-            Self::Grab(g) => g.frames.max(1) + 1,
+            Self::Grab(g) => g.frames.max(1).saturating_add(1),
             Self::Frames(n) => (*n).max(1),
             Self::Controller(c) => c.frames.max(1),
             Self::Undo => 2,
