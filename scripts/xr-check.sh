@@ -3,8 +3,8 @@
 # headset and two simulated WMR controllers) in the trixie chroot that
 # scripts/xr-setup.sh makes, dmu-viewer --xr on the built-in 2M plant for
 # 120+ frames with a scripted hand (look around, aim at a part, grab it into
-# a clash, release, undo, walk and turn with the thumbsticks), recording the
-# session, then checks:
+# a clash, release, undo), recording the session, and a second, short session
+# (the frame budget, the thumbsticks walking and turning), then checks:
 #   - the session reached FOCUSED, >= 120 frames were submitted, it exited
 #     cleanly (EXITING after the exit request, exit status 0);
 #   - the controllers' actions: bindings suggested for every profile were
@@ -15,7 +15,8 @@
 #   - the recording replays in `dmu collide --record` to the clashes the
 #     session saw at every recorded step;
 #   - the thumbsticks walked and turned the tracking space as far as their
-#     speeds and the runtime's display period say;
+#     speeds, the dead zone and the runtime's display periods say (second
+#     session);
 #   - both eye images show the plant (pixels that are not background);
 #   - the parallax is right: at the known points the report gives (world
 #     points seen from between the eyes, projected analytically into both
@@ -31,7 +32,7 @@
 #     display period (--xr-budget display): frames over the period are
 #     counted late, and the budget draws coarser after a late frame.
 # The main session runs with --xr-budget off (exact images, for the parallax
-# check). Writes OUT/left.png, OUT/right.png, OUT/report.json (the viewer's
+# check; it ends where the walkthrough leaves the view). Writes OUT/left.png, OUT/right.png, OUT/report.json (the viewer's
 # report), OUT/comfort.json (the second session's), OUT/session.jsonl (the
 # recording), OUT/replay.json, OUT/desktop.json, OUT/check.json (what was
 # checked, with the figures) and OUT/monado.log. Exit status 0 when every
@@ -56,6 +57,7 @@ OUT=$(cd "$1" && pwd)
 FRAMES="${DMU_XR_FRAMES:-120}"
 EYE_PX="${DMU_XR_EYE_PX:-640}"
 SCRIPT="$REPO/scripts/xr/walkthrough.json"
+LOCOMOTION="$REPO/scripts/xr/locomotion.json"
 
 ROOT=$(scripts/xr-setup.sh | tail -n 1)
 VIEWER="${DMU_VIEWER:-$REPO/target/debug/dmu-viewer}"
@@ -82,6 +84,7 @@ mkdir -p "$HOST_RUN/out" "$HOST_RUN/xdg"
 chmod 700 "$HOST_RUN/xdg"
 touch "$HOST_RUN/dmu-viewer"
 cp "$SCRIPT" "$HOST_RUN/walkthrough.json"
+cp "$LOCOMOTION" "$HOST_RUN/locomotion.json"
 mounted=()
 MONADO_PID=
 cleanup() {
@@ -153,11 +156,13 @@ fi
 # The report names the saved eyes and the recording by their paths inside the chroot.
 sed -i "s#$RUN/out#$OUT#g" "$OUT/report.json"
 
-# Comfort: a short session with the budget from the display period (the
-# same Monado, the same model).
+# Comfort and locomotion: a short session with the budget from the display
+# period, the thumbsticks walking and turning (the same Monado, the same
+# model; apart from the main session, whose last view the parallax check
+# wants where the walkthrough leaves it).
 set +e
 in_chroot "$RUN/dmu-viewer" --xr --frames "${DMU_XR_COMFORT_FRAMES:-24}" --eye-px "$EYE_PX" \
-    --xr-budget display --json \
+    --xr-script "$RUN/locomotion.json" --xr-budget display --json \
     >"$OUT/comfort.json.tmp" 2>"$OUT/comfort.log"
 comfort_status=$?
 set -e
@@ -198,11 +203,12 @@ xvfb-run -a -s "-screen 0 1280x800x24" "$VIEWER" --width 640 --height 480 \
     exit 1
 }
 
-python3 - "$OUT" "$FRAMES" "$xr_ms" "$SCRIPT" <<'EOF'
+python3 - "$OUT" "$FRAMES" "$xr_ms" "$SCRIPT" "$LOCOMOTION" <<'EOF'
 import json, math, os, struct, sys, zlib
 
 out, frames_wanted, xr_s = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]) / 1000
 script = json.load(open(sys.argv[4]))
+locomotion = json.load(open(sys.argv[5]))
 report = json.load(open(f"{out}/report.json"))
 comfort = json.load(open(f"{out}/comfort.json"))
 desktop = json.load(open(f"{out}/desktop.json"))
@@ -393,14 +399,13 @@ check("haptic_on_hard_clash", entries >= 1 and len(pulses) == entries
 # clockwise about the head at TURN_DEG_PER_S (90 deg/s) times the deflection
 # (the stick's value past the 0.15 dead zone, scaled to reach 1), each
 # frame's time step its predicted display period: each controller action
-# against the placement before and after it. (Small deflections: the view at
-# the end stays near the walkthrough's, for the parallax check.)
+# against the placement before and after it, in the comfort session.
 def deflection(v, dead=0.15):
     return 0.0 if abs(v) <= dead else math.copysign((min(abs(v), 1.0) - dead) / (1 - dead), v)
-periods = {f["frame"]: f["display_period_ms"] / 1000 for f in report.get("frames", [])}
-steps = report.get("steps", [])
+periods = {f["frame"]: f["display_period_ms"] / 1000 for f in comfort.get("frames", [])}
+steps = comfort.get("steps", [])
 moves = []
-for i, (a, st) in enumerate(zip(script["actions"], steps)):
+for i, (a, st) in enumerate(zip(locomotion["actions"], steps)):
     if not (isinstance(a, dict) and "controller" in a) or i == 0:
         continue
     c = a["controller"]
@@ -408,7 +413,7 @@ for i, (a, st) in enumerate(zip(script["actions"], steps)):
     t = sum(periods.get(st["frame"] - k, math.nan) for k in range(c["frames"]))
     if c.get("hand") == "left":
         got = math.dist(after["origin"][:2], before["origin"][:2])
-        want = 2000 * deflection(c["thumbstick"][1]) * t
+        want = 2000 * math.hypot(*map(deflection, c["thumbstick"])) * t
     else:
         got = before["heading_deg"] - after["heading_deg"]
         want = 90 * deflection(c["thumbstick"][0]) * t
@@ -420,8 +425,9 @@ def moved_right(m):
     if m["hand"] == "left":
         return m["want"] * 0.99 <= m["got"] <= m["want"] + 1e-6
     return abs(m["got"] - m["want"]) <= 1e-6 * max(1, abs(m["want"]))
-check("locomotion", len(moves) >= 2 and all(map(moved_right, moves))
-      and any(m["hand"] == "left" and m["want"] > 0 for m in moves), moves=moves)
+check("locomotion", len(moves) == 5 and all(map(moved_right, moves))
+      and any(m["hand"] == "left" and m["want"] > 0 for m in moves)
+      and any(m["hand"] == "right" and m["want"] == 0 for m in moves), moves=moves)
 
 # Comfort: frames over the display period are late; after a late frame the
 # budget draws coarser (a higher LOD error or coverage threshold, unless at
