@@ -1,8 +1,9 @@
 //! The parts of `dmu-viewer` that need no window, as a library so that tests
 //! and the fuzz harness (`fuzz/`) reach them: the review (moves, undo,
 //! collision, sections, the clash list, viewpoints), the gizmo's geometry,
-//! measurement, automation scripts, navigation and the render settings
-//! scripts name. The binary (`main.rs`) uses them from here.
+//! measurement, automation scripts, navigation, the render settings
+//! scripts name, and the hands of the VR review (`xr_input`, `xr_script`).
+//! The binary (`main.rs`) uses them from here.
 
 pub mod clashes;
 pub mod gizmo;
@@ -15,4 +16,5 @@ pub mod script;
 pub mod section;
 pub mod settings;
 pub mod viewpoints;
+pub mod xr_input;
 pub mod xr_script;

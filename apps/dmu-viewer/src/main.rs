@@ -131,6 +131,17 @@ struct Cli {
     /// runtime's recommended aspect, within its maximum size).
     #[arg(long, requires = "xr", default_value_t = 1024, value_parser = clap::value_parser!(u32).range(16..=8192))]
     eye_px: u32,
+    /// With --xr: the frame-time budget of both eyes: `display` (the
+    /// runtime's predicted display period: a frame that would be late draws
+    /// coarser levels and drops small nodes), `off` (the LOD error and
+    /// coverage threshold stay as set: exact images), or milliseconds.
+    #[arg(long, requires = "xr", default_value = "display", value_parser = xr::Budget::parse)]
+    xr_budget: xr::Budget,
+    /// With --xr: cull and draw both eyes once where they form a parallel
+    /// rig sharing a field of view (auto), each eye apart (per-eye), or
+    /// alternate the two frame by frame to time both in one run (compare).
+    #[arg(long, requires = "xr", value_enum, default_value = "auto")]
+    xr_stereo: xr::Stereo,
     /// With --xr: print the report as one JSON object (else one line).
     #[arg(long, requires = "xr")]
     json: bool,
@@ -238,6 +249,8 @@ fn run_xr(cli: &Cli) -> anyhow::Result<()> {
             lod_error_px: cli.lod_error_px,
             ..Default::default()
         },
+        budget: cli.xr_budget,
+        stereo: cli.xr_stereo,
     };
     let (review, facts, _) = load_review(
         &cli.model,

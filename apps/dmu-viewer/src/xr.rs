@@ -4,22 +4,39 @@
 //! runtime's eye poses and asymmetric fields of view, copied into the
 //! session's 2-layer swapchain image and submitted as a projection layer.
 //!
-//! The hand is scripted ([`dmu_viewer::xr_script`]): aim picks the first part
-//! along its ray (`Tree::pick`, as a desktop click), grab moves the selection
-//! through the same drag steps as the desktop's scripted drag, so a VR move
-//! gives the desktop's tree and clashes.
+//! The hands: the runtime's controllers through OpenXR actions (synced each
+//! frame while the session is focused) or, while an `--xr-script` runs, the
+//! script's injected controller input; either goes through the one
+//! input-handling function ([`Interaction::handle`]): aim picks
+//! (`Tree::pick`, as a desktop click), the trigger grabs and drags through
+//! the desktop's drag code, a hard clash pulses the controller, the undo
+//! button undoes, the thumbsticks move the tracking space.
+//!
+//! Both eyes are culled once and drawn together (`render_stereo`) where they
+//! form a parallel rig sharing a field of view (a simulated headset's do),
+//! else each apart.
+//!
+//! Comfort: the views get a frame-time budget from the runtime's predicted
+//! display period (`CullingOptions::target_ms`; half of it an eye where the
+//! eyes are drawn apart), so a frame that would be late draws coarser levels
+//! and drops small nodes; the report gives each frame's timing and the knobs
+//! chosen. The loop reads nothing from the disk (the model is in memory; a
+//! recording is written by its own thread).
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use dmu_geom::Ray3d;
-use dmu_geom::glam::{DQuat, DVec3};
-use dmu_render::{Capture, Culling, CullingOptions, Renderer, RendererOptions, View};
+use dmu_geom::glam::DVec3;
+use dmu_render::{
+    Capture, Culling, CullingOptions, Renderer, RendererOptions, StereoCamera, StereoView, View,
+};
 use dmu_scene::PartId;
 use dmu_viewer::nav::Navigator;
-use dmu_viewer::xr_script::{XrAction, XrScript};
-use dmu_xr::{Eye, Placement, Status, XrOptions, XrSession};
+use dmu_viewer::xr_input::{CLASH_PULSE_AMPLITUDE, CLASH_PULSE_S, Event, Interaction};
+use dmu_viewer::xr_script::{Runner, XrAction, XrScript};
+use dmu_xr::{ControllerInput, Eye, Hand, Placement, Pose, Status, XrOptions, XrSession};
 use serde_json::{Value, json};
 
 use crate::app::{clashes_json, retint, selection_json, summary};
@@ -31,14 +48,85 @@ const START_TIMEOUT: Duration = Duration::from_secs(60);
 const EXIT_TIMEOUT: Duration = Duration::from_secs(20);
 /// The near plane, metres: closer than anything a hand holds up.
 const NEAR_M: f64 = 0.05;
-/// Where the hand is held, metres in the head's frame: right, down, ahead.
-const HAND_IN_HEAD_M: DVec3 = DVec3::new(0.2, -0.3, -0.25);
+/// How far the eyes may be from a parallel rig sharing a field of view for
+/// both to be drawn as one (radians of turn and field, metres off the line
+/// between them): a millionth, far under a pixel.
+const RIG_TOLERANCE: f64 = 1e-6;
 /// The grid of image points whose world hits are reported with their
 /// analytic disparity (columns, rows).
 const KNOWN_POINT_GRID: (u32, u32) = (16, 12);
 /// Half the side of the square around each known point whose disparity range
 /// is reported (a patch an image comparison can match), pixels.
 const KNOWN_POINT_PATCH_PX: f64 = 5.0;
+
+/// The frame-time budget of the eyes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Budget {
+    /// The runtime's predicted display period (half of it an eye, where
+    /// the eyes are drawn apart).
+    Display,
+    /// None: the LOD error and coverage threshold stay as set.
+    Off,
+    /// A fixed budget for both eyes together, ms.
+    Fixed(f64),
+}
+
+impl Budget {
+    /// `display`, `off`, or a number of milliseconds (1 to 1e6).
+    pub fn parse(s: &str) -> Result<Self, String> {
+        match s {
+            "display" => Ok(Self::Display),
+            "off" => Ok(Self::Off),
+            _ => match s.parse::<f64>() {
+                Ok(ms) if (1.0..=1e6).contains(&ms) => Ok(Self::Fixed(ms)),
+                _ => Err(format!(
+                    "{s:?}: give display, off, or milliseconds from 1 to 1e6"
+                )),
+            },
+        }
+    }
+
+    /// The budget of a frame (both eyes), ms.
+    fn frame_ms(self, period_ms: f64) -> Option<f64> {
+        match self {
+            Self::Display => (period_ms > 0.0).then_some(period_ms),
+            Self::Off => None,
+            Self::Fixed(ms) => Some(ms),
+        }
+    }
+
+    fn as_json(self) -> Value {
+        match self {
+            Self::Display => json!("display"),
+            Self::Off => json!("off"),
+            Self::Fixed(ms) => json!(ms),
+        }
+    }
+}
+
+/// How the eyes are culled and drawn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Stereo {
+    /// Culled once for both (`render_stereo`, one multiview pass where the
+    /// driver has it) where the eyes form a parallel rig sharing a field of
+    /// view, else each eye apart.
+    Auto,
+    /// Each eye culled and drawn apart.
+    PerEye,
+    /// Alternate: odd frames as `auto`, even frames per eye (both timed in
+    /// one run, for the ratio).
+    Compare,
+}
+
+impl Stereo {
+    fn as_str(self) -> &'static str {
+        match self {
+            Self::Auto => "auto",
+            Self::PerEye => "per-eye",
+            Self::Compare => "compare",
+        }
+    }
+}
 
 /// What `--xr` was asked to do.
 #[derive(Debug)]
@@ -56,19 +144,63 @@ pub struct XrArgs {
     pub culling: Culling,
     /// Culling knobs of both eyes.
     pub culling_options: CullingOptions,
+    /// The frame-time budget.
+    pub budget: Budget,
+    /// Culling the eyes once or apart.
+    pub stereo: Stereo,
 }
 
-/// The script's progress and what it found.
+/// What the session saw of the runtime's controllers.
 #[derive(Debug, Default)]
-struct Hand {
-    index: usize,
-    step: u32,
-    /// Extra turn of the tracking space so far (look actions), radians.
-    look_rad: f64,
-    look_start_rad: f64,
-    results: Vec<Value>,
+struct RuntimeControllers {
+    /// Frames whose actions were synced (focused).
+    synced_frames: u64,
+    /// Frames the runtime's input drove the hands (no script running).
+    driven_frames: u64,
+    profiles: [Option<String>; 2],
+    /// The first aim pose the runtime located per hand.
+    first_aim: [Option<Pose>; 2],
+    /// The highest trigger value read per hand.
+    max_trigger: [f32; 2],
+}
+
+/// The script's results and the hands' events for the report.
+#[derive(Debug, Default)]
+struct Log {
+    steps: Vec<Value>,
     grabbed_part: Option<String>,
     grab: Option<Value>,
+    haptic_pulses: Vec<Value>,
+    events: Vec<Value>,
+    /// The clashes the session saw at every recorded step.
+    recorded_steps: Vec<Value>,
+}
+
+/// How a frame's eyes were drawn.
+#[derive(Clone, Copy, Debug, Default)]
+struct Drawn {
+    /// Culled once for both eyes (`render_stereo`), else per eye.
+    culled_once: bool,
+    /// Each eye's render and GPU wait, ms (drawn per eye).
+    eye_ms: Option<[f64; 2]>,
+    /// Triangles drawn (both eyes: a pair's draws count once).
+    triangles: u64,
+    /// The LOD error and coverage threshold drawn with (the coarser eye's).
+    knobs: [f64; 2],
+}
+
+/// Per-frame timing and the knobs the budget chose.
+#[derive(Debug, Default)]
+struct Timing {
+    eye_ms: [Vec<f64>; 2],
+    frame_ms: Vec<f64>,
+    /// Both eyes' render and GPU wait, ms: drawn per eye, culled once.
+    render_ms: [Vec<f64>; 2],
+    triangles: [Vec<f64>; 2],
+    frames: Vec<Value>,
+    late: u64,
+    missed_displays: i64,
+    last_display_ns: Option<i64>,
 }
 
 /// Runs the session; the report.
@@ -87,12 +219,13 @@ pub fn run(mut review: Review, args: XrArgs, facts: Value) -> anyhow::Result<Val
         &review.scene,
         &review.tree,
         RendererOptions {
-            lod_levels: args.culling_options.may_draw_lods(),
+            // A budget may choose simplified levels.
+            lod_levels: args.culling_options.may_draw_lods() || args.budget != Budget::Off,
             ..Default::default()
         },
     );
     let capture = Capture::stereo(&device, size);
-    let placement = placement(&review, &args.script);
+    let mut placement = placement(&review, &args.script);
     let near = NEAR_M * args.script.units_per_metre;
     let overview = Navigator::overview(&review.scene.world_bounds()).camera();
     let mut views = [0, 1].map(|_| {
@@ -100,11 +233,21 @@ pub fn run(mut review: Review, args: XrArgs, facts: Value) -> anyhow::Result<Val
         v.options = args.culling_options;
         v
     });
-    let mut tints: (Vec<PartId>, Vec<PartId>) = Default::default();
-    let mut hand = Hand::default();
-    let mut eye_ms: [Vec<f64>; 2] = Default::default();
-    let mut frame_ms = Vec::new();
-    let mut triangles: [Vec<f64>; 2] = Default::default();
+    let mut pair = StereoView::new(
+        StereoCamera {
+            center: overview,
+            ipd: 0.0,
+        },
+        size,
+        args.culling,
+    );
+    pair.view.options = args.culling_options;
+    let mut tints: [Vec<PartId>; 3] = Default::default();
+    let mut runner = Runner::default();
+    let mut hands = Interaction::default();
+    let mut log = Log::default();
+    let mut real = RuntimeControllers::default();
+    let mut timing = Timing::default();
     let mut skipped = 0u64;
     let mut last_eyes: Option<[(dmu_geom::Camera, Eye); 2]> = None;
     let started = Instant::now();
@@ -124,8 +267,7 @@ pub fn run(mut review: Review, args: XrArgs, facts: Value) -> anyhow::Result<Val
             }
             Status::Running => {}
         }
-        let script_done = hand.index >= args.script.actions.len();
-        if script_done && session.frames_submitted() >= target_frames {
+        if runner.done(&args.script) && session.frames_submitted() >= target_frames {
             break if session.finish(EXIT_TIMEOUT)? {
                 "clean"
             } else {
@@ -137,37 +279,125 @@ pub fn run(mut review: Review, args: XrArgs, facts: Value) -> anyhow::Result<Val
             continue;
         };
         let frame_start = Instant::now();
-        let cameras = frame.eyes.map(|e| {
-            let turned = Placement {
-                heading_rad: placement.heading_rad + hand.look_rad,
-                ..placement
+        let period_ms = frame.display_period_ns as f64 * 1e-6;
+        let head = head_pose(&frame.eyes);
+        // The runtime's controllers are synced on every focused frame; they
+        // drive the hands when no script does.
+        let synced = session.controllers(&frame)?;
+        if let Some(input) = &synced {
+            note_runtime_input(&mut real, &session, input)?;
+        }
+        let lines_before = recorded_lines(&review);
+        let scripted = runner.next(&args.script, &head, &mut placement);
+        let input = match &scripted {
+            Some(step) => Some(step.input),
+            None => {
+                real.driven_frames += u64::from(synced.is_some());
+                synced
+            }
+        };
+        let frame_no = session.frames_submitted();
+        if let Some(input) = input {
+            let dt_s = if period_ms > 0.0 {
+                period_ms * 1e-3
+            } else {
+                0.0
             };
-            (turned.eye_camera(&e.pose, &e.fov, near), e)
-        });
-        step_hand(&mut hand, &args.script, &mut review, &placement, &cameras)?;
+            let events = hands.handle(&input, Some(&head), &mut placement, &mut review, dt_s);
+            for event in events {
+                log_event(&mut log, &session, &review, frame_no, event);
+            }
+        }
+        if let Some(step) = &scripted {
+            if matches!(step.action, XrAction::Redo) {
+                review.redo();
+            }
+            if step.last {
+                let mut entry = step_result(&mut log, &review, &hands, step.action);
+                entry["frame"] = json!(frame_no);
+                entry["placement"] = placement_json(&placement);
+                log.steps.push(entry);
+            }
+        }
+        if recorded_lines(&review) > lines_before {
+            log.recorded_steps.push(json!({
+                "frame": frame_no,
+                "clashes": clashes_json(&review.report),
+            }));
+        }
         let selected = review.selected.into_iter().collect();
-        retint(&mut tints.0, selected, |p, on| renderer.set_selected(p, on));
-        retint(&mut tints.1, review.clashing_parts(), |p, on| {
+        retint(&mut tints[0], selected, |p, on| {
+            renderer.set_selected(p, on)
+        });
+        retint(&mut tints[1], review.clashing_parts(), |p, on| {
             renderer.set_clashing(p, on)
         });
+        let hovered = hands.hover.iter().flatten().map(|h| h.part).collect();
+        retint(&mut tints[2], hovered, |p, on| renderer.set_hovered(p, on));
+        let cameras = frame
+            .eyes
+            .map(|e| (placement.eye_camera(&e.pose, &e.fov, near), e));
         let target = capture.stereo_target();
-        for (i, view) in views.iter_mut().enumerate() {
-            let start = Instant::now();
-            view.camera = cameras[i].0;
-            view.fov = Some(cameras[i].1.fov);
-            let stats = renderer.render(
-                view,
-                &review.scene,
-                &review.tree,
-                &review.scene,
-                target.eyes[i],
-            )?;
-            device
-                .poll(wgpu::PollType::wait_indefinitely())
-                .context("waiting for an eye's frame")?;
-            eye_ms[i].push(start.elapsed().as_secs_f64() * 1e3);
-            triangles[i].push(stats.triangles_drawn as f64);
-        }
+        let render_start = Instant::now();
+        let rig = match args.stereo {
+            Stereo::PerEye => None,
+            Stereo::Auto => parallel_rig(&frame.eyes, &placement, near),
+            // Culled once on odd frames, per eye on even ones.
+            Stereo::Compare => {
+                parallel_rig(&frame.eyes, &placement, near).filter(|_| frame_no % 2 == 1)
+            }
+        };
+        let drawn = match rig {
+            Some((stereo, fov)) => {
+                pair.camera = stereo;
+                pair.view.fov = Some(fov);
+                pair.view.options.target_ms = args.budget.frame_ms(period_ms);
+                let stats = renderer.render_stereo(
+                    &mut pair,
+                    &review.scene,
+                    &review.tree,
+                    &review.scene,
+                    target,
+                )?;
+                device
+                    .poll(wgpu::PollType::wait_indefinitely())
+                    .context("waiting for the eyes' frame")?;
+                Drawn {
+                    culled_once: true,
+                    eye_ms: None,
+                    triangles: stats.triangles_drawn,
+                    knobs: [stats.lod_error_px, stats.min_pixels],
+                }
+            }
+            None => {
+                let mut eye_ms = [0.0; 2];
+                let mut drawn = Drawn::default();
+                for (i, view) in views.iter_mut().enumerate() {
+                    let start = Instant::now();
+                    view.camera = cameras[i].0;
+                    view.fov = Some(cameras[i].1.fov);
+                    view.options.target_ms = args.budget.frame_ms(period_ms).map(|ms| 0.5 * ms);
+                    let stats = renderer.render(
+                        view,
+                        &review.scene,
+                        &review.tree,
+                        &review.scene,
+                        target.eyes[i],
+                    )?;
+                    device
+                        .poll(wgpu::PollType::wait_indefinitely())
+                        .context("waiting for an eye's frame")?;
+                    eye_ms[i] = start.elapsed().as_secs_f64() * 1e3;
+                    drawn.triangles += stats.triangles_drawn;
+                    // The coarser eye's knobs.
+                    drawn.knobs[0] = drawn.knobs[0].max(stats.lod_error_px);
+                    drawn.knobs[1] = drawn.knobs[1].max(stats.min_pixels);
+                }
+                drawn.eye_ms = Some(eye_ms);
+                drawn
+            }
+        };
+        let render_ms = render_start.elapsed().as_secs_f64() * 1e3;
         let mut encoder = device.create_command_encoder(&Default::default());
         encoder.copy_texture_to_texture(
             capture.color_texture().as_image_copy(),
@@ -179,8 +409,18 @@ pub fn run(mut review: Review, args: XrArgs, facts: Value) -> anyhow::Result<Val
             },
         );
         queue.submit([encoder.finish()]);
+        let display_ns = frame.display_time_ns;
         session.end_frame(frame)?;
-        frame_ms.push(frame_start.elapsed().as_secs_f64() * 1e3);
+        let frame_ms = frame_start.elapsed().as_secs_f64() * 1e3;
+        note_timing(
+            &mut timing,
+            frame_no,
+            frame_ms,
+            period_ms,
+            display_ns,
+            render_ms,
+            &drawn,
+        );
         last_eyes = Some(cameras);
     };
     let mut report = facts;
@@ -191,6 +431,19 @@ pub fn run(mut review: Review, args: XrArgs, facts: Value) -> anyhow::Result<Val
             "right": dir.join("right.png"),
         });
     }
+    if let Some(rec) = review.recorder.take() {
+        let (path, lines) = (rec.path().to_owned(), rec.lines());
+        rec.finish()?;
+        report["recording"] = json!({
+            "path": path,
+            "lines": lines,
+            "clearance": review.settings.clearance,
+            "steps": log.recorded_steps,
+        });
+    }
+    if let Some(e) = &review.record_error {
+        report["record_error"] = json!(e);
+    }
     report["runtime"] = json!(session.runtime());
     report["adapter"] = json!(session.adapter().name);
     report["max_session_state"] = json!(session.max_state().as_str());
@@ -199,25 +452,41 @@ pub fn run(mut review: Review, args: XrArgs, facts: Value) -> anyhow::Result<Val
     report["frames_not_rendered"] = json!(skipped);
     report["eye_size"] = json!(size);
     report["recommended_eye_size"] = json!(session.recommended_eye_size());
-    report["eye_frame_ms"] = json!({ "left": summary(&eye_ms[0]), "right": summary(&eye_ms[1]) });
-    report["frame_ms"] = summary(&frame_ms);
-    report["triangles_drawn"] =
-        json!({ "left": summary(&triangles[0]), "right": summary(&triangles[1]) });
+    report["eye_frame_ms"] =
+        json!({ "left": summary(&timing.eye_ms[0]), "right": summary(&timing.eye_ms[1]) });
+    report["frame_ms"] = summary(&timing.frame_ms);
+    report["render_ms"] = json!({
+        "per_eye": summary(&timing.render_ms[0]),
+        "culled_once": summary(&timing.render_ms[1]),
+    });
+    report["stereo"] = json!({
+        "mode": args.stereo.as_str(),
+        "frames_culled_once": timing.render_ms[1].len(),
+        "frames_per_eye": timing.render_ms[0].len(),
+        "multiview": renderer.stereo_mode() == dmu_render::StereoMode::Multiview,
+    });
+    report["frames_late"] = json!(timing.late);
+    report["displays_missed"] = json!(timing.missed_displays);
+    report["budget"] = args.budget.as_json();
+    report["frames"] = json!(timing.frames);
+    report["triangles_drawn"] = json!({
+        "per_eye": summary(&timing.triangles[0]),
+        "culled_once": summary(&timing.triangles[1]),
+    });
     report["session_s"] = json!(started.elapsed().as_secs_f64());
-    report["steps"] = json!(hand.results);
-    report["grabbed_part"] = json!(hand.grabbed_part);
-    report["grab"] = json!(hand.grab);
+    report["steps"] = json!(log.steps);
+    report["grabbed_part"] = json!(log.grabbed_part);
+    report["grab"] = json!(log.grab);
     report["clashes"] = json!(
-        hand.grab
+        log.grab
             .as_ref()
             .and_then(|g| g["clashes"].as_array().map(Vec::len))
     );
+    report["haptic_pulses"] = json!(log.haptic_pulses);
+    report["events"] = json!(log.events);
+    report["controllers"] = controllers_json(&session, &real);
     report["after"] = selection_json(&review);
-    report["placement"] = json!({
-        "origin": placement.origin.to_array(),
-        "heading_deg": placement.heading_rad.to_degrees(),
-        "units_per_metre": placement.units_per_metre,
-    });
+    report["placement"] = placement_json(&placement);
     if let Some(eyes) = &last_eyes {
         report["eye_fov"] = json!(eyes.map(|(_, e)| e.fov));
         report["eye_positions"] = json!(eyes.map(|(c, _)| c.eye.to_array()));
@@ -228,6 +497,219 @@ pub fn run(mut review: Review, args: XrArgs, facts: Value) -> anyhow::Result<Val
     }
     report["exit"] = json!(exit);
     Ok(report)
+}
+
+/// The head in the tracking space: the eyes' midpoint, the left eye's
+/// orientation.
+fn head_pose(eyes: &[Eye; 2]) -> Pose {
+    Pose {
+        position: (eyes[0].pose.position + eyes[1].pose.position) * 0.5,
+        orientation: eyes[0].pose.orientation,
+    }
+}
+
+/// Lines the recording holds so far (0 when not recording).
+fn recorded_lines(review: &Review) -> u64 {
+    review.recorder.as_ref().map_or(0, |r| r.lines())
+}
+
+/// Notes what the runtime's controllers gave this frame.
+fn note_runtime_input(
+    real: &mut RuntimeControllers,
+    session: &XrSession,
+    input: &ControllerInput,
+) -> anyhow::Result<()> {
+    real.synced_frames += 1;
+    if real.profiles.iter().any(Option::is_none) {
+        real.profiles = session.interaction_profiles()?;
+    }
+    for hand in Hand::BOTH {
+        let h = &input.hands[hand.index()];
+        let i = hand.index();
+        if real.first_aim[i].is_none() {
+            real.first_aim[i] = h.aim;
+        }
+        real.max_trigger[i] = real.max_trigger[i].max(h.trigger);
+    }
+    Ok(())
+}
+
+/// The runtime's controllers in the report.
+fn controllers_json(session: &XrSession, real: &RuntimeControllers) -> Value {
+    let pose = |p: &Option<Pose>| {
+        p.map(|p| {
+            json!({
+                "position": p.position.to_array(),
+                "orientation": p.orientation.to_array(),
+            })
+        })
+    };
+    json!({
+        "bindings": session.bindings().iter().map(|b| json!({
+            "profile": b.profile,
+            "accepted": b.error.is_none(),
+            "error": b.error,
+        })).collect::<Vec<_>>(),
+        "synced_frames": real.synced_frames,
+        "driven_frames": real.driven_frames,
+        "profiles": { "left": real.profiles[0], "right": real.profiles[1] },
+        "first_aim": { "left": pose(&real.first_aim[0]), "right": pose(&real.first_aim[1]) },
+        "max_trigger": { "left": real.max_trigger[0], "right": real.max_trigger[1] },
+    })
+}
+
+/// Logs a hand's event; a hard clash pulses the grabbing hand's controller.
+fn log_event(log: &mut Log, session: &XrSession, review: &Review, frame: u64, event: Event) {
+    let name = |p: PartId| review.scene.part_name(p).to_owned();
+    let entry = match event {
+        Event::Grab { hand, part } => {
+            log.grabbed_part = Some(review.scene.part_path(part));
+            json!({ "event": "grab", "hand": hand.as_str(), "part": name(part) })
+        }
+        Event::Release { hand, part, offset } => {
+            json!({ "event": "release", "hand": hand.as_str(), "part": name(part),
+                    "offset": offset.to_array() })
+        }
+        Event::Undo { part } => json!({ "event": "undo", "part": part.map(name) }),
+        Event::HardClash { hand, part, other } => {
+            let result = session.haptic_pulse(hand, CLASH_PULSE_S, CLASH_PULSE_AMPLITUDE);
+            let pulse = json!({
+                "frame": frame,
+                "hand": hand.as_str(),
+                "part": name(part),
+                "other": name(other),
+                "other_id": other.0,
+                "duration_s": CLASH_PULSE_S,
+                "amplitude": CLASH_PULSE_AMPLITUDE,
+                "result": result.as_ref().map_or_else(|e| e.to_string(), |()| "ok".into()),
+            });
+            log.haptic_pulses.push(pulse.clone());
+            pulse
+        }
+    };
+    let mut entry = entry;
+    entry["frame"] = json!(frame);
+    log.events.push(entry);
+}
+
+/// The result of a script action that has run its last frame.
+fn step_result(log: &mut Log, review: &Review, hands: &Interaction, action: &XrAction) -> Value {
+    let mut entry = match action {
+        XrAction::Aim(_) => {
+            let hover = hands.hover[Hand::Right.index()];
+            json!({
+                "from": hover.map(|h| h.from.to_array()),
+                "hit": hover.is_some(),
+                "part": hover.map(|h| review.scene.part_name(h.part)),
+                "path": hover.map(|h| review.scene.part_path(h.part)),
+                "distance": hover.map(|h| h.distance),
+            })
+        }
+        XrAction::Grab(_) => {
+            let mut facts = selection_json(review);
+            // The tree followed every step (the desktop's invariant).
+            facts["tree_valid"] = json!(review.tree.validate_against(&review.scene).is_ok());
+            facts["cells"] = json!(review.tree.cell_count());
+            if let Some(offset) = log
+                .events
+                .iter()
+                .rev()
+                .find(|e| e["event"] == "release")
+                .map(|e| e["offset"].clone())
+            {
+                facts["offset"] = offset;
+            }
+            log.grab = Some(facts.clone());
+            facts
+        }
+        _ => json!({}),
+    };
+    entry["action"] = json!(action.name());
+    entry["clashes_now"] = clashes_json(&review.report);
+    entry
+}
+
+/// Where the tracking space stands.
+fn placement_json(placement: &Placement) -> Value {
+    json!({
+        "origin": placement.origin.to_array(),
+        "heading_deg": placement.heading_rad.to_degrees(),
+        "units_per_metre": placement.units_per_metre,
+    })
+}
+
+/// Notes a frame's timing: late when it took longer than the display
+/// period; displays missed from the gaps between predicted display times.
+fn note_timing(
+    t: &mut Timing,
+    frame: u64,
+    frame_ms: f64,
+    period_ms: f64,
+    display_ns: i64,
+    render_ms: f64,
+    drawn: &Drawn,
+) {
+    let late = period_ms > 0.0 && frame_ms > period_ms;
+    t.late += u64::from(late);
+    if let Some(last) = t.last_display_ns
+        && period_ms > 0.0
+    {
+        let gap = (display_ns - last) as f64 * 1e-6 / period_ms;
+        t.missed_displays += (gap.round() as i64 - 1).max(0);
+    }
+    t.last_display_ns = Some(display_ns);
+    t.frame_ms.push(frame_ms);
+    let mode = usize::from(drawn.culled_once);
+    t.render_ms[mode].push(render_ms);
+    t.triangles[mode].push(drawn.triangles as f64);
+    if let Some(eye_ms) = drawn.eye_ms {
+        t.eye_ms[0].push(eye_ms[0]);
+        t.eye_ms[1].push(eye_ms[1]);
+    }
+    t.frames.push(json!({
+        "frame": frame,
+        "frame_ms": frame_ms,
+        "render_ms": render_ms,
+        "eye_ms": drawn.eye_ms,
+        "culled_once": drawn.culled_once,
+        "display_period_ms": period_ms,
+        "late": late,
+        "lod_error_px": drawn.knobs[0],
+        "min_pixels": drawn.knobs[1],
+        "triangles": drawn.triangles,
+    }));
+}
+
+/// The eyes as a parallel stereo rig sharing one field of view (what
+/// `render_stereo` culls once): the centre camera between them and the
+/// distance between them in model units, with the shared field of view.
+/// `None` where the eyes turn differently, have different fields of view,
+/// or are not side by side along their x axis (within [`RIG_TOLERANCE`]).
+fn parallel_rig(
+    eyes: &[Eye; 2],
+    placement: &Placement,
+    near: f64,
+) -> Option<(StereoCamera, dmu_geom::Fov)> {
+    let [l, r] = eyes;
+    let turn = l.pose.orientation.angle_between(r.pose.orientation);
+    let [a, b] = [l.fov, r.fov].map(|f| [f.left, f.right, f.down, f.up]);
+    let same_fov = a
+        .iter()
+        .zip(&b)
+        .all(|(x, y)| (x - y).abs() <= RIG_TOLERANCE);
+    // The right eye seen from the left one: along +x only.
+    let offset = l.pose.orientation.inverse() * (r.pose.position - l.pose.position);
+    let side_by_side =
+        offset.x > 0.0 && offset.y.abs() <= RIG_TOLERANCE && offset.z.abs() <= RIG_TOLERANCE;
+    (turn <= RIG_TOLERANCE && same_fov && side_by_side).then(|| {
+        let head = Pose {
+            position: (l.pose.position + r.pose.position) * 0.5,
+            orientation: l.pose.orientation,
+        };
+        let center = placement.eye_camera(&head, &l.fov, near);
+        let ipd = offset.x * placement.units_per_metre;
+        (StereoCamera { center, ipd }, l.fov)
+    })
 }
 
 /// The tracking space's placement: the script's, else at the desktop
@@ -252,96 +734,6 @@ fn placement(review: &Review, script: &XrScript) -> Placement {
             }
         }
     }
-}
-
-/// One step of the script on this frame's eyes.
-fn step_hand(
-    hand: &mut Hand,
-    script: &XrScript,
-    review: &mut Review,
-    placement: &Placement,
-    cameras: &[(dmu_geom::Camera, Eye); 2],
-) -> anyhow::Result<()> {
-    let Some(action) = script.actions.get(hand.index) else {
-        return Ok(());
-    };
-    let step = hand.step;
-    let steps = action.frames();
-    let mut result = None;
-    match action {
-        XrAction::Look(l) => {
-            if step == 0 {
-                hand.look_start_rad = hand.look_rad;
-            }
-            let t = f64::from(step + 1) / f64::from(steps);
-            hand.look_rad = hand.look_start_rad + l.yaw_deg.to_radians() * t;
-        }
-        XrAction::Aim(at) => {
-            let from = hand_position(placement, hand.look_rad, cameras);
-            let ray = Ray3d::new(from, DVec3::from_array(*at) - from);
-            let hit = review.pick(&ray);
-            review.select(hit.as_ref().map(|h| h.part));
-            hand.grabbed_part = hit.as_ref().map(|h| review.scene.part_path(h.part));
-            result = Some(json!({
-                "from": from.to_array(),
-                "hit": hit.is_some(),
-                "part": hit.as_ref().map(|h| review.scene.part_name(h.part)),
-                "path": hand.grabbed_part,
-                "distance": hit.as_ref().map(|h| h.t * ray.dir.length()),
-            }));
-        }
-        XrAction::Grab(g) => {
-            // The desktop's scripted drag, step for step.
-            if step == 0 {
-                anyhow::ensure!(review.begin_drag(), "grab: the hand aims at no part");
-            }
-            let t = f64::from(step + 1) / f64::from(steps);
-            review.drag_to(DVec3::from_array(g.by) * t);
-            if step + 1 == steps {
-                review.end_drag();
-                let mut facts = selection_json(review);
-                // The tree followed every step (the desktop's invariant).
-                facts["tree_valid"] = json!(review.tree.validate_against(&review.scene).is_ok());
-                facts["cells"] = json!(review.tree.cell_count());
-                hand.grab = Some(facts.clone());
-                result = Some(facts);
-            }
-        }
-        XrAction::Undo => {
-            result = Some(json!({ "part_id": review.undo().map(|p| p.0) }));
-        }
-        XrAction::Redo => {
-            result = Some(json!({ "part_id": review.redo().map(|p| p.0) }));
-        }
-        XrAction::Frames(_) => {}
-    }
-    if step + 1 >= steps {
-        let mut entry = result.unwrap_or_else(|| json!({}));
-        entry["action"] = json!(action.name());
-        entry["clashes_now"] = clashes_json(&review.report);
-        hand.results.push(entry);
-        hand.index += 1;
-        hand.step = 0;
-    } else {
-        hand.step += 1;
-    }
-    Ok(())
-}
-
-/// The hand in the world: held in front of the head (the eyes' midpoint),
-/// turned with the view.
-fn hand_position(
-    placement: &Placement,
-    look_rad: f64,
-    cameras: &[(dmu_geom::Camera, Eye); 2],
-) -> DVec3 {
-    let head = (cameras[0].1.pose.position + cameras[1].1.pose.position) * 0.5;
-    let orientation: DQuat = cameras[0].1.pose.orientation;
-    let turned = Placement {
-        heading_rad: placement.heading_rad + look_rad,
-        ..*placement
-    };
-    turned.point(head + orientation * HAND_IN_HEAD_M)
 }
 
 /// World points seen at a grid of the left eye's image points (rays from the
@@ -422,14 +814,15 @@ fn save_eyes(
 /// A one-line summary of the report for people (without `--json`).
 pub fn summary_line(report: &Value) -> String {
     format!(
-        "{}: {} frames submitted, furthest state {}, exit {}; eye frame {:.1} ms (median, left)",
+        "{}: {} frames submitted, furthest state {}, exit {}; both eyes {:.1} ms (median, culled once), {} frames late",
         report["runtime"].as_str().unwrap_or("?"),
         report["frames_submitted"],
         report["max_session_state"].as_str().unwrap_or("?"),
         report["exit"].as_str().unwrap_or("?"),
-        report["eye_frame_ms"]["left"]["median"]
+        report["render_ms"]["culled_once"]["median"]
             .as_f64()
             .unwrap_or(f64::NAN),
+        report["frames_late"],
     )
 }
 
@@ -448,5 +841,64 @@ mod tests {
         let want = DVec3::new(nav.forward().x, nav.forward().y, 0.0).normalize();
         assert!(forward.abs_diff_eq(want, 1e-12), "{forward} vs {want}");
         assert_eq!(p.point(DVec3::ZERO), nav.eye);
+    }
+
+    /// Eyes side by side with one orientation and one field of view make a
+    /// parallel rig whose eyes are the eye cameras the runtime's poses give;
+    /// a turned eye, another field of view or an eye off the line do not.
+    #[test]
+    fn parallel_rig_matches_the_eye_cameras() {
+        let placement = Placement {
+            origin: DVec3::new(4.5e6, 5.3e6, 1.2e4),
+            heading_rad: -1.2,
+            units_per_metre: 1000.0,
+        };
+        let orientation = dmu_geom::glam::DQuat::from_rotation_y(0.3)
+            * dmu_geom::glam::DQuat::from_rotation_x(-0.2);
+        let fov = dmu_geom::Fov {
+            left: -0.74,
+            right: 0.74,
+            down: -0.78,
+            up: 0.78,
+        };
+        let eye = |x: f64| Eye {
+            pose: Pose {
+                position: DVec3::new(0.1, 1.6, -0.3) + orientation * DVec3::new(x, 0.0, 0.0),
+                orientation,
+            },
+            fov,
+        };
+        let eyes = [eye(-0.0315), eye(0.0315)];
+        let (stereo, shared) = parallel_rig(&eyes, &placement, 50.0).expect("a parallel rig");
+        assert_eq!(shared, fov);
+        assert!((stereo.ipd - 63.0).abs() < 1e-9, "{}", stereo.ipd);
+        for (rig, e) in stereo.eyes().iter().zip(&eyes) {
+            let want = placement.eye_camera(&e.pose, &e.fov, 50.0);
+            assert!(
+                rig.eye.distance(want.eye) < 1e-6,
+                "{} vs {}",
+                rig.eye,
+                want.eye
+            );
+            let (a, b) = (rig.target - rig.eye, want.target - want.eye);
+            assert!(a.normalize().abs_diff_eq(b.normalize(), 1e-12));
+            assert!(rig.up.normalize().abs_diff_eq(want.up.normalize(), 1e-12));
+        }
+        let mut turned = eyes;
+        turned[1].pose.orientation = orientation * dmu_geom::glam::DQuat::from_rotation_y(1e-3);
+        let mut other_fov = eyes;
+        other_fov[1].fov.left = -0.6;
+        let mut off_line = eyes;
+        off_line[1].pose.position += orientation * DVec3::new(0.0, 1e-3, 0.0);
+        let mut swapped = eyes;
+        swapped.swap(0, 1);
+        for (what, e) in [
+            ("turned", turned),
+            ("fov", other_fov),
+            ("off the line", off_line),
+            ("swapped", swapped),
+        ] {
+            assert!(parallel_rig(&e, &placement, 50.0).is_none(), "{what}");
+        }
     }
 }

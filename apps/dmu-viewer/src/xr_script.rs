@@ -1,6 +1,10 @@
 //! Scripts for `dmu-viewer --xr`: where the tracking space stands in the
-//! model, and what the (simulated) hand does, one step per submitted frame,
-//! so a VR session is testable on a runtime whose headset has no controllers.
+//! model, and what the hands do, one step per submitted frame, so a VR
+//! session is testable on a runtime without controllers (or with idle
+//! simulated ones). The hand actions become controller input ([`Runner`]:
+//! aim poses, trigger, undo button, thumbstick) fed into the same
+//! input-handling function as the runtime's actions
+//! ([`crate::xr_input::Interaction::handle`]).
 //!
 //! ```json
 //! {
@@ -12,6 +16,7 @@
 //!     {"aim": [4515000, 5350000, 13500]},
 //!     {"grab": {"by": [0, 0, -400], "frames": 20}},
 //!     "undo",
+//!     {"controller": {"hand": "left", "thumbstick": [0, 1], "frames": 10}},
 //!     {"frames": 10}
 //!   ]
 //! }
@@ -21,15 +26,24 @@
 //! space: the head as the session starts; default: the desktop viewer's
 //! overview eye), `heading_deg`
 //! turns the tracking space about world Z (0: the headset's forward is world
-//! +Y). `aim` points the hand's ray at a world point and picks the first part
-//! it hits; `grab` moves the aimed part with the hand by a world offset (model
-//! units) in equal steps, one per frame, through the same drag code as the
-//! desktop's `{"drag": ...}`, then releases it.
+//! +Y). `aim` holds the right hand ahead of the head and points its ray at a
+//! world point (the part it hits is hovered); `grab` presses the trigger
+//! (grabbing the hovered part), moves the hand by a world offset (model
+//! units) in equal steps, one per frame, and releases the trigger with the
+//! last step: the part follows through the same drag code as the desktop's
+//! `{"drag": ...}`. `undo` presses the undo button; `controller` holds one
+//! hand's raw input (aim, trigger, thumbstick, undo button) for some frames.
 
 use std::path::Path;
 
 use anyhow::Context as _;
+use dmu_geom::glam::{DQuat, DVec3};
+use dmu_xr::{ControllerInput, Hand, HandInput, Placement, Pose};
 use serde::Deserialize;
+
+/// Where a scripted hand is held before it is moved, metres in the head's
+/// frame: right, down, ahead.
+pub const HAND_IN_HEAD_M: DVec3 = DVec3::new(0.2, -0.3, -0.25);
 
 /// A turn of the view about the head, in equal steps.
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
@@ -51,33 +65,84 @@ pub struct Grab {
     pub frames: u32,
 }
 
+/// Which hand a raw controller action drives.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HandName {
+    /// The left hand.
+    Left,
+    /// The right hand (the default).
+    #[default]
+    Right,
+}
+
+impl HandName {
+    /// The runtime's hand.
+    pub fn hand(self) -> Hand {
+        match self {
+            Self::Left => Hand::Left,
+            Self::Right => Hand::Right,
+        }
+    }
+}
+
+/// One hand's raw controller input, held for some frames.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Controller {
+    /// The hand.
+    #[serde(default)]
+    pub hand: HandName,
+    /// Point the hand's aim ray at this world point (from where the hand is
+    /// held); default: keep its aim.
+    #[serde(default)]
+    pub aim: Option<[f64; 3]>,
+    /// Trigger value, 0 to 1.
+    #[serde(default)]
+    pub trigger: f32,
+    /// Thumbstick `[x, y]`, each -1 to 1 (left hand: walk; right hand's x:
+    /// turn).
+    #[serde(default)]
+    pub thumbstick: [f32; 2],
+    /// The undo button held.
+    #[serde(default)]
+    pub undo: bool,
+    /// Frames it is held; at least 1.
+    pub frames: u32,
+}
+
 /// One action of an XR script.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum XrAction {
     /// Turn the view.
     Look(Look),
-    /// Point the hand's ray at a world point; the first part hit is picked
-    /// and selected (nothing when the ray misses).
+    /// Point the right hand's ray at a world point; the first part hit is
+    /// hovered (nothing when the ray misses).
     Aim([f64; 3]),
-    /// Grab the selection and move it with the hand.
+    /// Press the trigger (grabbing the hovered part), move the hand, release.
     Grab(Grab),
-    /// Undo the last edit.
+    /// Press and release the undo button.
     Undo,
     /// Redo it.
     Redo,
     /// Submit this many frames doing nothing else.
     Frames(u32),
+    /// One hand's raw controller input for some frames.
+    Controller(Controller),
 }
 
 impl XrAction {
-    /// Frames the action takes.
+    /// Frames the action takes: a grab's press frame and its moving
+    /// frames, an undo's press and release.
     pub fn frames(&self) -> u32 {
         match self {
             Self::Look(l) => l.frames.max(1),
-            Self::Grab(g) => g.frames.max(1),
+            Self::Grab(g) => g.frames.max(1).saturating_add(1),
             Self::Frames(n) => (*n).max(1),
-            _ => 1,
+            Self::Controller(c) => c.frames.max(1),
+            Self::Undo => 2,
+            Self::Aim(_) | Self::Redo => 1,
         }
     }
 
@@ -90,6 +155,7 @@ impl XrAction {
             Self::Undo => "undo",
             Self::Redo => "redo",
             Self::Frames(_) => "frames",
+            Self::Controller(_) => "controller",
         }
     }
 }
@@ -157,17 +223,23 @@ pub fn parse(text: &str) -> anyhow::Result<XrScript> {
             XrAction::Look(l) => l.yaw_deg.is_finite(),
             XrAction::Aim(p) => in_world(p),
             XrAction::Grab(g) => in_world(&g.by),
+            XrAction::Controller(c) => {
+                c.aim.as_ref().is_none_or(in_world)
+                    && (0.0..=1.0).contains(&c.trigger)
+                    && c.thumbstick.iter().all(|v| (-1.0..=1.0).contains(v))
+            }
             _ => true,
         };
         anyhow::ensure!(
             ok,
-            "action {i} ({}): numbers must be finite and within ±{world:e}",
+            "action {i} ({}): numbers must be finite and within ±{world:e} (trigger 0 to 1, thumbstick -1 to 1)",
             a.name()
         );
         let frames = match a {
             XrAction::Look(l) => l.frames,
             XrAction::Grab(g) => g.frames,
             XrAction::Frames(n) => *n,
+            XrAction::Controller(c) => c.frames,
             _ => 1,
         };
         anyhow::ensure!(
@@ -189,6 +261,131 @@ pub fn read(path: &Path) -> anyhow::Result<XrScript> {
     parse(&text).with_context(|| format!("parsing XR script {}", path.display()))
 }
 
+/// A script's progress: the action and its step, and the scripted hands'
+/// held aim poses (a hand stays where the last action left it).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Runner {
+    /// The action being run.
+    pub index: usize,
+    /// Its step (frame).
+    pub step: u32,
+    aims: [Option<Pose>; 2],
+    /// Where the grabbing hand was at the press, tracking space.
+    grab_start: DVec3,
+    /// The heading when a look began.
+    look_start_rad: f64,
+}
+
+/// What a script does in a frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Step<'a> {
+    /// The action.
+    pub action: &'a XrAction,
+    /// The controller input it injects.
+    pub input: ControllerInput,
+    /// This is the action's last frame.
+    pub last: bool,
+}
+
+impl Runner {
+    /// Whether every action has run.
+    pub fn done(&self, script: &XrScript) -> bool {
+        self.index >= script.actions.len()
+    }
+
+    /// The frame's step of `script` (`None` when it has run), with `head`
+    /// the head's pose this frame (tracking space) and `placement` the
+    /// tracking space's (a `look` turns it); moves on to the next frame.
+    pub fn next<'a>(
+        &mut self,
+        script: &'a XrScript,
+        head: &Pose,
+        placement: &mut Placement,
+    ) -> Option<Step<'a>> {
+        let action = script.actions.get(self.index)?;
+        let (step, steps) = (self.step, action.frames());
+        let held = |aims: &[Option<Pose>; 2], hand: Hand| {
+            aims[hand.index()].map_or(head.position + head.orientation * HAND_IN_HEAD_M, |p| {
+                p.position
+            })
+        };
+        // Where a world point lies from a tracking-space position, as an
+        // orientation whose -Z points there.
+        let aim_at = |from: DVec3, at: &[f64; 3], placement: &Placement| {
+            let to = placement
+                .to_world()
+                .inverse()
+                .transform_point3(DVec3::from_array(*at));
+            Pose {
+                position: from,
+                orientation: DQuat::from_rotation_arc(DVec3::NEG_Z, (to - from).normalize()),
+            }
+        };
+        let mut input = ControllerInput::default();
+        match action {
+            XrAction::Look(l) => {
+                if step == 0 {
+                    self.look_start_rad = placement.heading_rad;
+                }
+                let t = f64::from(step + 1) / f64::from(steps);
+                placement.heading_rad = self.look_start_rad + l.yaw_deg.to_radians() * t;
+            }
+            XrAction::Aim(at) => {
+                let from = held(&self.aims, Hand::Right);
+                self.aims[Hand::Right.index()] = Some(aim_at(from, at, placement));
+            }
+            XrAction::Grab(g) => {
+                let right = &mut self.aims[Hand::Right.index()];
+                let start = right.get_or_insert(Pose {
+                    position: held(&[None; 2], Hand::Right),
+                    orientation: head.orientation,
+                });
+                if step == 0 {
+                    self.grab_start = start.position;
+                } else {
+                    // The world offset in the tracking space, in equal steps.
+                    let by = placement
+                        .to_world()
+                        .inverse()
+                        .transform_vector3(DVec3::from_array(g.by));
+                    start.position =
+                        self.grab_start + by * (f64::from(step) / f64::from(g.frames.max(1)));
+                }
+                input.hands[Hand::Right.index()].trigger = if step + 1 < steps { 1.0 } else { 0.0 };
+            }
+            XrAction::Undo => input.hands[Hand::Right.index()].undo = step == 0,
+            XrAction::Controller(c) => {
+                let hand = c.hand.hand();
+                if let (0, Some(at)) = (step, &c.aim) {
+                    self.aims[hand.index()] = Some(aim_at(held(&self.aims, hand), at, placement));
+                }
+                input.hands[hand.index()] = HandInput {
+                    aim: None,
+                    trigger: c.trigger,
+                    undo: c.undo,
+                    thumbstick: c.thumbstick,
+                };
+            }
+            XrAction::Redo | XrAction::Frames(_) => {}
+        }
+        for hand in Hand::BOTH {
+            input.hands[hand.index()].aim = self.aims[hand.index()];
+        }
+        let last = step + 1 >= steps;
+        if last {
+            self.index += 1;
+            self.step = 0;
+        } else {
+            self.step += 1;
+        }
+        Some(Step {
+            action,
+            input,
+            last,
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -204,10 +401,10 @@ mod tests {
         assert_eq!(s.origin, Some([1.0, 2.0, 3.0]));
         assert_eq!(s.units_per_metre, 1000.0);
         assert_eq!(s.actions.len(), 6);
-        assert_eq!(s.actions[2].frames(), 20);
+        assert_eq!(s.actions[2].frames(), 21);
         assert_eq!(s.actions[3], XrAction::Undo);
         let frames: u32 = s.actions.iter().map(XrAction::frames).sum();
-        assert_eq!(frames, 5 + 1 + 20 + 1 + 1 + 3);
+        assert_eq!(frames, 5 + 1 + 21 + 2 + 1 + 3);
         assert_eq!(parse("{}").unwrap(), XrScript::default());
     }
 
@@ -221,5 +418,65 @@ mod tests {
         assert!(err(r#"{"actions": [{"frames": 4000000000}]}"#).contains("limit"));
         assert!(parse(r#"{"actions": [{"teleport": [1, 2, 3]}]}"#).is_err());
         assert!(parse(r#"{"speed": 3}"#).is_err());
+        assert!(
+            err(r#"{"actions": [{"controller": {"trigger": 2, "frames": 1}}]}"#)
+                .contains("trigger 0 to 1")
+        );
+        assert!(
+            parse(r#"{"actions": [{"controller": {"hand": "middle", "frames": 1}}]}"#).is_err()
+        );
+    }
+
+    /// A grab injects a press at the held pose, the hand moved by the
+    /// world offset in equal steps (carried into the tracking space), and a
+    /// release with the last step; the aim stays on the hand throughout.
+    #[test]
+    fn grab_injects_press_moves_and_release() {
+        let script = parse(
+            r#"{"actions": [{"aim": [10, 20, 30]}, {"grab": {"by": [0, 0, -400], "frames": 4}},
+                "undo", {"controller": {"hand": "left", "thumbstick": [0, 1], "frames": 2}}]}"#,
+        )
+        .unwrap();
+        let mut placement = Placement {
+            origin: DVec3::new(4.5e6, 5.3e6, 1.2e4),
+            heading_rad: -1.3,
+            units_per_metre: 1000.0,
+        };
+        let head = Pose {
+            position: DVec3::new(0.1, 0.05, -0.02),
+            orientation: DQuat::from_rotation_y(0.4),
+        };
+        let mut runner = Runner::default();
+        let aim = runner.next(&script, &head, &mut placement).unwrap();
+        let pose = aim.input.hands[1].aim.unwrap();
+        let fixed = placement;
+        let world = |p: DVec3| fixed.point(p);
+        assert!(
+            (pose.position - (head.position + head.orientation * HAND_IN_HEAD_M)).length() < 1e-15
+        );
+        // The ray points at the world point.
+        let dir = placement.direction(pose.orientation * DVec3::NEG_Z);
+        let want = (DVec3::new(10.0, 20.0, 30.0) - world(pose.position)).normalize();
+        assert!(dir.abs_diff_eq(want, 1e-9), "{dir} vs {want}");
+        let mut steps = Vec::new();
+        while let Some(s) = runner.next(&script, &head, &mut placement) {
+            steps.push(s);
+        }
+        assert_eq!(steps.len(), 5 + 2 + 2);
+        let triggers: Vec<f32> = steps[..5]
+            .iter()
+            .map(|s| s.input.hands[1].trigger)
+            .collect();
+        assert_eq!(triggers, [1.0, 1.0, 1.0, 1.0, 0.0]);
+        for (k, s) in steps[..5].iter().enumerate() {
+            let at = world(s.input.hands[1].aim.unwrap().position) - world(pose.position);
+            let want = DVec3::new(0.0, 0.0, -100.0 * k as f64);
+            assert!((at - want).length() < 1e-6, "step {k}: {at}");
+        }
+        assert!(steps[4].last && !steps[3].last);
+        let undo: Vec<bool> = steps[5..7].iter().map(|s| s.input.hands[1].undo).collect();
+        assert_eq!(undo, [true, false]);
+        assert_eq!(steps[8].input.hands[0].thumbstick, [0.0, 1.0]);
+        assert!(runner.done(&script));
     }
 }

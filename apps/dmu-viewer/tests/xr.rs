@@ -1,8 +1,11 @@
 //! `dmu-viewer --xr` on a real OpenXR runtime: `scripts/xr-check.sh` runs
-//! Monado (null compositor, simulated headset) in the trixie chroot that
-//! `scripts/xr-setup.sh` makes and checks the session (FOCUSED, 120 frames, a
-//! clean exit), both eye images (the plant, the analytic parallax), and the
-//! scripted grab against the same drag in the desktop viewer.
+//! Monado (null compositor, simulated headset and controllers) in the trixie
+//! chroot that `scripts/xr-setup.sh` makes and checks the session (FOCUSED,
+//! 120 frames, a clean exit), both eye images (the plant, the analytic
+//! parallax), the controllers' actions (bindings, sync, poses), the scripted
+//! grab against the same drag in the desktop viewer, the haptic pulse on the
+//! hard clash, the recording replayed by `dmu collide --record`, the
+//! thumbsticks' locomotion, and the frame budget of a second session.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -38,6 +41,7 @@ fn xr_session_on_monado_passes_the_check() {
     let run = Command::new(repo.join("scripts/xr-check.sh"))
         .arg(out.path())
         .env("DMU_VIEWER", env!("CARGO_BIN_EXE_dmu-viewer"))
+        .env("DMU_BIN", crate::support::dmu_cli())
         .output()
         .expect("run scripts/xr-check.sh");
     let stdout = String::from_utf8_lossy(&run.stdout);
@@ -57,6 +61,14 @@ fn xr_session_on_monado_passes_the_check() {
         "parallax",
         "grab_equals_desktop",
         "undo_restores",
+        "hand_moved_by_the_script",
+        "bindings_accepted",
+        "actions_synced",
+        "recording_replays",
+        "haptic_on_hard_clash",
+        "locomotion",
+        "comfort_budget",
+        "culled_once_timed",
     ] {
         assert_eq!(check["checks"][name]["ok"], true, "{name}: {check:#}");
     }
@@ -72,6 +84,12 @@ fn xr_session_on_monado_passes_the_check() {
         "grabbed_part",
         "clashes",
         "exit",
+        "haptic_pulses",
+        "controllers",
+        "recording",
+        "frames",
+        "frames_late",
+        "stereo",
     ] {
         assert!(!report[field].is_null(), "report lacks {field}: {report:#}");
     }

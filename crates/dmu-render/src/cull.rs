@@ -44,19 +44,14 @@ impl Cull {
     /// around it, drawing with `knobs`.
     fn new(view: &View, ipd: Option<f64>, knobs: KnobsInEffect) -> Self {
         let c = &view.camera;
-        let a = view.aspect();
         let eye_view = |c: &crate::Camera| DAffine3::from_mat4(c.view_matrix());
         let (frustum, eye_views, eye_count, eye_spread) = match ipd {
             None => (view.frustum(), [eye_view(c); 2], 1, 0.0),
             Some(ipd) => {
-                assert!(
-                    view.fov.is_none(),
-                    "a stereo pair's eyes share the centre camera's symmetric projection"
-                );
                 let stereo = StereoCamera { center: *c, ipd };
                 let eyes = stereo.eyes();
                 (
-                    stereo.enclosing_frustum(a),
+                    stereo.enclosing(|eye| view.frustum_at(eye)),
                     [eye_view(&eyes[0]), eye_view(&eyes[1])],
                     2,
                     0.5 * ipd,

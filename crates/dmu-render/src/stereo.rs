@@ -13,8 +13,9 @@ use crate::{GeometrySource, RenderError};
 use dmu_geom::Camera;
 
 /// Two eyes either side of a centre camera, `ipd` apart along its screen right,
-/// looking along parallel axes with the centre camera's symmetric projection
-/// (a parallel rig: no toe-in, so no vertical parallax).
+/// looking along parallel axes with the centre camera's projection (its
+/// symmetric one, or the view's off-centre `View::fov`, shared by both eyes):
+/// a parallel rig, no toe-in, so no vertical parallax.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StereoCamera {
     /// The centre ("cyclopean") eye; the eyes share its field of view, near
@@ -60,10 +61,17 @@ impl StereoCamera {
     /// `ipd / (2 tan(horizontal fov / 2))` of them; anything it culls is
     /// outside both eyes' frusta.
     pub fn enclosing_frustum(&self, aspect: f64) -> Frustum {
+        self.enclosing(|c| c.frustum(aspect))
+    }
+
+    /// [`StereoCamera::enclosing_frustum`] for any projection both eyes
+    /// share (an off-centre `View::fov`: the eyes still sit on a line in its
+    /// bottom, top and near planes), `frustum_at` giving it from a camera.
+    pub(crate) fn enclosing(&self, frustum_at: impl Fn(&Camera) -> Frustum) -> Frustum {
         let [left, right] = self.eyes();
-        let mut frustum = self.center.frustum(aspect);
-        frustum.planes[0] = left.frustum(aspect).planes[0];
-        frustum.planes[1] = right.frustum(aspect).planes[1];
+        let mut frustum = frustum_at(&self.center);
+        frustum.planes[0] = frustum_at(&left).planes[0];
+        frustum.planes[1] = frustum_at(&right).planes[1];
         frustum
     }
 }

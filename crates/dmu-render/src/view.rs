@@ -175,8 +175,8 @@ pub struct View {
     /// An off-centre field of view (a head-mounted display's eye) that
     /// replaces the camera's symmetric `fov_y_rad` for projection, culling
     /// and coverage; `None` draws the camera as it is. Its aspect should be
-    /// the viewport's, or pixels are not square. Single views only: a
-    /// stereo pair's eyes share the centre camera's symmetric projection.
+    /// the viewport's, or pixels are not square. A stereo pair's eyes share
+    /// it (each eye's frustum is the centre's moved along screen right).
     pub fov: Option<dmu_geom::Fov>,
     /// A far plane, world units along the view axis (`None`: at infinity):
     /// what lies beyond is clipped and culled. With `camera.near` it selects
@@ -294,9 +294,15 @@ impl View {
 
     /// The world-space culling frustum of [`View::projection`].
     pub fn frustum(&self) -> dmu_geom::Frustum {
+        self.frustum_at(&self.camera)
+    }
+
+    /// The frustum of this view's projection from `camera`'s pose (a
+    /// stereo pair's eye).
+    pub(crate) fn frustum_at(&self, camera: &crate::Camera) -> dmu_geom::Frustum {
         match (&self.fov, self.far) {
-            (None, None) => self.camera.frustum(self.aspect()),
-            _ => self.fov_or_camera().frustum(&self.camera, self.far),
+            (None, None) => camera.frustum(self.aspect()),
+            _ => self.fov_or_camera().frustum(camera, self.far),
         }
     }
 

@@ -347,3 +347,57 @@ fn stereo_frustum_culling_covers_both_eyes() {
         );
     }
 }
+
+/// A pair sharing an off-centre field of view (`View::fov`, as a headset's
+/// eye, here with non-square pixels) is culled once against a frustum
+/// enclosing both eyes' frusta: each layer equals the single view of that
+/// eye with the same field of view, unculled, and the pair draws everything
+/// either eye's own frustum culling draws.
+#[test]
+fn stereo_with_an_off_centre_fov_equals_single_views() {
+    let (scene, tree) = small_plant();
+    let size = (320, 240);
+    let Some((mut rig, capture)) = stereo_rig(&scene, &tree, size, StereoMode::Auto) else {
+        return;
+    };
+    let fov = dmu_geom::Fov {
+        left: -0.80,
+        right: 0.62,
+        down: -0.78,
+        up: 0.70,
+    };
+    for (i, center) in viewpoints().into_iter().enumerate() {
+        let stereo = StereoCamera { center, ipd: 65.0 };
+        let mut either = BTreeSet::new();
+        let single = stereo.eyes().map(|eye| {
+            let mut culled = View::new(eye, size, Culling::Frustum);
+            culled.fov = Some(fov);
+            rig.frame(&mut culled, &scene, &tree);
+            either.extend(culled.drawn_entries());
+            let mut view = View::new(eye, size, Culling::None);
+            view.fov = Some(fov);
+            rig.frame(&mut view, &scene, &tree);
+            rig.image()
+        });
+        let mut pair = StereoView::new(stereo, size, Culling::Frustum);
+        pair.view.fov = Some(fov);
+        stereo_frame(&mut rig, &capture, &mut pair, &scene, &tree);
+        let drawn: BTreeSet<EntryId> = pair.view.drawn_entries().collect();
+        assert!(
+            either.is_subset(&drawn),
+            "view {i}: the pair culled what an eye draws"
+        );
+        for (eye, reference) in single.iter().enumerate() {
+            let layer = capture
+                .read_color_layer(&rig.device, &rig.queue, eye as u32)
+                .expect("read layer");
+            let diff = differing(reference, &layer);
+            assert!(
+                diff.is_empty(),
+                "view {i}, eye {eye}: {} pixels differ, first {:?}",
+                diff.len(),
+                diff.first()
+            );
+        }
+    }
+}

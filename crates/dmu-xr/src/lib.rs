@@ -19,6 +19,12 @@
 //!   every pixel and a runtime may recommend a small image.
 //! - The OpenXR loader is loaded at run time (`openxr`'s `loaded` feature), so
 //!   dmu builds and runs without it; only `--xr` needs one.
+//! - Controllers through OpenXR actions: one action set (aim pose, trigger,
+//!   undo button, thumbstick, haptic output; subaction paths for both hands)
+//!   with bindings suggested for the simple controller and the common
+//!   controllers; [`XrSession::controllers`] syncs it only while the session
+//!   is focused and returns a plain [`ControllerInput`], the type a script
+//!   injects too, so one input-handling function serves both.
 //! - Session states are a total order up to [`SessionState::Focused`], so
 //!   "the furthest state reached" ([`XrSession::max_state`]) is a maximum.
 //!
@@ -50,10 +56,12 @@
 //! [`XrSession::new`] fails with an [`XrError`] naming the step.
 
 mod error;
+mod input;
 mod pose;
 mod session;
 mod vulkan;
 
 pub use error::XrError;
+pub use input::{ControllerInput, Hand, HandInput, ProfileBinding, suggested_profiles};
 pub use pose::{Placement, Pose, eye_pixel, eye_ray, fov_from_xr};
 pub use session::{Eye, Frame, SessionState, Status, XrOptions, XrSession, eye_size};

@@ -6,6 +6,7 @@ use std::time::Duration;
 use dmu_geom::Fov;
 
 use crate::error::{XrError, xr_call};
+use crate::input::{ControllerInput, Controllers, Hand, ProfileBinding};
 use crate::pose::{Pose, fov_from_xr};
 use crate::vulkan;
 
@@ -115,6 +116,9 @@ pub struct Frame {
     pub image: wgpu::Texture,
     /// When the runtime predicts the frame is shown, nanoseconds of its clock.
     pub display_time_ns: i64,
+    /// The runtime's predicted display period (the time between two
+    /// displayed frames), nanoseconds.
+    pub display_period_ns: i64,
     views: [openxr::View; 2],
     time: openxr::Time,
 }
@@ -124,6 +128,7 @@ impl std::fmt::Debug for Frame {
         f.debug_struct("Frame")
             .field("eyes", &self.eyes)
             .field("display_time_ns", &self.display_time_ns)
+            .field("display_period_ns", &self.display_period_ns)
             .finish_non_exhaustive()
     }
 }
@@ -135,6 +140,7 @@ impl std::fmt::Debug for Frame {
 pub struct XrSession {
     images: Vec<wgpu::Texture>,
     swapchain: openxr::Swapchain<openxr::Vulkan>,
+    controllers: Controllers,
     space: openxr::Space,
     frame_stream: openxr::FrameStream<openxr::Vulkan>,
     frame_waiter: openxr::FrameWaiter,
@@ -178,7 +184,9 @@ impl XrSession {
     /// Loads the OpenXR loader (the runtime from `XR_RUNTIME_JSON` or the
     /// system's active one), makes an instance with `XR_KHR_vulkan_enable2`,
     /// the head-mounted system, a wgpu device through the runtime, the
-    /// session, a local reference space and a 2-layer swapchain.
+    /// session, a local reference space, a 2-layer swapchain, and the
+    /// controllers' action set (bindings suggested for
+    /// [`crate::suggested_profiles`], attached to the session).
     ///
     /// # Errors
     /// [`XrError`] naming the step and the runtime's answer.
@@ -267,6 +275,7 @@ impl XrSession {
         let space = session
             .create_reference_space(openxr::ReferenceSpaceType::LOCAL, openxr::Posef::IDENTITY)
             .map_err(xr_call("xrCreateReferenceSpace"))?;
+        let controllers = Controllers::new(&instance, &session)?;
         let formats = session
             .enumerate_swapchain_formats()
             .map_err(xr_call("xrEnumerateSwapchainFormats"))?;
@@ -316,6 +325,7 @@ impl XrSession {
         Ok(Self {
             images,
             swapchain,
+            controllers,
             space,
             frame_stream,
             frame_waiter,
@@ -387,6 +397,51 @@ impl XrSession {
     /// Frames ended with a projection layer.
     pub fn frames_submitted(&self) -> u64 {
         self.frames_submitted
+    }
+
+    /// The interaction profiles bindings were suggested for, each with the
+    /// runtime's answer.
+    pub fn bindings(&self) -> &[ProfileBinding] {
+        &self.controllers.bindings
+    }
+
+    /// The interaction profile the runtime bound for each hand (left, right;
+    /// `None` where none is bound, e.g. no controller).
+    ///
+    /// # Errors
+    /// A failing OpenXR call.
+    pub fn interaction_profiles(&self) -> Result<[Option<String>; 2], XrError> {
+        let profile = |hand| {
+            self.controllers
+                .profile(&self.instance, &self.session, hand)
+        };
+        Ok([profile(Hand::Left)?, profile(Hand::Right)?])
+    }
+
+    /// Syncs the controllers' actions (`xrSyncActions`) and reads both hands
+    /// at `frame`'s display time, aim poses in the tracking space. Only while
+    /// the session has input focus ([`SessionState::Focused`]): `None`
+    /// otherwise, with nothing synced.
+    ///
+    /// # Errors
+    /// A failing OpenXR call.
+    pub fn controllers(&self, frame: &Frame) -> Result<Option<ControllerInput>, XrError> {
+        if self.state != SessionState::Focused {
+            return Ok(None);
+        }
+        self.controllers
+            .sync(&self.session, &self.space, frame.time)
+            .map(Some)
+    }
+
+    /// A haptic pulse on `hand`'s controller (`xrApplyHapticFeedback`):
+    /// `duration_s` seconds at `amplitude` (0 to 1).
+    ///
+    /// # Errors
+    /// A failing OpenXR call.
+    pub fn haptic_pulse(&self, hand: Hand, duration_s: f64, amplitude: f32) -> Result<(), XrError> {
+        self.controllers
+            .pulse(&self.session, hand, duration_s, amplitude)
     }
 
     /// Handles the runtime's events: begins the session when it is ready,
@@ -492,6 +547,7 @@ impl XrSession {
             eyes: [eye(&views[0]), eye(&views[1])],
             image: self.images[index as usize].clone(),
             display_time_ns: time.as_nanos(),
+            display_period_ns: timing.predicted_display_period.as_nanos(),
             views,
             time,
         }))
