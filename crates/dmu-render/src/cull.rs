@@ -234,7 +234,8 @@ impl Renderer {
             let mut draws = match view.culling {
                 Culling::None => self.all_draws(scene, tree, &cull, &mut stats),
                 Culling::Frustum | Culling::Occlusion if with_proxies => {
-                    let (draws, nodes) = self.proxy_draws(scene, tree, &cull, &mut stats);
+                    let fit = self.proxy_fit(&self.hierarchy, &cull, target);
+                    let (draws, nodes) = self.proxy_draws(scene, tree, &cull, &fit, &mut stats);
                     proxy_nodes = nodes;
                     draws
                 }
@@ -249,21 +250,7 @@ impl Renderer {
                     .map(|d| u64::from(tree.entries()[d.entry as usize].triangles))
                     .sum();
             }
-            let h = &self.hierarchy;
-            proxy_nodes.sort_by(|&a, &b| {
-                let d = |n: u32| box_distance_sq(&h.nodes[n as usize].bounds, cull.eye());
-                d(a).total_cmp(&d(b)).then(a.cmp(&b))
-            });
-            let origins: Vec<DVec3> = proxy_nodes
-                .iter()
-                .map(|&n| {
-                    self.proxies.as_ref().expect("proxies").cpu.nodes[n as usize]
-                        .as_ref()
-                        .expect("a drawn proxy exists")
-                        .origin
-                })
-                .collect();
-            let frames = cull.proxy_frames(&origins);
+            let frames = self.proxy_frames(&self.hierarchy, &mut proxy_nodes, &cull);
             stats.proxies_drawn = proxy_nodes.len() as u64;
             view.drawn.extend(draws.iter().map(|d| d.entry));
             // A proxy draws the chunk instances below it, approximated.
@@ -436,20 +423,12 @@ impl Renderer {
         scene: &Scene,
         tree: &Tree,
         cull: &Cull,
+        fit: &[bool],
         stats: &mut FrameStats,
     ) -> (Vec<Draw>, Vec<u32>) {
         let h = &self.hierarchy;
-        let proxies = &self.proxies.as_ref().expect("called with proxies").cpu;
-        let mut walk = Walk {
-            h,
-            scene,
-            tree,
-            cull,
-            stats,
-            draws: Vec::new(),
-            queries: Vec::new(),
-            in_frustum_entries: 0,
-        };
+        let mut walk = Walk::new(h, scene, tree, cull, stats);
+        walk.proxy_fit = fit;
         let mut nodes = Vec::new();
         if h.nodes.is_empty() {
             return (Vec::new(), nodes);
@@ -464,16 +443,53 @@ impl Renderer {
                 });
                 continue;
             }
-            let node = &h.nodes[n as usize];
-            match proxies.current(n) {
-                Some(p) if proxy_fits(&cull.coverage, &node.bounds, p.error, cull.lod_error_px) => {
-                    nodes.push(n);
-                    walk.count_below(n);
-                }
-                _ => stack.extend_from_slice(h.children(n)),
+            if walk.fits(n) {
+                nodes.push(n);
+                walk.count_below(n);
+            } else {
+                stack.extend_from_slice(h.children(n));
             }
         }
         (walk.draws, nodes)
+    }
+
+    /// Per mirror node of `h`, whether this frame draws it as its proxy: its
+    /// proxy is current and its error projects within the LOD error (empty
+    /// without proxies, LODs, or in multiview rounds, which cannot draw them).
+    fn proxy_fit(&self, h: &Hierarchy, cull: &Cull, target: RoundTarget<'_>) -> Vec<bool> {
+        match (&self.proxies, cull.lod()) {
+            (Some(p), Some(_)) if !target.is_multiview() => (0..h.nodes.len() as u32)
+                .map(|n| {
+                    p.cpu.current(n).is_some_and(|x| {
+                        let b = &h.nodes[n as usize].bounds;
+                        proxy_fits(&cull.coverage, b, x.error, cull.lod_error_px)
+                    })
+                })
+                .collect(),
+            _ => Vec::new(),
+        }
+    }
+
+    /// Puts a round's proxies front to back and gives their frames in each
+    /// eye's view space.
+    fn proxy_frames(&self, h: &Hierarchy, nodes: &mut [u32], cull: &Cull) -> Vec<QueryBox> {
+        nodes.sort_by(|&a, &b| {
+            let d = |n: u32| box_distance_sq(&h.nodes[n as usize].bounds, cull.eye());
+            d(a).total_cmp(&d(b)).then(a.cmp(&b))
+        });
+        let Some(p) = &self.proxies else {
+            return Vec::new();
+        };
+        let origins: Vec<DVec3> = nodes
+            .iter()
+            .map(|&n| {
+                p.cpu.nodes[n as usize]
+                    .as_ref()
+                    .expect("a drawn proxy exists")
+                    .origin
+            })
+            .collect();
+        cull.proxy_frames(&origins)
     }
 
     /// Coherent hierarchical culling (CHC, Bittner et al. 2004, with CHC++'s
@@ -514,22 +530,32 @@ impl Renderer {
         let schedule =
             |e: u32| frame + interval + (u64::from(e).wrapping_mul(0x9E37_79B9) >> 7) % interval;
 
-        let mut walk = Walk {
-            h: &h,
-            scene,
-            tree,
-            cull,
-            stats,
-            draws: Vec::new(),
-            queries: Vec::new(),
-            in_frustum_entries: 0,
-        };
+        // Nodes drawn as their proxies: leaves of the traversal, drawn when
+        // visible and queried by their boxes as any node.
+        let proxy_fit = self.proxy_fit(&h, cull, target);
+        let mut walk = Walk::new(&h, scene, tree, cull, stats);
+        walk.proxy_fit = &proxy_fit;
         if !order.is_empty() {
             let mut stack = vec![h.root];
             while let Some(n) = stack.pop() {
                 let Some(kind) = walk.admit(n) else { continue };
                 let node = &h.nodes[n as usize];
                 let open = was_visible[n as usize] || cull.eye_near(&node.bounds);
+                match kind {
+                    NodeKind::Entry(_) => {}
+                    // A visible proxy is drawn, and re-checked by its box
+                    // (drawn a round later) on a per-node schedule.
+                    _ if walk.fits(n) => {
+                        let recheck = schedule(n) == frame + interval;
+                        if open && (!recheck || cull.eye_near(&node.bounds)) {
+                            walk.draw_proxy(n, view, frame);
+                        } else {
+                            walk.queries.push(n);
+                        }
+                        continue;
+                    }
+                    _ => {}
+                }
                 match kind {
                     NodeKind::Entry(e) if open => {
                         let state = &mut view.entries[e.0 as usize];
@@ -579,6 +605,8 @@ impl Renderer {
                 bounds.extend(checked.iter().map(|&e| h.nodes[e as usize].bounds));
             }
             let boxes = cull.query_boxes(&bounds);
+            let mut proxy_nodes = std::mem::take(&mut walk.proxy_draws);
+            let frames = self.proxy_frames(&h, &mut proxy_nodes, cull);
             let r = match self.run_round(
                 gpu,
                 target,
@@ -589,7 +617,10 @@ impl Renderer {
                 &draws,
                 &boxes,
                 cull.lod(),
-                ProxyRound::default(),
+                ProxyRound {
+                    nodes: &proxy_nodes,
+                    frames: &frames,
+                },
             ) {
                 Ok(r) => r,
                 Err(e) => {
@@ -601,6 +632,10 @@ impl Renderer {
             walk.stats.rounds = round + 1;
             walk.stats.queries += (r.draw_samples.len() + r.box_samples.len()) as u64;
             view.drawn.extend(draws.iter().map(|d| d.entry));
+            walk.stats.proxies_drawn += proxy_nodes.len() as u64;
+            for &n in &proxy_nodes {
+                h.leaves(n, &mut view.drawn);
+            }
             let (box_samples, check_samples) = if target.is_multiview() {
                 r.box_samples.split_at(queries.len())
             } else {
@@ -652,10 +687,14 @@ impl Renderer {
                             state.requery_frame = frame + 1;
                         }
                     }
+                    _ if walk.fits(n) => {
+                        walk.stats.newly_visible += 1;
+                        walk.draw_proxy(n, view, frame);
+                    }
                     _ => walk.expand(n, expand_levels, view, frame),
                 }
             }
-            if walk.draws.is_empty() && walk.queries.is_empty() {
+            if walk.draws.is_empty() && walk.queries.is_empty() && walk.proxy_draws.is_empty() {
                 break;
             }
         }
@@ -679,9 +718,51 @@ struct Walk<'a> {
     queries: Vec<u32>,
     /// Chunk instances that passed frustum, coverage and hidden tests.
     in_frustum_entries: u64,
+    /// Per mirror node: drawn as its proxy (empty: no proxies).
+    proxy_fit: &'a [bool],
+    /// Proxies (mirror nodes) the next round draws.
+    proxy_draws: Vec<u32>,
 }
 
-impl Walk<'_> {
+impl<'a> Walk<'a> {
+    fn new(
+        h: &'a Hierarchy,
+        scene: &'a Scene,
+        tree: &'a Tree,
+        cull: &'a Cull,
+        stats: &'a mut FrameStats,
+    ) -> Self {
+        Walk {
+            h,
+            scene,
+            tree,
+            cull,
+            stats,
+            draws: Vec::new(),
+            queries: Vec::new(),
+            in_frustum_entries: 0,
+            proxy_fit: &[],
+            proxy_draws: Vec::new(),
+        }
+    }
+
+    /// Whether node `n` is drawn as its proxy this frame.
+    fn fits(&self, n: u32) -> bool {
+        self.proxy_fit.get(n as usize).copied().unwrap_or(false)
+    }
+
+    /// Node `n` is visible: its proxy is drawn next round, what it stands
+    /// for is counted, and its chunk instances are visible this frame.
+    fn draw_proxy(&mut self, n: u32, view: &mut View, frame: u64) {
+        self.proxy_draws.push(n);
+        self.count_below(n);
+        let mut leaves = Vec::new();
+        self.h.leaves(n, &mut leaves);
+        for e in leaves {
+            view.entries[e as usize].visible_frame = frame;
+        }
+    }
+
     /// Frustum, coverage and hidden tests of a node, counted; its kind if it
     /// passes. Admitted chunk instances count towards what frustum culling
     /// alone would draw.
@@ -755,6 +836,11 @@ impl Walk<'_> {
                     });
                 }
                 NodeKind::Entry(_) => self.queries.push(c),
+                _ if self.fits(c) && near => {
+                    self.stats.newly_visible += 1;
+                    self.draw_proxy(c, view, frame);
+                }
+                _ if self.fits(c) => self.queries.push(c),
                 _ if near || depth < levels => {
                     stack.extend(self.h.children(c).iter().map(|&g| (g, depth + 1)));
                 }

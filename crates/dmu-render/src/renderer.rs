@@ -995,7 +995,14 @@ impl Renderer {
             None => Vec::new(),
         };
         let mut proxies_drawn_in = [false; 2];
-        let passes = target.plan(&queried, per_eye, clear);
+        // A round drawing proxies has a pass into each layer even without
+        // chunk draws or boxes (one that clears only where asked).
+        let mut passes = target.plan(&queried, per_eye, clear || !proxies.nodes.is_empty());
+        if !clear {
+            for p in &mut passes {
+                p.clear = false;
+            }
+        }
         let query_count: u32 = passes.iter().map(|p| p.queries).sum();
         while gpu.query_sets.len() < passes.len() {
             gpu.query_sets
@@ -1127,19 +1134,8 @@ impl Renderer {
                     pass.end_occlusion_query();
                 }
             }
-            if !pass_plan.boxes.is_empty() {
-                pass.set_pipeline(&self.boxes_color);
-                // Eye-major: a box's instance is its index in the buffer.
-                for b in pass_plan.boxes.clone() {
-                    let b = b as u32;
-                    pass.begin_occlusion_query(q);
-                    pass.draw(0..36, b..b + 1);
-                    result.draw_calls += 1;
-                    pass.end_occlusion_query();
-                    q += 1;
-                }
-            }
-            // Proxies go into the first pass of each layer, after its chunks.
+            // Proxies go into the first pass of each layer, after its chunks and
+            // before its boxes, whose queries they may hide.
             let eye = pass_plan.layer.unwrap_or(0);
             if !proxy_buffers.is_empty() && !std::mem::replace(&mut proxies_drawn_in[eye], true) {
                 pass.set_pipeline(&self.proxy[usize::from(gpu.sectioned)]);
@@ -1153,6 +1149,18 @@ impl Renderer {
                     if eye == 0 {
                         result.triangles += u64::from(count / 3);
                     }
+                }
+            }
+            if !pass_plan.boxes.is_empty() {
+                pass.set_pipeline(&self.boxes_color);
+                // Eye-major: a box's instance is its index in the buffer.
+                for b in pass_plan.boxes.clone() {
+                    let b = b as u32;
+                    pass.begin_occlusion_query(q);
+                    pass.draw(0..36, b..b + 1);
+                    result.draw_calls += 1;
+                    pass.end_occlusion_query();
+                    q += 1;
                 }
             }
             debug_assert_eq!(q, pass_plan.queries);
