@@ -38,6 +38,12 @@ pub(crate) struct PoolVertex {
 }
 const _: () = assert!(size_of::<PoolVertex>() == 16);
 
+/// A unit normal as the vertex formats carry it: snorm8, w 0.
+pub(crate) fn pack_normal(n: glam::Vec3) -> [i8; 4] {
+    let snorm = |x: f32| (x.clamp(-1.0, 1.0) * 127.0).round() as i8;
+    [snorm(n.x), snorm(n.y), snorm(n.z), 0]
+}
+
 /// Where a resident chunk lives in the pool.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct ChunkSlot {
@@ -263,10 +269,9 @@ impl GeometryPool {
 
         self.scratch.clear();
         for (p, n) in geometry.positions.iter().zip(geometry.normals) {
-            let snorm = |x: f32| (x.clamp(-1.0, 1.0) * 127.0).round() as i8;
             let v = PoolVertex {
                 position: p.to_array(),
-                normal: [snorm(n.x), snorm(n.y), snorm(n.z), 0],
+                normal: pack_normal(*n),
             };
             self.scratch.extend_from_slice(bytemuck::bytes_of(&v));
         }

@@ -31,7 +31,7 @@ use dmu_scene::Scene;
 use dmu_tree::Tree;
 use glam::{DVec3, Vec3};
 
-use crate::geometry::GeometrySource;
+use crate::geometry::{GeometrySource, pack_normal};
 use crate::hierarchy::{Hierarchy, NodeKind};
 
 /// meshoptimizer's error is an estimate, not a bound (`dmu_scene::lod`
@@ -504,11 +504,6 @@ fn post_order(h: &Hierarchy) -> Vec<u32> {
     let mut order = h.pre_order();
     order.reverse();
     order
-}
-
-fn pack_normal(n: Vec3) -> [i8; 4] {
-    let snorm = |x: f32| (x.clamp(-1.0, 1.0) * 127.0).round() as i8;
-    [snorm(n.x), snorm(n.y), snorm(n.z), 0]
 }
 
 /// Simplifies a merged mesh until its error reaches `target_error` (world
