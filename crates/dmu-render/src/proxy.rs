@@ -57,9 +57,10 @@ pub const CALM_TICKS: u64 = 2;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ProxyOptions {
     /// The simplification error each proxy aims at, as a fraction of its
-    /// node's box diagonal (it claims [`ERROR_MARGIN`] times what the
-    /// simplifier reports, plus its children's). With 1/256, a proxy is
-    /// drawn at 1 px of LOD error once its node covers under ~128 px.
+    /// node's box diagonal (it claims 4 times what the simplifier reports,
+    /// plus the error of the proxies it is made of). With the default 1/512
+    /// a proxy is drawn at 1 px of LOD error once its node covers under
+    /// about 64 px.
     pub error_fraction: f64,
     /// Time a frame may spend remaking stale proxies (at least one is made
     /// when any is due).
