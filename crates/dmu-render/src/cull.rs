@@ -226,15 +226,16 @@ impl Renderer {
                 &mut stats,
             )
         } else {
-            let with_proxies = self.proxies.is_some()
-                && cull.lod().is_some()
-                && !target.is_multiview()
-                && view.culling != Culling::None;
+            // Empty where no proxy may draw (see `proxy_fit`).
+            let fit = match view.culling {
+                Culling::None => Vec::new(),
+                _ => self.proxy_fit(&self.hierarchy, &cull, target),
+            };
+            let with_proxies = !fit.is_empty();
             let mut proxy_nodes = Vec::new();
             let mut draws = match view.culling {
                 Culling::None => self.all_draws(scene, tree, &cull, &mut stats),
                 Culling::Frustum | Culling::Occlusion if with_proxies => {
-                    let fit = self.proxy_fit(&self.hierarchy, &cull, target);
                     let (draws, nodes) = self.proxy_draws(scene, tree, &cull, &fit, &mut stats);
                     proxy_nodes = nodes;
                     draws
