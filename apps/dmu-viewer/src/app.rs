@@ -1300,6 +1300,7 @@ impl App {
                     "painted_whole": presented.painted_whole,
                     "render_cpu_ms": main.cpu_ms,
                     "render_gpu_ms": main.gpu_ms,
+                    "culling": main.culling.name(),
                     "triangles_drawn": main.triangles_drawn,
                     "chunks_drawn": main.chunks_drawn,
                     "proxies_drawn": main.proxies_drawn,

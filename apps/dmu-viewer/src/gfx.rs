@@ -57,7 +57,8 @@ impl ViewTarget {
         let depth = texture(
             "dmu-viewer 3d depth",
             DEPTH_FORMAT,
-            wgpu::TextureUsages::RENDER_ATTACHMENT,
+            // Read by `hzb` culling's depth pyramid.
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
             &[],
         );
         Self {
@@ -166,8 +167,7 @@ impl Gfx {
         }))
         .context("no GPU adapter can draw into the window")?;
         let info = adapter.get_info();
-        let required_features =
-            adapter.features() & (wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::MULTIVIEW);
+        let required_features = adapter.features() & dmu_render::OPTIONAL_FEATURES;
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("dmu-viewer"),
             required_features,

@@ -68,8 +68,10 @@ struct Cli {
     /// Window height, pixels.
     #[arg(long, default_value_t = 800, value_parser = clap::value_parser!(u32).range(64..=16384))]
     height: u32,
-    /// Culling: none, frustum (with coverage) or chc (plus occlusion queries).
-    #[arg(long, default_value = "frustum", value_parser = ["none", "frustum", "chc"])]
+    /// Culling: none, frustum (with coverage), chc (plus occlusion queries)
+    /// or hzb (plus a depth pyramid of last frame's visible set, every box
+    /// tested against it in a compute pass, the newly visible drawn at once).
+    #[arg(long, default_value = "frustum", value_parser = ["none", "frustum", "chc", "hzb"])]
     culling: String,
     /// Save the window as PNG after the last frame (with --frames or --script).
     #[arg(long)]

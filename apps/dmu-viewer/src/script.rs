@@ -423,14 +423,9 @@ pub fn parse(text: &str) -> anyhow::Result<Vec<Action>> {
     Ok(actions)
 }
 
-/// The culling mode called `none`, `frustum` or `chc`.
+/// The culling mode called `none`, `frustum`, `chc` or `hzb`.
 pub fn culling_from_name(name: &str) -> anyhow::Result<Culling> {
-    match name {
-        "none" => Ok(Culling::None),
-        "frustum" => Ok(Culling::Frustum),
-        "chc" => Ok(Culling::Occlusion),
-        _ => anyhow::bail!("culling {name:?} is not none, frustum or chc"),
-    }
+    name.parse().map_err(anyhow::Error::msg)
 }
 
 /// Reads and parses a script file.

@@ -281,10 +281,10 @@ fn top_bar(
             let active = active.min(panes.len() - 1);
             let Pane { nav, view, .. } = &mut panes[active];
             egui::ComboBox::from_label("culling")
-                .selected_text(culling_name(view.culling))
+                .selected_text(view.culling.name())
                 .show_ui(ui, |ui| {
-                    for c in [Culling::None, Culling::Frustum, Culling::Occlusion] {
-                        ui.selectable_value(&mut view.culling, c, culling_name(c));
+                    for c in Culling::ALL {
+                        ui.selectable_value(&mut view.culling, c, c.name());
                     }
                 });
             let mut occlusion = Occlusion::of(view);
@@ -382,14 +382,6 @@ fn record_button(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) {
                 }
             }
         }
-    }
-}
-
-fn culling_name(c: Culling) -> &'static str {
-    match c {
-        Culling::None => "none",
-        Culling::Frustum => "frustum",
-        Culling::Occlusion => "chc",
     }
 }
 
@@ -885,7 +877,7 @@ fn stats_overlay(painter: &egui::Painter, rect: Rect, o: &Overlay, review: &Revi
     let text = format!(
         "frame {:.1} ms (avg {:.1}, {:.0} fps)\n\
          ui {:.1} · 3D {:.1} · paint {:.1} ms ({})\n\
-         3D: cpu {:.1} ms · gpu {:.1} ms\n\
+         3D: {} culling · cpu {:.1} ms · gpu {:.1} ms\n\
          triangles {} drawn / {} in frustum / {} model\n\
          chunks {} drawn · proxies {} ({} stale) · {} queries in {} rounds · LOD {:.2} px · min {:.1} px\n\
          culled: frustum {} · coverage {} · occlusion {} · hidden {} · section {}\n\
@@ -903,6 +895,7 @@ fn stats_overlay(painter: &egui::Painter, rect: Rect, o: &Overlay, review: &Revi
         } else {
             "views only"
         },
+        s.culling.name(),
         s.cpu_ms,
         s.gpu_ms,
         s.triangles_drawn,

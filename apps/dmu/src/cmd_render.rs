@@ -40,8 +40,10 @@ pub struct Args {
     /// model's diagonal, at most half the distance to the nearest part).
     #[arg(long, value_parser = number_in(1e-9, MAX_LENGTH))]
     near: Option<f64>,
-    /// Culling: none, frustum (with coverage) or chc (plus occlusion queries).
-    #[arg(long, default_value = "frustum", value_parser = ["none", "frustum", "chc"])]
+    /// Culling: none, frustum (with coverage), chc (plus occlusion queries)
+    /// or hzb (plus a depth pyramid of last frame's visible set, every box
+    /// tested against it in a compute pass, the newly visible drawn at once).
+    #[arg(long, default_value = "frustum", value_parser = ["none", "frustum", "chc", "hzb"])]
     culling: String,
     /// Nodes covering fewer pixels across than this are dropped (0: none).
     #[arg(long, default_value_t = 0.0, value_parser = number_in(0.0, 1e6))]
@@ -210,6 +212,7 @@ fn render_frames(
 fn stats_json(s: &FrameStats) -> serde_json::Value {
     json!({
         "frame": s.frame,
+        "culling": s.culling.name(),
         "nodes_visited": s.nodes_visited,
         "culled_frustum": s.culled_frustum,
         "culled_coverage": s.culled_coverage,
@@ -255,11 +258,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     if !(args.fov > 0.0 && args.fov < 180.0) {
         bail!("--fov {}: must be in (0, 180) degrees", args.fov);
     }
-    let culling = match args.culling.as_str() {
-        "none" => Culling::None,
-        "chc" => Culling::Occlusion,
-        _ => Culling::Frustum,
-    };
+    let culling: Culling = args.culling.parse().map_err(anyhow::Error::msg)?;
     if args.stereo && !(args.ipd >= 0.0 && args.ipd.is_finite()) {
         bail!("--ipd {}: must be finite and not negative", args.ipd);
     }

@@ -94,11 +94,12 @@ pub struct Args {
     #[arg(long)]
     render: bool,
     /// With --render: culling of the rendered frames.
-    #[arg(long, default_value = "chc", value_parser = ["none", "frustum", "chc"])]
+    #[arg(long, default_value = "chc", value_parser = ["none", "frustum", "chc", "hzb"])]
     culling: String,
-    /// With --render: run none, frustum and chc over the same frames in one
-    /// run, compare each image with none's pixel for pixel, count chc's
-    /// triangles against the exactly visible chunks', and print the ratios.
+    /// With --render: run none, frustum, chc and hzb over the same frames in
+    /// one run, compare each image with none's pixel for pixel, count chc's
+    /// and hzb's triangles against the exactly visible chunks', and print the
+    /// ratios.
     #[arg(long, requires = "render")]
     compare: bool,
     /// With --render and chc: a chunk seen visible is assumed visible for this
@@ -238,11 +239,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         warmup_frames: args.warmup_frames,
     };
     if args.render {
-        let culling = match args.culling.as_str() {
-            "none" => Culling::None,
-            "frustum" => Culling::Frustum,
-            _ => Culling::Occlusion,
-        };
+        let culling: Culling = args.culling.parse().map_err(anyhow::Error::msg)?;
         let culling_options = CullingOptions {
             requery_interval: args.requery_interval,
             lod_error_px: args.lod_error_px,
@@ -258,7 +255,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 &tree,
                 &path,
                 (args.width, args.height),
-                &[Culling::None, Culling::Frustum, Culling::Occlusion],
+                &Culling::ALL,
                 true,
                 culling_options,
                 !args.no_proxies,
@@ -364,9 +361,14 @@ fn print_render(args: &Args, report: &serde_json::Value) -> anyhow::Result<()> {
     for key in [
         "frustum_over_chc_frame_time",
         "none_over_chc_frame_time",
+        "chc_over_hzb_frame_time",
+        "frustum_over_hzb_frame_time",
         "chc_over_exact_triangles_mean",
         "chc_over_exact_triangles_worst",
+        "hzb_over_exact_triangles_mean",
+        "hzb_over_exact_triangles_worst",
         "chc_chunks_more_than_one_frame_late",
+        "hzb_chunks_more_than_one_frame_late",
     ] {
         if !report[key].is_null() {
             println!("  {key}: {}", report[key]);

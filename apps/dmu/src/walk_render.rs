@@ -1,9 +1,9 @@
 //! `dmu walk --render`: every frame of a camera path rendered on the GPU, with
-//! frame times and culling stats per mode; with `--compare`, `none`, `frustum`
-//! and `chc` run in one process over the same frames, each image is compared
-//! with the unculled one pixel for pixel, and the chunks drawn by `chc` are set
-//! against the exactly visible ones (chunk ids rendered without occlusion
-//! culling).
+//! frame times and culling stats per mode; with `--compare`, `none`, `frustum`,
+//! `chc` and `hzb` run in one process over the same frames, each image is
+//! compared with the unculled one pixel for pixel, and the chunks drawn by each
+//! occlusion-culling mode are set against the exactly visible ones (chunk ids
+//! rendered without occlusion culling).
 
 use std::collections::BTreeSet;
 use std::sync::Arc;
@@ -24,6 +24,9 @@ use crate::resident::ResidentSource;
 /// One mode's frame.
 #[derive(Debug, Serialize)]
 struct ModeFrame {
+    /// The culling the frame used (frustum where the mode's could not run
+    /// or chose not to).
+    culling: &'static str,
     /// Frame time on the CPU, waiting for the GPU included, ms.
     frame_ms: f64,
     gpu_ms: f64,
@@ -54,6 +57,31 @@ struct PathFrame {
     exact_visible_triangles: Option<u64>,
     /// Exactly visible chunk instances that `chc` did not draw.
     chc_missing_chunks: Option<u64>,
+    /// Exactly visible chunk instances that `hzb` did not draw.
+    hzb_missing_chunks: Option<u64>,
+}
+
+/// What an occlusion-culling mode missed over the path, against the exactly
+/// visible chunk instances.
+#[derive(Debug, Default)]
+struct Misses {
+    /// Missing last frame.
+    before: BTreeSet<EntryId>,
+    /// Missing two frames running while visible: more than one frame late.
+    late: u64,
+}
+
+impl Misses {
+    /// This frame's missing chunk instances, given the exactly visible ones
+    /// and those the mode drew.
+    fn frame(&mut self, exact: &BTreeSet<EntryId>, drawn: impl Iterator<Item = EntryId>) -> u64 {
+        let drawn: BTreeSet<EntryId> = drawn.collect();
+        let missing: BTreeSet<EntryId> = exact.difference(&drawn).copied().collect();
+        self.late += missing.intersection(&self.before).count() as u64;
+        let count = missing.len() as u64;
+        self.before = missing;
+        count
+    }
 }
 
 /// Totals of one mode.
@@ -79,14 +107,6 @@ struct ModeTotals {
     worst_differing_pixels: Option<u64>,
 }
 
-fn culling_name(c: Culling) -> &'static str {
-    match c {
-        Culling::None => "none",
-        Culling::Frustum => "frustum",
-        Culling::Occlusion => "chc",
-    }
-}
-
 /// The renderer's camera for a path frame, the near plane at 1/10 000 of the
 /// model's diagonal.
 fn camera(frame: &CameraFrame, tree: &Tree) -> Camera {
@@ -100,12 +120,13 @@ fn explain(culling: Culling, target_ms: Option<f64>, frames: &[FrameStats]) -> V
     dmu_app::explain::occlusion_changes(culling, frames)
         .into_iter()
         .chain(dmu_app::explain::budget_changes(target_ms, frames))
-        .map(|line| format!("{}: {line}", culling_name(culling)))
+        .map(|line| format!("{}: {line}", culling.name()))
         .collect()
 }
 
 fn mode_frame(stats: &FrameStats, differing: Option<(u64, u64)>) -> ModeFrame {
     ModeFrame {
+        culling: stats.culling.name(),
         frame_ms: stats.cpu_ms,
         gpu_ms: stats.gpu_ms,
         triangles_drawn: stats.triangles_drawn,
@@ -135,7 +156,7 @@ fn mode_totals<'a>(
     let differing: Vec<u64> = frames.iter().filter_map(|f| f.differing_pixels).collect();
     let compared = !differing.is_empty();
     ModeTotals {
-        culling: culling_name(culling),
+        culling: culling.name(),
         mean_lod_error_px: frames.iter().map(|f| f.lod_error_px).sum::<f64>() / n,
         frames_within_110_percent_of_target: target_ms
             .map(|t| frames.iter().filter(|f| f.frame_ms <= 1.1 * t).count() as f64 / n),
@@ -209,9 +230,9 @@ pub fn run(
         .collect();
     let mut oracle_view = View::new(camera(&path[0]), size, Culling::Frustum);
     let chc = modes.iter().position(|&m| m == Culling::Occlusion);
+    let hzb = modes.iter().position(|&m| m == Culling::Hzb);
     let mut frames = Vec::with_capacity(path.len());
-    let mut missing_before: BTreeSet<EntryId> = BTreeSet::new();
-    let mut late_chunks = 0u64;
+    let (mut chc_misses, mut hzb_misses) = (Misses::default(), Misses::default());
     let mut stats_of: Vec<Vec<FrameStats>> = modes.iter().map(|_| Vec::new()).collect();
     let progress = indicatif::ProgressBar::new(path.len() as u64);
     for frame in path {
@@ -236,30 +257,30 @@ pub fn run(
             modes_out.push(mode_frame(&stats, differing));
             stats_of[i].push(stats);
         }
-        let (exact_visible_triangles, chc_missing_chunks) = match (compare, chc) {
-            (true, Some(c)) => {
+        let exact = match chc.or(hzb) {
+            Some(c) if compare => {
                 oracle_view.camera = camera(frame);
-                let exact = renderer
-                    .render_ids(&mut oracle_view, scene, tree, scene, &captures[c])?
-                    .visible_entries();
-                let drawn: BTreeSet<EntryId> = views[c].drawn_entries().collect();
-                let missing: BTreeSet<EntryId> = exact.difference(&drawn).copied().collect();
-                // Missing two frames running while visible: more than one frame late.
-                late_chunks += missing.intersection(&missing_before).count() as u64;
-                let triangles = exact
-                    .iter()
-                    .map(|e| u64::from(tree.entries()[e.0 as usize].triangles))
-                    .sum();
-                let count = missing.len() as u64;
-                missing_before = missing;
-                (Some(triangles), Some(count))
+                Some(
+                    renderer
+                        .render_ids(&mut oracle_view, scene, tree, scene, &captures[c])?
+                        .visible_entries(),
+                )
             }
-            _ => (None, None),
+            _ => None,
+        };
+        let missing = |mode: Option<usize>, misses: &mut Misses| {
+            Some(misses.frame(exact.as_ref()?, views[mode?].drawn_entries()))
         };
         frames.push(PathFrame {
             modes: modes_out,
-            exact_visible_triangles,
-            chc_missing_chunks,
+            exact_visible_triangles: exact.as_ref().map(|exact| {
+                exact
+                    .iter()
+                    .map(|e| u64::from(tree.entries()[e.0 as usize].triangles))
+                    .sum()
+            }),
+            chc_missing_chunks: missing(chc, &mut chc_misses),
+            hzb_missing_chunks: missing(hzb, &mut hzb_misses),
         });
         progress.inc(1);
     }
@@ -280,16 +301,19 @@ pub fn run(
             .map(|t| t.mean_frame_ms)
     };
     let ratio = |a: &str, b: &str| Some(mean_of(a)? / mean_of(b)?);
-    let over_exact: Vec<f64> = match chc {
-        Some(c) => frames
+    // Per frame, a mode's triangles over the exactly visible ones.
+    let over_exact = |mode: Option<usize>| -> Vec<f64> {
+        let Some(m) = mode else { return Vec::new() };
+        frames
             .iter()
             .filter_map(|f| {
                 let exact = f.exact_visible_triangles?;
-                Some(f.modes[c].triangles_drawn as f64 / exact.max(1) as f64)
+                Some(f.modes[m].triangles_drawn as f64 / exact.max(1) as f64)
             })
-            .collect(),
-        None => Vec::new(),
+            .collect()
     };
+    let mean = |v: &[f64]| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
+    let (chc_over, hzb_over) = (over_exact(chc), over_exact(hzb));
     Ok(serde_json::json!({
         "adapter": adapter.name,
         "size": [size.0, size.1],
@@ -303,10 +327,14 @@ pub fn run(
         "totals": totals,
         "frustum_over_chc_frame_time": ratio("frustum", "chc"),
         "none_over_chc_frame_time": ratio("none", "chc"),
-        "chc_over_exact_triangles_mean": (!over_exact.is_empty())
-            .then(|| over_exact.iter().sum::<f64>() / over_exact.len() as f64),
-        "chc_over_exact_triangles_worst": over_exact.iter().copied().reduce(f64::max),
-        "chc_chunks_more_than_one_frame_late": compare.then_some(late_chunks),
+        "chc_over_hzb_frame_time": ratio("chc", "hzb"),
+        "frustum_over_hzb_frame_time": ratio("frustum", "hzb"),
+        "chc_over_exact_triangles_mean": mean(&chc_over),
+        "chc_over_exact_triangles_worst": chc_over.iter().copied().reduce(f64::max),
+        "hzb_over_exact_triangles_mean": mean(&hzb_over),
+        "hzb_over_exact_triangles_worst": hzb_over.iter().copied().reduce(f64::max),
+        "chc_chunks_more_than_one_frame_late": (compare && chc.is_some()).then_some(chc_misses.late),
+        "hzb_chunks_more_than_one_frame_late": (compare && hzb.is_some()).then_some(hzb_misses.late),
         "explain": modes
             .iter()
             .zip(&stats_of)

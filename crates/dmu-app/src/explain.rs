@@ -11,7 +11,7 @@ pub fn occlusion_now(culling: Culling, d: &OcclusionDecision) -> String {
     if culling != Culling::Occlusion {
         return format!(
             "occlusion queries not asked for (culling {}): nothing chosen by measurement",
-            culling_name(culling)
+            culling.name()
         );
     }
     if d.enabled && d.cost_ms == 0.0 && d.saved_ms == 0.0 {
@@ -88,14 +88,6 @@ pub fn budget_changes(target_ms: Option<f64>, frames: &[FrameStats]) -> Vec<Stri
             )
         })
         .collect()
-}
-
-fn culling_name(c: Culling) -> &'static str {
-    match c {
-        Culling::None => "none",
-        Culling::Frustum => "frustum",
-        Culling::Occlusion => "chc",
-    }
 }
 
 #[cfg(test)]

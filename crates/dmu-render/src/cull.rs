@@ -12,6 +12,7 @@ use crate::capture::{Capture, IdImage};
 use crate::geometry::GeometrySource;
 use crate::gpu::QueryBox;
 use crate::hierarchy::{Hierarchy, NodeKind};
+use crate::hzb::{Candidate, CandidateKind};
 use crate::proxy::proxy_fits;
 use crate::renderer::{
     Draw, FrameTarget, LodPick, ProxyRound, Renderer, RoundResult, RoundTarget, Shading,
@@ -213,7 +214,27 @@ impl Renderer {
         let use_queries = view.culling == Culling::Occlusion && view.decision.enabled;
         let mut gpu_state = self.prepare_view(view, scene, cull.eye_views());
         view.drawn.clear();
-        let outcome = if use_queries {
+        let hzb = view.culling == Culling::Hzb
+            && target.eye_count() == 1
+            && self.hzb_supported(target.all().depth);
+        stats.culling = match view.culling {
+            Culling::Hzb if !hzb => Culling::Frustum,
+            Culling::Occlusion if !use_queries => Culling::Frustum,
+            c => c,
+        };
+        let outcome = if hzb {
+            self.frame_hzb(
+                view,
+                &mut gpu_state,
+                scene,
+                tree,
+                geometry,
+                target,
+                &cull,
+                &cell_distance,
+                &mut stats,
+            )
+        } else if use_queries {
             self.frame_occlusion(
                 view,
                 &mut gpu_state,
@@ -235,12 +256,12 @@ impl Renderer {
             let mut proxy_nodes = Vec::new();
             let mut draws = match view.culling {
                 Culling::None => self.all_draws(scene, tree, &cull, &mut stats),
-                Culling::Frustum | Culling::Occlusion if with_proxies => {
+                Culling::Frustum | Culling::Occlusion | Culling::Hzb if with_proxies => {
                     let (draws, nodes) = self.proxy_draws(scene, tree, &cull, &fit, &mut stats);
                     proxy_nodes = nodes;
                     draws
                 }
-                Culling::Frustum | Culling::Occlusion => {
+                Culling::Frustum | Culling::Occlusion | Culling::Hzb => {
                     self.frustum_draws(scene, tree, &cull, &mut stats)
                 }
             };
@@ -491,6 +512,151 @@ impl Renderer {
             })
             .collect();
         cull.proxy_frames(&origins)
+    }
+
+    /// Two-pass hierarchical-Z occlusion culling ([`crate::hzb`]): the
+    /// frustum's candidates (chunk instances and proxies) visible last frame,
+    /// or with an eye near their box, are drawn first in canonical order;
+    /// every candidate is then tested against the depth pyramid of that
+    /// pass and the newly visible are drawn in the same frame. A candidate
+    /// visible in this frame's test is drawn first next frame.
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "the frame's context, passed through once"
+    )]
+    fn frame_hzb(
+        &mut self,
+        view: &mut View,
+        gpu: &mut crate::renderer::ViewGpu,
+        scene: &Scene,
+        tree: &Tree,
+        geometry: &dyn GeometrySource,
+        target: RoundTarget<'_>,
+        cull: &Cull,
+        cell_distance: &[f64],
+        stats: &mut FrameStats,
+    ) -> Result<(), RenderError> {
+        let frame = view.frame;
+        let fit = self.proxy_fit(&self.hierarchy, cull, target);
+        let (mut draws, mut proxy_nodes) = if fit.is_empty() {
+            (self.frustum_draws(scene, tree, cull, stats), Vec::new())
+        } else {
+            self.proxy_draws(scene, tree, cull, &fit, stats)
+        };
+        sort_draws(&self.hierarchy, cell_distance, &mut draws);
+        if fit.is_empty() {
+            stats.triangles_in_frustum = draws
+                .iter()
+                .map(|d| u64::from(tree.entries()[d.entry as usize].triangles))
+                .sum();
+        }
+        let frames = self.proxy_frames(&self.hierarchy, &mut proxy_nodes, cull);
+        let h = &self.hierarchy;
+        if view.proxy_visible.len() != h.nodes.len() {
+            view.proxy_visible = vec![0; h.nodes.len()];
+        }
+        let entry_bounds: Vec<Aabb3d> = draws
+            .iter()
+            .map(|d| tree.entries()[d.entry as usize].bounds)
+            .chain(proxy_nodes.iter().map(|&n| h.nodes[n as usize].bounds))
+            .collect();
+        let boxes = cull.query_boxes(&entry_bounds);
+        let kinds = draws
+            .iter()
+            .map(|d| CandidateKind::Entry(d.entry))
+            .chain((0..proxy_nodes.len() as u32).map(CandidateKind::Proxy));
+        let candidates: Vec<Candidate> = kinds
+            .zip(boxes)
+            .zip(&entry_bounds)
+            .map(|((kind, bounds), b)| {
+                let forced = cull.eye_near(b);
+                let was = match kind {
+                    CandidateKind::Entry(e) => view.entries[e as usize].visible_frame,
+                    CandidateKind::Proxy(k) => view.proxy_visible[proxy_nodes[k as usize] as usize],
+                };
+                Candidate {
+                    kind,
+                    bounds,
+                    drawn: forced || (was > 0 && was + 1 == frame),
+                    forced,
+                }
+            })
+            .collect();
+        // First pass: last frame's visible set.
+        let first_draws = crate::hzb::draw_list(&candidates);
+        let first_proxies: Vec<usize> = candidates
+            .iter()
+            .filter_map(|c| match c.kind {
+                CandidateKind::Proxy(k) if c.drawn => Some(k as usize),
+                _ => None,
+            })
+            .collect();
+        let first_nodes: Vec<u32> = first_proxies.iter().map(|&k| proxy_nodes[k]).collect();
+        let first_frames: Vec<QueryBox> = first_proxies.iter().map(|&k| frames[k]).collect();
+        let r = self.run_round(
+            gpu,
+            target,
+            Shading::Color,
+            true,
+            geometry,
+            tree,
+            &first_draws,
+            &[],
+            cull.lod(),
+            ProxyRound {
+                nodes: &first_nodes,
+                frames: &first_frames,
+            },
+        )?;
+        add_round(stats, &r);
+        // Second pass: the pyramid, every candidate's test, the newly visible.
+        let second = self.hzb_second_pass(
+            gpu,
+            target.all(),
+            view.projection(),
+            geometry,
+            tree,
+            &candidates,
+            &proxy_nodes,
+            &frames,
+            cull.lod(),
+        )?;
+        stats.rounds = 2;
+        stats.passes += 1;
+        stats.draw_calls += second.draw_calls;
+        stats.triangles_drawn += second.triangles;
+        stats.not_resident += second.not_resident;
+        view.drawn.extend(first_draws.iter().map(|d| d.entry));
+        let h = &self.hierarchy;
+        for (c, &visible) in candidates.iter().zip(&second.visible) {
+            match c.kind {
+                CandidateKind::Entry(e) if visible => {
+                    view.entries[e as usize].visible_frame = frame;
+                    if !c.drawn {
+                        stats.newly_visible += 1;
+                        stats.chunks_drawn += 1;
+                        view.drawn.push(e);
+                    }
+                }
+                CandidateKind::Entry(_) => {
+                    if !c.drawn {
+                        stats.culled_occlusion += 1;
+                    }
+                }
+                CandidateKind::Proxy(k) => {
+                    let n = proxy_nodes[k as usize];
+                    if visible {
+                        view.proxy_visible[n as usize] = frame;
+                    }
+                    if c.drawn || visible {
+                        stats.proxies_drawn += 1;
+                        h.leaves(n, &mut view.drawn);
+                    }
+                    stats.newly_visible += u64::from(visible && !c.drawn);
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Coherent hierarchical culling (CHC, Bittner et al. 2004, with CHC++'s

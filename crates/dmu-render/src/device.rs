@@ -2,9 +2,19 @@
 
 use crate::RenderError;
 
-/// A device and queue with no surface, with the optional features the renderer
-/// uses (timestamp queries, multiview for stereo) when the adapter has them. Honours `WGPU_BACKEND`
-/// and the other `wgpu` environment variables.
+/// The optional features the renderer uses when a device has them: timestamp
+/// queries (GPU times in the stats), multiview (stereo pairs in one pass),
+/// indirect draws with a first instance (`hzb` culling) and with a count
+/// buffer (its second pass compacted). Request `adapter.features() &
+/// OPTIONAL_FEATURES`.
+pub const OPTIONAL_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY
+    .union(wgpu::Features::MULTIVIEW)
+    .union(wgpu::Features::INDIRECT_FIRST_INSTANCE)
+    .union(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT);
+
+/// A device and queue with no surface, with the [`OPTIONAL_FEATURES`] the
+/// adapter has. Honours `WGPU_BACKEND` and the other `wgpu` environment
+/// variables.
 pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, wgpu::AdapterInfo), RenderError> {
     let instance =
         wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
@@ -17,8 +27,7 @@ pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, wgpu::AdapterInfo
         reason: e.to_string(),
     })?;
     let info = adapter.get_info();
-    let required_features =
-        adapter.features() & (wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::MULTIVIEW);
+    let required_features = adapter.features() & OPTIONAL_FEATURES;
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("dmu headless"),
         required_features,

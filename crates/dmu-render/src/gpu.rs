@@ -78,6 +78,51 @@ pub(crate) struct QueryBox {
 }
 const _: () = assert!(size_of::<QueryBox>() == 64);
 
+/// The WGSL source of the depth pyramid and box tests of `Culling::Hzb`.
+pub(crate) const HZB_SHADER: &str = include_str!("../../../shaders/hzb.wgsl");
+
+/// `Params` of `hzb.wgsl`: the projection, the target's size, pyramid levels
+/// and candidates.
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub(crate) struct HzbParams {
+    /// View to clip, column-major.
+    pub proj: [[f32; 4]; 4],
+    /// The depth target's size, pixels.
+    pub size: [u32; 2],
+    /// Pyramid levels.
+    pub levels: u32,
+    /// Candidates to test.
+    pub count: u32,
+}
+const _: () = assert!(size_of::<HzbParams>() == 80);
+
+/// `Candidate` of `hzb.wgsl`: a box to test and the draw it makes when newly
+/// visible.
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub(crate) struct HzbCandidate {
+    /// The box in view space, as the query boxes.
+    pub bounds: QueryBox,
+    /// `DrawIndexedIndirectArgs` less the instance count.
+    pub index_count: u32,
+    pub first_index: u32,
+    pub base_vertex: i32,
+    pub first_instance: u32,
+    /// Its draw group and the group's first slot in the draw buffer.
+    pub group: u32,
+    pub slot_base: u32,
+    /// [`HZB_DRAWN`], [`HZB_FORCED`].
+    pub flags: u32,
+    pub _pad: u32,
+}
+const _: () = assert!(size_of::<HzbCandidate>() == 96);
+
+/// Candidate flag: the first pass drew it (no second draw).
+pub(crate) const HZB_DRAWN: u32 = 1;
+/// Candidate flag: visible without a test (an eye may be in its box).
+pub(crate) const HZB_FORCED: u32 = 2;
+
 /// Part flag bit: the part is selected (highlighted). The shader's tint goes
 /// by priority: selected over clashing over hovered.
 pub(crate) const PART_SELECTED: u32 = 1;
@@ -110,6 +155,13 @@ mod tests {
                 "missing entry point {entry}"
             );
         }
+    }
+
+    /// The pyramid and box-test shader validates, with its three entry points.
+    #[test]
+    fn hzb_shader_validates_with_naga() {
+        let entries = validate(super::HZB_SHADER, Capabilities::empty());
+        assert_eq!(entries, ["reduce_depth", "reduce_level", "test_boxes"]);
     }
 
     /// The stereo shader validates with multiview, and only with it.

@@ -1,5 +1,6 @@
 //! The dmu renderer: chunk geometry in pooled GPU buffers, any number of views
-//! over one cell tree, frustum, coverage and coherent occlusion culling, and
+//! over one cell tree, frustum, coverage, coherent occlusion and hierarchical-Z
+//! culling, and
 //! headless capture, on wgpu.
 //!
 //! Design choices:
@@ -33,6 +34,13 @@
 //!   queries go in one render pass (a Mesa 22 lavapipe bug past ~536). Each view
 //!   measures what queries cost against what they save and switches them off
 //!   where they do not pay ([`OcclusionDecision`]).
+//! - Hierarchical-Z culling ([`Culling::Hzb`]) is the GPU-driven alternative:
+//!   last frame's visible set is drawn, a compute pass reduces its depth to a
+//!   pyramid and tests every candidate's box against it (a few texel reads,
+//!   no fill, no query), and the newly visible are drawn in the same frame
+//!   through indirect draws compacted per page pair by a count buffer. Two
+//!   submissions a frame, every frame exact; the candidates' results come
+//!   back with the frame and decide the next frame's first pass.
 //! - A stereo pair ([`StereoView`]) is culled once, against a frustum enclosing
 //!   both eyes, with one visibility state, and drawn in one multiview pass into
 //!   a 2-layer target ([`Renderer::render_stereo`]). Each eye's model-views are
@@ -83,6 +91,7 @@ mod error;
 mod geometry;
 mod gpu;
 mod hierarchy;
+mod hzb;
 mod proxy;
 mod renderer;
 mod stereo;
@@ -93,7 +102,7 @@ pub use capture::{
     CAPTURE_FORMAT, Capture, DEPTH_FORMAT, ID_FORMAT, IdImage, SURFACE_CHANGE, count_differing,
     encode_png, save_png,
 };
-pub use device::headless_device;
+pub use device::{OPTIONAL_FEATURES, headless_device};
 pub use dmu_geom::Camera;
 pub use error::RenderError;
 pub use geometry::{GeometryPool, GeometrySource};

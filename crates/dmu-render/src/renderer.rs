@@ -85,6 +85,11 @@ impl<'a> RoundTarget<'a> {
         }
     }
 
+    /// Every layer's target at once (a single view's target).
+    pub fn all(&self) -> FrameTarget<'a> {
+        self.all
+    }
+
     /// True when geometry is drawn into every layer by one multiview pass,
     /// which carries no occlusion queries.
     pub fn is_multiview(&self) -> bool {
@@ -252,9 +257,9 @@ pub(crate) struct ViewGpu {
     /// One [`ViewUniform`] per eye, each at a multiple of `uniform_stride`.
     uniform: wgpu::Buffer,
     model_views: wgpu::Buffer,
-    boxes: wgpu::Buffer,
+    pub(crate) boxes: wgpu::Buffer,
     /// One per eye: eye `k`'s binds its own uniform.
-    bind_groups: [wgpu::BindGroup; 2],
+    pub(crate) bind_groups: [wgpu::BindGroup; 2],
     query_sets: Vec<wgpu::QuerySet>,
     resolve: wgpu::Buffer,
     readback: wgpu::Buffer,
@@ -263,7 +268,9 @@ pub(crate) struct ViewGpu {
     staging: Vec<ModelView>,
     /// The frame cuts with section planes: it draws with the pipelines that
     /// discard what is cut away (the others keep early depth testing).
-    sectioned: bool,
+    pub(crate) sectioned: bool,
+    /// The depth pyramid and box-test buffers of `hzb` frames.
+    pub(crate) hzb: Option<crate::hzb::HzbGpu>,
 }
 
 /// Draws chunk instances of a scene's cell tree into caller-provided targets.
@@ -279,7 +286,7 @@ pub struct Renderer {
     layout: wgpu::BindGroupLayout,
     /// Shading, and shading that discards what section planes cut away
     /// (`[uncut, cut]`; so is every mesh pipeline pair here).
-    shade: [wgpu::RenderPipeline; 2],
+    pub(crate) shade: [wgpu::RenderPipeline; 2],
     /// The multiview shading pipelines; `None` without [`wgpu::Features::MULTIVIEW`]
     /// or when stereo pairs are drawn a layer at a time.
     shade_stereo: Option<[wgpu::RenderPipeline; 2]>,
@@ -299,16 +306,18 @@ pub struct Renderer {
     /// Reused per-round scratch: resolved slots of the round's draws.
     slots: Vec<(u32, crate::geometry::ChunkSlot)>,
     /// Shading of proxies (merged subtrees), uncut and cut.
-    proxy: [wgpu::RenderPipeline; 2],
+    pub(crate) proxy: [wgpu::RenderPipeline; 2],
     /// Proxies of the tree's subtrees and their GPU buffers, once set.
     pub(crate) proxies: Option<ProxyGpu>,
+    /// The compute pipelines of `hzb` frames, made on the first.
+    pub(crate) hzb: Option<crate::hzb::HzbPipelines>,
 }
 
 /// Proxies and the vertex and index buffer of each current one (by mirror node).
 #[derive(Debug)]
 pub(crate) struct ProxyGpu {
     pub cpu: Proxies,
-    buffers: Vec<Option<(wgpu::Buffer, wgpu::Buffer)>>,
+    pub buffers: Vec<Option<(wgpu::Buffer, wgpu::Buffer)>>,
 }
 
 /// A round's proxies: mirror nodes, and each one's frame in each eye's view
@@ -567,6 +576,7 @@ impl Renderer {
             boxes_color,
             proxy,
             proxies: None,
+            hzb: None,
             pool: GeometryPool::new(scene.chunks().len(), options.page_bytes, options.lod_levels),
             hierarchy: Hierarchy::default(),
             timestamp_period_ns: device
@@ -835,6 +845,7 @@ impl Renderer {
             timestamps,
             staging: Vec::new(),
             sectioned: false,
+            hzb: None,
         }
     }
 
@@ -876,7 +887,7 @@ impl Renderer {
 
     /// Grows a view's model-view and box buffers (and so its bind group) to
     /// hold `model_views` model-views and `boxes` boxes.
-    fn ensure_capacity(&self, gpu: &mut ViewGpu, model_views: usize, boxes: usize) {
+    pub(crate) fn ensure_capacity(&self, gpu: &mut ViewGpu, model_views: usize, boxes: usize) {
         let grow = |buffer: &mut wgpu::Buffer, label, need: usize| {
             let need = need as u64;
             if buffer.size() >= need {
@@ -902,6 +913,24 @@ impl Renderer {
         if grown {
             gpu.bind_groups = self.bind_groups(&gpu.uniform, &gpu.model_views, &gpu.boxes);
         }
+    }
+
+    /// Where chunk instance `entry`'s geometry is in the pool (uploaded now
+    /// if need be), at the level `lod` picks; `None` when not resident.
+    pub(crate) fn resolve_slot(
+        &mut self,
+        geometry: &dyn GeometrySource,
+        tree: &Tree,
+        entry: u32,
+        lod: Option<LodPick>,
+    ) -> Option<crate::geometry::ChunkSlot> {
+        let entry = &tree.entries()[entry as usize];
+        self.pool
+            .ensure(&self.device, &self.queue, geometry, entry.chunk)
+            .map(|slot| match lod {
+                Some(l) => slot.at_lod(l.coverage.size_px(&entry.bounds), l.max_error_px),
+                None => slot,
+            })
     }
 
     /// One submission: draws (in the given order, some wrapped in queries), then
@@ -950,14 +979,7 @@ impl Renderer {
         let mut resident = Vec::with_capacity(draws.len());
         let uploaded_before = self.pool.upload_time;
         for d in draws {
-            let entry = &tree.entries()[d.entry as usize];
-            let slot = self
-                .pool
-                .ensure(&self.device, &self.queue, geometry, entry.chunk)
-                .map(|slot| match lod {
-                    Some(l) => slot.at_lod(l.coverage.size_px(&entry.bounds), l.max_error_px),
-                    None => slot,
-                });
+            let slot = self.resolve_slot(geometry, tree, d.entry, lod);
             resident.push(slot.is_some());
             match slot {
                 Some(slot) => {

@@ -16,6 +16,47 @@ pub enum Culling {
     Frustum,
     /// Frustum, coverage and coherent hierarchical occlusion culling (CHC).
     Occlusion,
+    /// Frustum, coverage and two-pass hierarchical-Z occlusion culling: last
+    /// frame's visible set drawn first, every other candidate's box tested
+    /// against a depth pyramid of it in a compute pass, and the newly
+    /// visible drawn in the same frame through indirect draws. Single views
+    /// only; a stereo pair, or a device or target without what it needs
+    /// (indirect draws with a first instance, a depth target a shader can
+    /// read), is culled by frustum instead ([`FrameStats::culling`]).
+    Hzb,
+}
+
+impl Culling {
+    /// Every mode, in the order the tools list them.
+    pub const ALL: [Culling; 4] = [
+        Culling::None,
+        Culling::Frustum,
+        Culling::Occlusion,
+        Culling::Hzb,
+    ];
+
+    /// The mode's name in the tools' flags and reports: `none`, `frustum`,
+    /// `chc` or `hzb`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Culling::None => "none",
+            Culling::Frustum => "frustum",
+            Culling::Occlusion => "chc",
+            Culling::Hzb => "hzb",
+        }
+    }
+}
+
+impl std::str::FromStr for Culling {
+    type Err = String;
+
+    /// The mode of a [`Culling::name`].
+    fn from_str(name: &str) -> Result<Self, String> {
+        Culling::ALL
+            .into_iter()
+            .find(|c| c.name() == name)
+            .ok_or_else(|| format!("culling {name:?} is not none, frustum, chc or hzb"))
+    }
 }
 
 /// Knobs of culling, each with its cost shown in [`FrameStats`].
@@ -91,6 +132,9 @@ pub struct OcclusionDecision {
 pub struct FrameStats {
     /// Frame number of the view (1 for its first frame).
     pub frame: u64,
+    /// The culling the frame used: the view's, or frustum culling where
+    /// occlusion queries were off or `hzb` could not run.
+    pub culling: Culling,
     /// Tree nodes (internal, cells and chunk instances) looked at.
     pub nodes_visited: u64,
     /// Nodes dropped by the frustum.
@@ -205,6 +249,9 @@ pub struct View {
     /// The knobs the next frame draws with under a budget (`None` before the
     /// first frame).
     pub(crate) knobs: Option<crate::KnobsInEffect>,
+    /// Per mirror node: last frame its proxy tested visible in an `hzb`
+    /// frame (0: never).
+    pub(crate) proxy_visible: Vec<u64>,
     /// Chunk instances drawn in the last frame, in draw order.
     pub(crate) drawn: Vec<u32>,
     /// GPU resources, made by the renderer on the first frame.
@@ -236,6 +283,7 @@ impl View {
             frustum_frame_ms: 0.0,
             last: FrameStats::default(),
             knobs: None,
+            proxy_visible: Vec::new(),
             drawn: Vec::new(),
             gpu: None,
         }
@@ -334,5 +382,6 @@ impl View {
     /// starts occlusion culling from scratch.
     pub fn reset_visibility(&mut self) {
         self.entries.clear();
+        self.proxy_visible.clear();
     }
 }

@@ -2,6 +2,7 @@ mod culling;
 mod depth_split;
 mod fov;
 mod hierarchy;
+mod hzb;
 mod images;
 mod proxies;
 mod stereo;

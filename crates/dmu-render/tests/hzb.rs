@@ -1,0 +1,202 @@
+//! Two-pass hierarchical-Z culling against the unculled reference and the
+//! exact-visibility oracle: every frame exact, nothing visible missed, moved
+//! parts followed, proxies drawn, and a frustum fallback where it cannot run.
+
+use std::collections::BTreeSet;
+
+use dmu_geom::glam::{DAffine3, DVec3};
+use dmu_render::{Culling, Proxies, ProxyOptions, View, count_differing, wgpu};
+use dmu_scene::PartId;
+use dmu_tree::EntryId;
+
+use crate::culling::{small_plant, viewpoints};
+use crate::support::{Rig, differing, image_path};
+
+/// The newly visible are drawn in the frame that finds them: from its first
+/// frame on, an `hzb` view draws the unculled image pixel for pixel and
+/// every chunk instance owning a pixel, at every viewpoint; and from its
+/// third it draws fewer triangles than frustum culling.
+#[test]
+fn every_hzb_frame_is_the_unculled_image_and_misses_nothing_visible() {
+    let (scene, tree) = small_plant();
+    let size = (480, 270);
+    let Some(mut rig) = Rig::new(&scene, &tree, size) else {
+        return;
+    };
+    for (i, cam) in viewpoints().into_iter().enumerate() {
+        let none = rig.shot(cam, Culling::None, &scene, &tree);
+        let mut view = View::new(cam, size, Culling::Hzb);
+        for frame in 1..=3 {
+            let stats = rig.frame(&mut view, &scene, &tree);
+            assert_eq!(stats.culling, Culling::Hzb, "view {i}: hzb ran");
+            let image = rig.image();
+            if frame == 3 {
+                image
+                    .save(image_path(&format!("plant_hzb_{i}.png")))
+                    .unwrap();
+            }
+            let diff = differing(&none, &image);
+            assert!(
+                diff.is_empty(),
+                "view {i} frame {frame}: {} pixels differ, first {:?}",
+                diff.len(),
+                diff.first()
+            );
+            let drawn: BTreeSet<EntryId> = view.drawn_entries().collect();
+            let exact = rig.ids(&mut view, &scene, &tree).visible_entries();
+            let missing: Vec<_> = exact.difference(&drawn).collect();
+            assert!(
+                missing.is_empty(),
+                "view {i} frame {frame}: visible but not drawn: {missing:?}"
+            );
+            if frame == 1 {
+                // Nothing was visible before: the first pass drew nothing,
+                // and against its empty pyramid every candidate is visible.
+                assert_eq!(stats.newly_visible, stats.chunks_drawn, "view {i}");
+            } else {
+                assert_eq!(stats.newly_visible, 0, "view {i}: converged");
+            }
+            if frame == 3 {
+                // Frame 2's pyramid held the whole visible set: frame 3
+                // draws only what frame 2 found visible.
+                assert!(
+                    stats.triangles_drawn < stats.triangles_in_frustum
+                        && stats.culled_occlusion > 0,
+                    "view {i}: nothing occluded: {stats:?}"
+                );
+            }
+        }
+    }
+}
+
+/// Along a walk with a part moved on the way, each frame equals the
+/// unculled image: what comes into view and the moved part show at once.
+#[test]
+fn a_moving_hzb_view_follows_the_camera_and_moved_parts_at_once() {
+    let (mut scene, mut tree) = small_plant();
+    let size = (480, 270);
+    let Some(mut rig) = Rig::new(&scene, &tree, size) else {
+        return;
+    };
+    let start = viewpoints()[0];
+    let mut view = View::new(start, size, Culling::Hzb);
+    let mut reference = View::new(start, size, Culling::None);
+    // The part owning the most pixels at the walk's start.
+    let ids = rig.ids(&mut view, &scene, &tree);
+    let moved = ids
+        .visible_entries()
+        .into_iter()
+        .map(|e| tree.entries()[e.0 as usize].part)
+        .max_by_key(|p: &PartId| tree.entries().iter().filter(|e| e.part == *p).count())
+        .expect("a visible part");
+    let mut newly = 0;
+    for step in 0..12 {
+        let mut cam = start;
+        let forward = (start.target - start.eye).normalize();
+        cam.eye += forward * (f64::from(step) * 1_500.0);
+        cam.target += forward * (f64::from(step) * 1_500.0);
+        if step == 6 {
+            let world = scene.part_world(moved);
+            let up = DAffine3::from_translation(DVec3::new(0.0, 0.0, 3_000.0));
+            tree.move_part(&mut scene, moved, up * world);
+        }
+        view.camera = cam;
+        reference.camera = cam;
+        let stats = rig.frame(&mut view, &scene, &tree);
+        newly += stats.newly_visible;
+        let image = rig.image();
+        rig.frame(&mut reference, &scene, &tree);
+        let diff = differing(&rig.image(), &image);
+        assert!(
+            diff.is_empty(),
+            "step {step}: {} pixels differ, first {:?}",
+            diff.len(),
+            diff.first()
+        );
+    }
+    assert!(newly > 0, "the walk must bring chunks into view");
+}
+
+/// With proxies, `hzb` tests and draws them as any candidate: its frames
+/// show what frustum culling with the same proxies shows, with fewer
+/// triangles inside the plant.
+#[test]
+fn hzb_draws_proxies_and_matches_the_frustum_image() {
+    let (scene, tree) = small_plant();
+    let size = (480, 270);
+    let Some(mut rig) = Rig::with_lods(&scene, &tree, size) else {
+        return;
+    };
+    let proxies = Proxies::build(
+        &scene,
+        &tree,
+        &scene,
+        ProxyOptions::default(),
+        &mut |_, _| {},
+    );
+    rig.renderer.set_proxies(proxies);
+    let pixels = f64::from(size.0 * size.1);
+    let (mut drew_proxies, mut culled) = (false, false);
+    for (i, cam) in viewpoints().into_iter().enumerate() {
+        let mut frustum = View::new(cam, size, Culling::Frustum);
+        frustum.options.lod_error_px = 1.0;
+        let f = rig.frame(&mut frustum, &scene, &tree);
+        let reference = rig.image();
+        let mut hzb = View::new(cam, size, Culling::Hzb);
+        hzb.options.lod_error_px = 1.0;
+        rig.frame(&mut hzb, &scene, &tree);
+        rig.frame(&mut hzb, &scene, &tree);
+        let last = rig.frame(&mut hzb, &scene, &tree);
+        let (any, surface) = count_differing(reference.as_raw(), rig.image().as_raw());
+        println!(
+            "view {i}: hzb {} proxies {} triangles; frustum {} proxies {} triangles; {any} differ, {surface} another surface",
+            last.proxies_drawn, last.triangles_drawn, f.proxies_drawn, f.triangles_drawn
+        );
+        assert!(last.triangles_drawn <= f.triangles_drawn, "view {i}");
+        // Depth ties between touching pieces may resolve differently.
+        assert!(surface as f64 <= 0.001 * pixels, "view {i}: {surface}");
+        drew_proxies |= last.proxies_drawn > 0;
+        culled |= last.triangles_drawn < f.triangles_drawn;
+    }
+    assert!(drew_proxies, "hzb drew proxies somewhere");
+    assert!(culled, "hzb culled something");
+}
+
+/// A depth target a shader cannot read: the frame is culled by frustum
+/// instead, says so, and is still the unculled image.
+#[test]
+fn hzb_falls_back_to_frustum_where_depth_cannot_be_read() {
+    let (scene, tree) = small_plant();
+    let size = (320, 180);
+    let Some(mut rig) = Rig::new(&scene, &tree, size) else {
+        return;
+    };
+    let depth = rig.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("depth without texture binding"),
+        size: wgpu::Extent3d {
+            width: size.0,
+            height: size.1,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: dmu_render::DEPTH_FORMAT,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+        view_formats: &[],
+    });
+    let depth_view = depth.create_view(&Default::default());
+    let cam = viewpoints()[1];
+    let none = rig.shot(cam, Culling::None, &scene, &tree);
+    let mut view = View::new(cam, size, Culling::Hzb);
+    let target = dmu_render::FrameTarget {
+        color: rig.capture.frame_target().color,
+        depth: &depth_view,
+    };
+    let stats = rig
+        .renderer
+        .render(&mut view, &scene, &tree, &scene, target)
+        .expect("render");
+    assert_eq!(stats.culling, Culling::Frustum);
+    assert!(differing(&none, &rig.image()).is_empty());
+}

@@ -1,0 +1,179 @@
+// Two-pass hierarchical-Z occlusion culling (`Culling::Hzb`): a depth pyramid
+// built from what the first pass drew, and every candidate's box tested
+// against it, writing the draws of those newly visible for the second pass.
+//
+// Reverse-Z: depth 1 at the near plane, 0 at infinity (the clear value).
+// A pyramid texel holds the farthest (least) depth of the pixels it covers, so
+// a box whose nearest point is farther than that everywhere is hidden.
+// Level 0 covers 2x2 pixels (its size rounded up); level k covers 2^(k+1)
+// pixels a side, texel (x, y) pixels [x, x+1) * 2^(k+1), and the last texel of
+// a row or column covers the rest of it too.
+
+struct Params {
+    // View to clip, column-major (the view's projection).
+    proj: mat4x4<f32>,
+    // The depth target's size in pixels.
+    size: vec2<u32>,
+    // Pyramid levels.
+    levels: u32,
+    // Candidates to test.
+    count: u32,
+}
+
+// --- pyramid -----------------------------------------------------------------
+
+@group(0) @binding(0) var depth_in: texture_depth_2d;
+@group(0) @binding(1) var level0_out: texture_storage_2d<r32float, write>;
+
+// Level 0: the least depth of each 2x2 block of the depth target.
+@compute @workgroup_size(8, 8)
+fn reduce_depth(@builtin(global_invocation_id) id: vec3<u32>) {
+    let dims = textureDimensions(level0_out);
+    if id.x >= dims.x || id.y >= dims.y {
+        return;
+    }
+    let size = textureDimensions(depth_in);
+    var m = 1.0;
+    for (var dy = 0u; dy < 2u; dy++) {
+        for (var dx = 0u; dx < 2u; dx++) {
+            let p = id.xy * 2u + vec2(dx, dy);
+            if p.x < size.x && p.y < size.y {
+                m = min(m, textureLoad(depth_in, p, 0));
+            }
+        }
+    }
+    textureStore(level0_out, id.xy, vec4(m, 0.0, 0.0, 0.0));
+}
+
+@group(0) @binding(0) var level_in: texture_2d<f32>;
+@group(0) @binding(1) var level_out: texture_storage_2d<r32float, write>;
+
+// Level k + 1: the least of each 2x2 block of level k. Levels halve rounding
+// down, so the last texel of a row or column also takes level k's odd one out.
+@compute @workgroup_size(8, 8)
+fn reduce_level(@builtin(global_invocation_id) id: vec3<u32>) {
+    let dims = textureDimensions(level_out);
+    if id.x >= dims.x || id.y >= dims.y {
+        return;
+    }
+    let size = textureDimensions(level_in);
+    let first = id.xy * 2u;
+    let last = select(min(first + 1u, size - 1u), size - 1u, id.xy == dims - 1u);
+    var m = 1.0;
+    for (var y = first.y; y <= last.y; y++) {
+        for (var x = first.x; x <= last.x; x++) {
+            m = min(m, textureLoad(level_in, vec2(x, y), 0).x);
+        }
+    }
+    textureStore(level_out, id.xy, vec4(m, 0.0, 0.0, 0.0));
+}
+
+// --- box tests ---------------------------------------------------------------
+
+// A candidate: its box in view space (centre and half-axes, as the query
+// boxes), the draw it makes when newly visible, and where that draw goes.
+struct Candidate {
+    center: vec4<f32>,
+    axis_x: vec4<f32>,
+    axis_y: vec4<f32>,
+    axis_z: vec4<f32>,
+    index_count: u32,
+    first_index: u32,
+    base_vertex: i32,
+    first_instance: u32,
+    // Its draw group (a page pair, or one proxy) and the group's first slot.
+    group: u32,
+    slot_base: u32,
+    // Bit 0: drawn by the first pass; bit 1: visible without a test (the
+    // near plane may cut its box).
+    flags: u32,
+    _pad: u32,
+}
+
+struct DrawArgs {
+    index_count: u32,
+    instance_count: u32,
+    first_index: u32,
+    base_vertex: i32,
+    first_instance: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> candidates: array<Candidate>;
+@group(0) @binding(2) var pyramid: texture_2d<f32>;
+@group(0) @binding(3) var<storage, read_write> draws: array<DrawArgs>;
+@group(0) @binding(4) var<storage, read_write> counts: array<atomic<u32>>;
+@group(0) @binding(5) var<storage, read_write> visible: array<u32>;
+
+// True unless the box is certainly behind the pyramid's depth everywhere it
+// covers on screen.
+fn box_visible(c: Candidate) -> bool {
+    var lo = vec2(1e30, 1e30);
+    var hi = vec2(-1e30, -1e30);
+    var nearest = 0.0;
+    for (var k = 0u; k < 8u; k++) {
+        let s = vec3(
+            select(-1.0, 1.0, (k & 1u) != 0u),
+            select(-1.0, 1.0, (k & 2u) != 0u),
+            select(-1.0, 1.0, (k & 4u) != 0u),
+        );
+        let p = c.center.xyz + s.x * c.axis_x.xyz + s.y * c.axis_y.xyz + s.z * c.axis_z.xyz;
+        let clip = params.proj * vec4(p, 1.0);
+        // A corner at or behind the eye plane: the box reaches the eye.
+        if clip.w <= 0.0 {
+            return true;
+        }
+        let ndc = clip.xyz / clip.w;
+        lo = min(lo, ndc.xy);
+        hi = max(hi, ndc.xy);
+        nearest = max(nearest, ndc.z);
+    }
+    // Beyond the near plane (depth above 1): visible, as the CPU's near test.
+    if nearest >= 1.0 {
+        return true;
+    }
+    let size = vec2<f32>(params.size);
+    // Pixels, y down; the rectangle of pixels the box may cover.
+    let x0 = clamp(floor((lo.x * 0.5 + 0.5) * size.x), 0.0, size.x - 1.0);
+    let x1 = clamp(floor((hi.x * 0.5 + 0.5) * size.x), 0.0, size.x - 1.0);
+    let y0 = clamp(floor((0.5 - hi.y * 0.5) * size.y), 0.0, size.y - 1.0);
+    let y1 = clamp(floor((0.5 - lo.y * 0.5) * size.y), 0.0, size.y - 1.0);
+    // The finest level where the rectangle spans at most 4x4 texels.
+    let p0 = vec2(u32(x0), u32(y0));
+    let p1 = vec2(u32(x1), u32(y1));
+    var level = 0u;
+    var a = vec2(0u);
+    var b = vec2(0u);
+    loop {
+        let top = textureDimensions(pyramid, level) - 1u;
+        a = min(p0 >> vec2(level + 1u), top);
+        b = min(p1 >> vec2(level + 1u), top);
+        if level + 1u >= params.levels || (b.x - a.x <= 3u && b.y - a.y <= 3u) {
+            break;
+        }
+        level++;
+    }
+    var farthest = 1.0;
+    for (var y = a.y; y <= b.y; y++) {
+        for (var x = a.x; x <= b.x; x++) {
+            farthest = min(farthest, textureLoad(pyramid, vec2(x, y), i32(level)).x);
+        }
+    }
+    // Equal counts as visible, as the query boxes pass on equality.
+    return nearest >= farthest;
+}
+
+@compute @workgroup_size(64)
+fn test_boxes(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x + id.y * 65535u * 64u;
+    if i >= params.count {
+        return;
+    }
+    let c = candidates[i];
+    let seen = (c.flags & 2u) != 0u || box_visible(c);
+    visible[i] = u32(seen);
+    if seen && (c.flags & 1u) == 0u {
+        let slot = c.slot_base + atomicAdd(&counts[c.group], 1u);
+        draws[slot] = DrawArgs(c.index_count, 1u, c.first_index, c.base_vertex, c.first_instance);
+    }
+}
