@@ -8,6 +8,7 @@ mod hostile;
 mod pick_rays;
 mod stereo_far;
 mod tradeoffs;
+mod walk_compare;
 
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
@@ -38,9 +39,14 @@ fn path(dir: &Path, name: &str) -> String {
 /// the test script sets for in-process GPU tests), or `None` after printing
 /// SKIPPED when there is no Vulkan adapter outside CI (under `CI=true` that fails).
 fn render(test: &str, args: &[&str]) -> Option<Output> {
+    on_gpu(test, "render", args)
+}
+
+/// `dmu COMMAND ARGS` for a command that renders, as [`render`].
+fn on_gpu(test: &str, command: &str, args: &[&str]) -> Option<Output> {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_dmu"))
         .env_remove("NODEVICE_SELECT")
-        .arg("render")
+        .arg(command)
         .args(args)
         .output()
         .unwrap();
