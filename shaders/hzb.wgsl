@@ -106,8 +106,25 @@ struct DrawArgs {
 @group(0) @binding(5) var<storage, read_write> visible: array<u32>;
 
 // True unless the box is certainly behind the pyramid's depth everywhere it
-// covers on screen.
+// covers on screen, tested as its eight octants: an octant's rectangle and
+// nearest depth fit far better than the whole box's where the box reaches
+// away from the eye (5 % fewer triangles drawn inside the plant). Written
+// out: the same test as a loop over octants around the loop over corners
+// dropped visible chunks on Mesa 22.3's llvmpipe (a miscompile; the tests
+// in crates/dmu-render/tests/hzb.rs caught it).
 fn box_visible(c: Candidate) -> bool {
+    let x = 0.5 * c.axis_x.xyz;
+    let y = 0.5 * c.axis_y.xyz;
+    let z = 0.5 * c.axis_z.xyz;
+    let o = c.center.xyz;
+    return part_visible(o - x - y - z, x, y, z) || part_visible(o + x - y - z, x, y, z)
+        || part_visible(o - x + y - z, x, y, z) || part_visible(o + x + y - z, x, y, z)
+        || part_visible(o - x - y + z, x, y, z) || part_visible(o + x - y + z, x, y, z)
+        || part_visible(o - x + y + z, x, y, z) || part_visible(o + x + y + z, x, y, z);
+}
+
+// Whether the box with this centre and half-axes (view space) may show.
+fn part_visible(center: vec3<f32>, axis_x: vec3<f32>, axis_y: vec3<f32>, axis_z: vec3<f32>) -> bool {
     var lo = vec2(1e30, 1e30);
     var hi = vec2(-1e30, -1e30);
     var nearest = 0.0;
@@ -117,7 +134,7 @@ fn box_visible(c: Candidate) -> bool {
             select(-1.0, 1.0, (k & 2u) != 0u),
             select(-1.0, 1.0, (k & 4u) != 0u),
         );
-        let p = c.center.xyz + s.x * c.axis_x.xyz + s.y * c.axis_y.xyz + s.z * c.axis_z.xyz;
+        let p = center + s.x * axis_x + s.y * axis_y + s.z * axis_z;
         let clip = params.proj * vec4(p, 1.0);
         // A corner at or behind the eye plane: the box reaches the eye.
         if clip.w <= 0.0 {
