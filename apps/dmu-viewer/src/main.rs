@@ -69,9 +69,10 @@ struct Cli {
     #[arg(long, default_value_t = 800, value_parser = clap::value_parser!(u32).range(64..=16384))]
     height: u32,
     /// Culling: none, frustum (with coverage), chc (plus occlusion queries)
-    /// or hzb (plus a depth pyramid of last frame's visible set, every box
-    /// tested against it in a compute pass, the newly visible drawn at once).
-    #[arg(long, default_value = "frustum", value_parser = ["none", "frustum", "chc", "hzb"])]
+    /// hzb (plus a depth pyramid of last frame's visible set, every box
+    /// tested against it in a compute pass, the newly visible drawn at once)
+    /// or auto (whichever of frustum, chc and hzb is fastest here, timed).
+    #[arg(long, default_value = "frustum", value_parser = ["none", "frustum", "chc", "hzb", "auto"])]
     culling: String,
     /// Save the window as PNG after the last frame (with --frames or --script).
     #[arg(long)]

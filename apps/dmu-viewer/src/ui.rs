@@ -283,7 +283,7 @@ fn top_bar(
             egui::ComboBox::from_label("culling")
                 .selected_text(view.culling.name())
                 .show_ui(ui, |ui| {
-                    for c in Culling::ALL {
+                    for c in Culling::ALL.into_iter().chain([Culling::Auto]) {
                         ui.selectable_value(&mut view.culling, c, c.name());
                     }
                 });
@@ -515,11 +515,12 @@ fn why_section(ui: &mut egui::Ui, panes: &[Pane]) {
         .show(ui, |ui| {
             for (i, pane) in panes.iter().enumerate() {
                 let view = &pane.view;
-                ui.label(format!(
-                    "pane {}: {}",
-                    i + 1,
-                    dmu_app::explain::occlusion_now(view.culling, &view.last_stats().occlusion)
-                ));
+                let last = view.last_stats();
+                let why = match &last.auto {
+                    Some(a) => dmu_app::explain::auto_now(last.culling, a),
+                    None => dmu_app::explain::occlusion_now(view.culling, &last.occlusion),
+                };
+                ui.label(format!("pane {}: {why}", i + 1));
             }
         });
 }

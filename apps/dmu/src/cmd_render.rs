@@ -41,9 +41,10 @@ pub struct Args {
     #[arg(long, value_parser = number_in(1e-9, MAX_LENGTH))]
     near: Option<f64>,
     /// Culling: none, frustum (with coverage), chc (plus occlusion queries)
-    /// or hzb (plus a depth pyramid of last frame's visible set, every box
-    /// tested against it in a compute pass, the newly visible drawn at once).
-    #[arg(long, default_value = "frustum", value_parser = ["none", "frustum", "chc", "hzb"])]
+    /// hzb (plus a depth pyramid of last frame's visible set, every box
+    /// tested against it in a compute pass, the newly visible drawn at once)
+    /// or auto (whichever of frustum, chc and hzb is fastest here, timed).
+    #[arg(long, default_value = "frustum", value_parser = ["none", "frustum", "chc", "hzb", "auto"])]
     culling: String,
     /// Nodes covering fewer pixels across than this are dropped (0: none).
     #[arg(long, default_value_t = 0.0, value_parser = number_in(0.0, 1e6))]
@@ -353,7 +354,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         None => (&single_frames, view.drawn_entries().collect(), vec![camera]),
     };
     let last = frames.last().expect("at least one frame");
-    let explain = dmu_app::explain::occlusion_changes(culling, frames);
+    let mut explain = dmu_app::explain::occlusion_changes(culling, frames);
+    explain.extend(dmu_app::explain::auto_changes(frames));
     let oracle = if args.oracle {
         Some(oracle_json(
             &mut renderer,

@@ -94,7 +94,7 @@ pub struct Args {
     #[arg(long)]
     render: bool,
     /// With --render: culling of the rendered frames.
-    #[arg(long, default_value = "chc", value_parser = ["none", "frustum", "chc", "hzb"])]
+    #[arg(long, default_value = "chc", value_parser = ["none", "frustum", "chc", "hzb", "auto"])]
     culling: String,
     /// With --render: run none, frustum, chc and hzb over the same frames in
     /// one run, compare each image with none's pixel for pixel, count chc's

@@ -119,6 +119,7 @@ fn camera(frame: &CameraFrame, tree: &Tree) -> Camera {
 fn explain(culling: Culling, target_ms: Option<f64>, frames: &[FrameStats]) -> Vec<String> {
     dmu_app::explain::occlusion_changes(culling, frames)
         .into_iter()
+        .chain(dmu_app::explain::auto_changes(frames))
         .chain(dmu_app::explain::budget_changes(target_ms, frames))
         .map(|line| format!("{}: {line}", culling.name()))
         .collect()

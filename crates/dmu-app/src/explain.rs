@@ -4,7 +4,42 @@
 //! itself: `dmu_collide::SweepDecision::describe`, which `dmu collide
 //! --explain` prints.)
 
-use dmu_render::{Culling, FrameStats, OcclusionDecision};
+use dmu_render::{AUTO_PROBE_EVERY, AutoChoice, Culling, FrameStats, OcclusionDecision};
+
+/// An `auto` view's choice in one sentence: the culling a frame ran and
+/// what each mode's frames took here.
+pub fn auto_now(used: Culling, a: &AutoChoice) -> String {
+    let ms = |v: f64| {
+        if v > 0.0 {
+            format!("{v:.1} ms")
+        } else {
+            "not timed yet".to_owned()
+        }
+    };
+    format!(
+        "auto culling ran {}: a frame took hzb {}, chc {}, frustum {} here (the fastest is kept, the others timed again every {AUTO_PROBE_EVERY} frames)",
+        used.name(),
+        ms(a.hzb_ms),
+        ms(a.chc_ms),
+        ms(a.frustum_ms)
+    )
+}
+
+/// An `auto` view's choices over a run of frames: each frame whose culling
+/// differs from the frame before, and the last, `frame N: ...`. Nothing for
+/// frames of other modes.
+pub fn auto_changes(frames: &[FrameStats]) -> Vec<String> {
+    let mut lines = Vec::new();
+    let mut before = None;
+    for (i, s) in frames.iter().enumerate() {
+        let Some(a) = &s.auto else { continue };
+        if before != Some(s.culling) || i + 1 == frames.len() {
+            lines.push(format!("frame {}: {}", i + 1, auto_now(s.culling, a)));
+        }
+        before = Some(s.culling);
+    }
+    lines
+}
 
 /// A view's occlusion decision now, in one sentence.
 pub fn occlusion_now(culling: Culling, d: &OcclusionDecision) -> String {
@@ -128,6 +163,51 @@ mod tests {
         let frustum = occlusion_changes(Culling::Frustum, &frames);
         assert_eq!(frustum.len(), 1);
         assert!(frustum[0].contains("not asked for (culling frustum)"));
+    }
+
+    #[test]
+    fn auto_names_each_switch_and_the_times_behind_it() {
+        let times = AutoChoice {
+            ran: Culling::Hzb,
+            frustum_ms: 480.0,
+            chc_ms: 0.0,
+            hzb_ms: 250.5,
+        };
+        let at = |culling: Culling| FrameStats {
+            culling,
+            auto: Some(AutoChoice {
+                ran: culling,
+                ..times
+            }),
+            ..FrameStats::default()
+        };
+        let frames = [
+            at(Culling::Hzb),
+            at(Culling::Hzb),
+            at(Culling::Frustum),
+            at(Culling::Hzb),
+            at(Culling::Hzb),
+        ];
+        let lines = auto_changes(&frames);
+        assert_eq!(lines.len(), 4, "{lines:#?}");
+        assert!(
+            lines[0].starts_with("frame 1: auto culling ran hzb"),
+            "{}",
+            lines[0]
+        );
+        assert!(
+            lines[1].starts_with("frame 3: auto culling ran frustum"),
+            "{}",
+            lines[1]
+        );
+        assert!(lines[3].starts_with("frame 5: "), "{}", lines[3]);
+        assert!(
+            lines[0].contains("hzb 250.5 ms, chc not timed yet, frustum 480.0 ms"),
+            "{}",
+            lines[0]
+        );
+        // Frames of a fixed mode say nothing of auto.
+        assert!(auto_changes(&[FrameStats::default()]).is_empty());
     }
 
     #[test]

@@ -11,7 +11,73 @@
 //! before it can keep queries (its first probe ends in frustum frames).
 
 use crate::renderer::Renderer;
-use crate::view::{Culling, FrameStats, OcclusionDecision, View};
+use crate::view::{AUTO_PROBE_EVERY, AutoChoice, Culling, FrameStats, OcclusionDecision, View};
+
+/// The modes `auto` chooses among, in the order it first times them.
+const AUTO_MODES: [Culling; 3] = [Culling::Hzb, Culling::Occlusion, Culling::Frustum];
+/// Frames in a mode before its times count (visibility builds up).
+const AUTO_WARMUP: u32 = 2;
+/// Frames a mode runs when timed (the first [`AUTO_WARMUP`] not counted).
+const AUTO_PROBE_FRAMES: u32 = 4;
+
+/// `auto` culling's state in a view: the mode it runs, how long it has, and
+/// each mode's frame time (in [`AUTO_MODES`] order; 0: not timed yet).
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct AutoState {
+    /// Index into [`AUTO_MODES`].
+    mode: usize,
+    frames_in_mode: u32,
+    ms: [f64; 3],
+    /// Which of the other two the next re-timing takes.
+    next_probe: usize,
+}
+
+impl AutoState {
+    /// The mode this frame runs.
+    pub(crate) fn mode(&self) -> Culling {
+        AUTO_MODES[self.mode]
+    }
+
+    /// What each mode took, as the stats give it, with the mode that `ran`.
+    pub(crate) fn choice(&self, ran: Culling) -> AutoChoice {
+        AutoChoice {
+            ran,
+            hzb_ms: self.ms[0],
+            chc_ms: self.ms[1],
+            frustum_ms: self.ms[2],
+        }
+    }
+
+    /// Counts a frame of the current mode that took `frame_ms`, and picks
+    /// the next frame's: a mode not timed yet, else back to the fastest
+    /// after timing another, else another every [`AUTO_PROBE_EVERY`] frames.
+    pub(crate) fn after_frame(&mut self, frame_ms: f64) {
+        self.frames_in_mode += 1;
+        if self.frames_in_mode > AUTO_WARMUP {
+            let m = &mut self.ms[self.mode];
+            *m = blend(*m, frame_ms, self.frames_in_mode == AUTO_WARMUP + 1);
+        }
+        if self.frames_in_mode < AUTO_PROBE_FRAMES {
+            return;
+        }
+        let fastest = (0..AUTO_MODES.len())
+            .min_by(|&a, &b| self.ms[a].total_cmp(&self.ms[b]))
+            .expect("modes");
+        let next = if let Some(untimed) = self.ms.iter().position(|&m| m == 0.0) {
+            untimed
+        } else if self.mode != fastest {
+            fastest
+        } else if self.frames_in_mode >= AUTO_PROBE_EVERY {
+            let others: Vec<usize> = (0..AUTO_MODES.len()).filter(|&m| m != fastest).collect();
+            self.next_probe = (self.next_probe + 1) % others.len();
+            others[self.next_probe]
+        } else {
+            return;
+        };
+        self.mode = next;
+        self.frames_in_mode = 0;
+    }
+}
 
 /// Frames queries run after (re)enabling before they may be switched off; the
 /// first [`WARMUP_FRAMES`] of them build visibility and are not measured.
@@ -31,8 +97,9 @@ fn blend(old: f64, new: f64, first: bool) -> f64 {
 }
 
 impl Renderer {
-    pub(crate) fn decide(&self, view: &mut View, stats: &mut FrameStats) {
-        if view.culling != Culling::Occlusion {
+    /// Occlusion queries' decision after a frame culled with `culling`.
+    pub(crate) fn decide(&self, view: &mut View, culling: Culling, stats: &mut FrameStats) {
+        if culling != Culling::Occlusion {
             stats.occlusion = OcclusionDecision::default();
             return;
         }

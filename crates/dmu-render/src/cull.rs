@@ -211,13 +211,18 @@ impl Renderer {
         stats.min_pixels = knobs.min_pixels;
         let cull = Cull::new(view, ipd, knobs);
         let cell_distance = self.cell_distances(cull.eye());
-        let use_queries = view.culling == Culling::Occlusion && view.decision.enabled;
+        // The mode of this frame: the view's, or the one `auto` runs now.
+        let culling = match view.culling {
+            Culling::Auto => view.auto.mode(),
+            c => c,
+        };
+        let use_queries = culling == Culling::Occlusion && view.decision.enabled;
         let mut gpu_state = self.prepare_view(view, scene, cull.eye_views());
         view.drawn.clear();
-        let hzb = view.culling == Culling::Hzb
+        let hzb = culling == Culling::Hzb
             && target.eye_count() == 1
             && self.hzb_supported(target.all().depth);
-        stats.culling = match view.culling {
+        stats.culling = match culling {
             Culling::Hzb if !hzb => Culling::Frustum,
             Culling::Occlusion if !use_queries => Culling::Frustum,
             c => c,
@@ -248,22 +253,20 @@ impl Renderer {
             )
         } else {
             // Empty where no proxy may draw (see `proxy_fit`).
-            let fit = match view.culling {
+            let fit = match culling {
                 Culling::None => Vec::new(),
                 _ => self.proxy_fit(&self.hierarchy, &cull, target),
             };
             let with_proxies = !fit.is_empty();
             let mut proxy_nodes = Vec::new();
-            let mut draws = match view.culling {
+            let mut draws = match culling {
                 Culling::None => self.all_draws(scene, tree, &cull, &mut stats),
-                Culling::Frustum | Culling::Occlusion | Culling::Hzb if with_proxies => {
+                _ if with_proxies => {
                     let (draws, nodes) = self.proxy_draws(scene, tree, &cull, &fit, &mut stats);
                     proxy_nodes = nodes;
                     draws
                 }
-                Culling::Frustum | Culling::Occlusion | Culling::Hzb => {
-                    self.frustum_draws(scene, tree, &cull, &mut stats)
-                }
+                _ => self.frustum_draws(scene, tree, &cull, &mut stats),
             };
             sort_draws(&self.hierarchy, &cell_distance, &mut draws);
             if !with_proxies {
@@ -278,6 +281,13 @@ impl Renderer {
             // A proxy draws the chunk instances below it, approximated.
             for &n in &proxy_nodes {
                 self.hierarchy.leaves(n, &mut view.drawn);
+            }
+            if view.culling == Culling::Auto {
+                // What frustum culling drew counts as visible, so a switch
+                // to chc or hzb starts from it rather than from nothing.
+                for &e in &view.drawn {
+                    view.entries[e as usize].visible_frame = view.frame;
+                }
             }
             stats.rounds = 1;
             self.run_round(
@@ -303,7 +313,12 @@ impl Renderer {
         stats.proxies_stale = self.proxies.as_ref().map_or(0, |p| p.cpu.stats().stale);
         stats.cpu_ms = start.elapsed().as_secs_f64() * 1e3;
         view.knobs = Some(knobs.next(&view.options, stats.cpu_ms - stats.upload_ms));
-        self.decide(view, &mut stats);
+        self.decide(view, culling, &mut stats);
+        if view.culling == Culling::Auto {
+            // Uploads aside: they are the model's arriving, not the mode's cost.
+            view.auto.after_frame(stats.cpu_ms - stats.upload_ms);
+            stats.auto = Some(view.auto.choice(culling));
+        }
         view.last = stats;
         Ok(stats)
     }

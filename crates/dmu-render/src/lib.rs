@@ -110,5 +110,8 @@ pub use hierarchy::Hierarchy;
 pub use proxy::{CALM_TICKS, Proxies, ProxyOptions, ProxyStats};
 pub use renderer::{FrameTarget, Renderer, RendererOptions};
 pub use stereo::{StereoCamera, StereoMode, StereoTarget, StereoView};
-pub use view::{Culling, CullingOptions, FrameStats, MAX_SECTION_PLANES, OcclusionDecision, View};
+pub use view::{
+    AUTO_PROBE_EVERY, AutoChoice, Culling, CullingOptions, FrameStats, MAX_SECTION_PLANES,
+    OcclusionDecision, View,
+};
 pub use wgpu;

@@ -24,10 +24,19 @@ pub enum Culling {
     /// (indirect draws with a first instance, a depth target a shader can
     /// read), is culled by frustum instead ([`FrameStats::culling`]).
     Hzb,
+    /// Per view, whichever of frustum, chc and hzb draws its frames fastest
+    /// here: each is timed in turn, the fastest is kept, and the others are
+    /// timed again every [`AUTO_PROBE_EVERY`] frames; the stats say which
+    /// ran and what each took ([`FrameStats::auto`]).
+    Auto,
 }
 
+/// Frames an `auto` view keeps its fastest mode before timing another again.
+pub const AUTO_PROBE_EVERY: u32 = 60;
+
 impl Culling {
-    /// Every mode, in the order the tools list them.
+    /// Every mode that culls one way (all but [`Culling::Auto`]), in the
+    /// order the tools list them.
     pub const ALL: [Culling; 4] = [
         Culling::None,
         Culling::Frustum,
@@ -36,13 +45,14 @@ impl Culling {
     ];
 
     /// The mode's name in the tools' flags and reports: `none`, `frustum`,
-    /// `chc` or `hzb`.
+    /// `chc`, `hzb` or `auto`.
     pub fn name(self) -> &'static str {
         match self {
             Culling::None => "none",
             Culling::Frustum => "frustum",
             Culling::Occlusion => "chc",
             Culling::Hzb => "hzb",
+            Culling::Auto => "auto",
         }
     }
 }
@@ -54,8 +64,9 @@ impl std::str::FromStr for Culling {
     fn from_str(name: &str) -> Result<Self, String> {
         Culling::ALL
             .into_iter()
+            .chain([Culling::Auto])
             .find(|c| c.name() == name)
-            .ok_or_else(|| format!("culling {name:?} is not none, frustum, chc or hzb"))
+            .ok_or_else(|| format!("culling {name:?} is not none, frustum, chc, hzb or auto"))
     }
 }
 
@@ -193,6 +204,23 @@ pub struct FrameStats {
     pub gpu_draw_ms: f64,
     /// Occlusion culling's decision for this view.
     pub occlusion: OcclusionDecision,
+    /// In an `auto` view: what each mode's frames took here.
+    pub auto: Option<AutoChoice>,
+}
+
+/// What a [`Culling::Auto`] view measured: each mode's frame time here, ms
+/// (a running average of its frames after the first two; 0: not yet timed).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AutoChoice {
+    /// The mode the frame ran (chc may still have had its queries off:
+    /// [`FrameStats::culling`] says what culled).
+    pub ran: Culling,
+    /// Frustum and coverage culling.
+    pub frustum_ms: f64,
+    /// Occlusion queries (as their own decision runs them).
+    pub chc_ms: f64,
+    /// Hierarchical-Z culling.
+    pub hzb_ms: f64,
 }
 
 /// Visibility state of one chunk instance in one view.
@@ -249,6 +277,8 @@ pub struct View {
     /// The knobs the next frame draws with under a budget (`None` before the
     /// first frame).
     pub(crate) knobs: Option<crate::KnobsInEffect>,
+    /// What `auto` culling has timed, and the mode it runs.
+    pub(crate) auto: crate::adapt::AutoState,
     /// Per mirror node: last frame its proxy tested visible in an `hzb`
     /// frame (0: never).
     pub(crate) proxy_visible: Vec<u64>,
@@ -283,6 +313,7 @@ impl View {
             frustum_frame_ms: 0.0,
             last: FrameStats::default(),
             knobs: None,
+            auto: crate::adapt::AutoState::default(),
             proxy_visible: Vec::new(),
             drawn: Vec::new(),
             gpu: None,

@@ -200,3 +200,48 @@ fn hzb_falls_back_to_frustum_where_depth_cannot_be_read() {
     assert_eq!(stats.culling, Culling::Frustum);
     assert!(differing(&none, &rig.image()).is_empty());
 }
+
+/// `auto` times hzb, chc and frustum in turn (four frames each), then runs
+/// the one its own figures say is fastest, reports what each took, and its
+/// frames stay exact.
+#[test]
+fn auto_times_each_mode_then_keeps_the_fastest() {
+    let (scene, tree) = small_plant();
+    let size = (480, 270);
+    let Some(mut rig) = Rig::new(&scene, &tree, size) else {
+        return;
+    };
+    let cam = viewpoints()[0];
+    let none = rig.shot(cam, Culling::None, &scene, &tree);
+    let mut view = View::new(cam, size, Culling::Auto);
+    let frames: Vec<_> = (0..20)
+        .map(|_| rig.frame(&mut view, &scene, &tree))
+        .collect();
+    let used: Vec<Culling> = frames.iter().map(|s| s.auto.unwrap().ran).collect();
+    assert_eq!(&used[..4], &[Culling::Hzb; 4], "{used:?}");
+    assert_eq!(&used[4..8], &[Culling::Occlusion; 4], "{used:?}");
+    assert_eq!(&used[8..12], &[Culling::Frustum; 4], "{used:?}");
+    for (k, pair) in frames.windows(2).enumerate().skip(11) {
+        let a = pair[0].auto.expect("auto reports its times");
+        assert!(
+            a.hzb_ms > 0.0 && a.chc_ms > 0.0 && a.frustum_ms > 0.0,
+            "{a:?}"
+        );
+        let fastest = [
+            (a.hzb_ms, Culling::Hzb),
+            (a.chc_ms, Culling::Occlusion),
+            (a.frustum_ms, Culling::Frustum),
+        ]
+        .into_iter()
+        .min_by(|x, y| x.0.total_cmp(&y.0))
+        .unwrap()
+        .1;
+        let ran = pair[1].auto.unwrap().ran;
+        assert_eq!(ran, fastest, "frame {}: {a:?}", k + 2);
+    }
+    let last = frames.last().unwrap();
+    if last.auto.unwrap().ran != Culling::Occlusion {
+        // hzb and frustum frames are exact every frame.
+        assert!(differing(&none, &rig.image()).is_empty());
+    }
+}
