@@ -640,17 +640,19 @@ impl Renderer {
         stats.passes += 1;
         stats.draw_calls += second.draw_calls;
         stats.triangles_drawn += second.triangles;
-        stats.not_resident += second.not_resident;
+        stats.not_resident += second.missing.iter().filter(|&&m| m).count() as u64;
         view.drawn.extend(first_draws.iter().map(|d| d.entry));
         let h = &self.hierarchy;
-        for (c, &visible) in candidates.iter().zip(&second.visible) {
+        for ((c, &visible), &missing) in candidates.iter().zip(&second.visible).zip(&second.missing)
+        {
             match c.kind {
                 CandidateKind::Entry(e) if visible => {
                     view.entries[e as usize].visible_frame = frame;
                     if !c.drawn {
-                        stats.newly_visible += 1;
-                        stats.chunks_drawn += 1;
+                        // Not drawn for want of geometry: still wanted.
                         view.drawn.push(e);
+                        stats.newly_visible += u64::from(!missing);
+                        stats.chunks_drawn += u64::from(!missing);
                     }
                 }
                 CandidateKind::Entry(_) => {

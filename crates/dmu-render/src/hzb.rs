@@ -188,8 +188,10 @@ pub(crate) struct SecondPass {
     pub triangles: u64,
     /// Indirect draw calls recorded.
     pub draw_calls: u64,
-    /// Chunk instances whose geometry is not resident (counted visible).
-    pub not_resident: u64,
+    /// Per candidate: a chunk instance the first pass did not draw whose
+    /// geometry is not resident, so no pass drew it (it counts as visible,
+    /// so it stays wanted).
+    pub missing: Vec<bool>,
 }
 
 impl Renderer {
@@ -256,7 +258,8 @@ impl Renderer {
                 .collect(),
             None => Vec::new(),
         };
-        for c in candidates {
+        out.missing = vec![false; candidates.len()];
+        for (i, c) in candidates.iter().enumerate() {
             let mut g = HzbCandidate {
                 bounds: c.bounds,
                 index_count: 0,
@@ -282,7 +285,7 @@ impl Renderer {
                             })
                         }
                         None => {
-                            out.not_resident += 1;
+                            out.missing[i] = true;
                             g.flags = HZB_DRAWN | HZB_FORCED;
                             None
                         }

@@ -245,3 +245,72 @@ fn auto_times_each_mode_then_keeps_the_fastest() {
         assert!(differing(&none, &rig.image()).is_empty());
     }
 }
+
+/// Geometry that arrives late (a source holding only every other chunk,
+/// then all): a candidate without geometry counts as visible, stays among
+/// the drawn (wanted) entries without being counted as drawn, and once
+/// everything is resident the frames equal the unculled image.
+#[test]
+fn hzb_keeps_chunks_without_geometry_wanted() {
+    use dmu_render::GeometrySource;
+    use dmu_scene::{ChunkGeometry, ChunkId, Scene};
+
+    struct EveryOther<'a>(&'a Scene);
+    impl GeometrySource for EveryOther<'_> {
+        fn chunk_geometry(&self, chunk: ChunkId) -> Option<ChunkGeometry<'_>> {
+            chunk
+                .index()
+                .is_multiple_of(2)
+                .then(|| self.0.chunk_geometry(chunk))?
+        }
+    }
+
+    let (scene, tree) = small_plant();
+    let size = (480, 270);
+    let Some(mut rig) = Rig::new(&scene, &tree, size) else {
+        return;
+    };
+    let cam = viewpoints()[0];
+    let none = rig.shot(cam, Culling::None, &scene, &tree);
+    for c in (1..scene.chunks().len()).step_by(2) {
+        rig.renderer.geometry_pool().evict(ChunkId::from_index(c));
+    }
+    let mut view = View::new(cam, size, Culling::Hzb);
+    let partial = EveryOther(&scene);
+    for _ in 0..3 {
+        let stats = rig
+            .renderer
+            .render(
+                &mut view,
+                &scene,
+                &tree,
+                &partial,
+                rig.capture.frame_target(),
+            )
+            .expect("render with half the geometry");
+        assert!(
+            stats.not_resident > 0,
+            "the test must withhold wanted chunks"
+        );
+        let wanted: Vec<EntryId> = view.drawn_entries().collect();
+        let withheld = wanted
+            .iter()
+            .filter(|e| tree.entries()[e.0 as usize].chunk.index() % 2 == 1)
+            .count() as u64;
+        assert!(withheld > 0, "withheld chunks stay wanted");
+        assert_eq!(
+            stats.chunks_drawn + withheld,
+            wanted.len() as u64,
+            "drawn counts only what was drawn: {stats:?}"
+        );
+    }
+    for _ in 0..2 {
+        rig.frame(&mut view, &scene, &tree);
+    }
+    let diff = differing(&none, &rig.image());
+    assert!(
+        diff.is_empty(),
+        "{} pixels differ once resident",
+        diff.len()
+    );
+}
