@@ -639,6 +639,8 @@ impl Renderer {
         stats.rounds = 2;
         stats.passes += 1;
         stats.draw_calls += second.draw_calls;
+        stats.gpu_ms += second.compute_ms + second.draw_ms;
+        stats.gpu_draw_ms += second.draw_ms;
         stats.triangles_drawn += second.triangles;
         stats.not_resident += second.missing.iter().filter(|&&m| m).count() as u64;
         view.drawn.extend(first_draws.iter().map(|d| d.entry));

@@ -23,6 +23,9 @@ use crate::renderer::{Draw, LodPick, Renderer, ViewGpu};
 
 /// Bytes of one `DrawIndexedIndirectArgs`.
 const ARGS_BYTES: u64 = 20;
+/// Timestamps of a second submission: the compute pass's and the second
+/// render pass's begin and end.
+const TIMESTAMPS: u64 = 4;
 
 /// The compute pipelines, made on a renderer's first `hzb` frame.
 #[derive(Debug)]
@@ -72,10 +75,14 @@ pub(crate) struct HzbGpu {
     /// Per candidate: 1 when visible.
     visible: wgpu::Buffer,
     readback: wgpu::Buffer,
+    /// Timestamps of the compute pass and the second pass (begin, end
+    /// each), with their resolve and readback buffers, where the device
+    /// has timestamp queries.
+    timestamps: Option<(wgpu::QuerySet, wgpu::Buffer, wgpu::Buffer)>,
 }
 
 impl HzbGpu {
-    fn new(device: &wgpu::Device, size: (u32, u32)) -> Self {
+    fn new(device: &wgpu::Device, size: (u32, u32), timed: bool) -> Self {
         let base = (size.0.div_ceil(2), size.1.div_ceil(2));
         let levels = 32 - base.0.max(base.1).leading_zeros();
         let texture = device.create_texture(&wgpu::TextureDescriptor {
@@ -125,6 +132,31 @@ impl HzbGpu {
             counts: buffer("dmu hzb counts", storage | wgpu::BufferUsages::INDIRECT),
             visible: buffer("dmu hzb visible", storage | wgpu::BufferUsages::COPY_SRC),
             readback: buffer("dmu hzb readback", wgpu::BufferUsages::MAP_READ),
+            timestamps: timed.then(|| {
+                let bytes = |label, usage| {
+                    device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some(label),
+                        size: 8 * TIMESTAMPS,
+                        usage,
+                        mapped_at_creation: false,
+                    })
+                };
+                (
+                    device.create_query_set(&wgpu::QuerySetDescriptor {
+                        label: Some("dmu hzb times"),
+                        ty: wgpu::QueryType::Timestamp,
+                        count: TIMESTAMPS as u32,
+                    }),
+                    bytes(
+                        "dmu hzb time resolve",
+                        wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                    ),
+                    bytes(
+                        "dmu hzb time readback",
+                        wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                    ),
+                )
+            }),
         }
     }
 
@@ -188,6 +220,10 @@ pub(crate) struct SecondPass {
     pub triangles: u64,
     /// Indirect draw calls recorded.
     pub draw_calls: u64,
+    /// GPU time of the pyramid and the tests, and of the second pass, ms
+    /// (0 without timestamps).
+    pub compute_ms: f64,
+    pub draw_ms: f64,
     /// Per candidate: a chunk instance the first pass did not draw whose
     /// geometry is not resident, so no pass drew it (it counts as visible,
     /// so it stays wanted).
@@ -238,7 +274,7 @@ impl Renderer {
         }
         let mut state = match gpu.hzb.take() {
             Some(s) if s.size == size => s,
-            _ => HzbGpu::new(&self.device, size),
+            _ => HzbGpu::new(&self.device, size, self.has_timestamps()),
         };
         let mut out = SecondPass::default();
 
@@ -355,7 +391,15 @@ impl Renderer {
             });
         encoder.clear_buffer(&state.counts, 0, Some((groups.len().max(1) * 4) as u64));
         encoder.clear_buffer(&state.draws, 0, Some(u64::from(total.max(1)) * ARGS_BYTES));
-        self.encode_pyramid_and_tests(&mut encoder, &state, target.depth, candidates.len());
+        let times = state.timestamps.as_ref().map(|t| &t.0);
+        let writes = |first: u32| times.map(|set| (set, Some(first), Some(first + 1)));
+        self.encode_pyramid_and_tests(
+            &mut encoder,
+            &state,
+            target.depth,
+            candidates.len(),
+            writes(0),
+        );
 
         let count_buffer = self
             .device
@@ -381,7 +425,13 @@ impl Renderer {
                     }),
                     stencil_ops: None,
                 }),
-                timestamp_writes: None,
+                timestamp_writes: writes(2).map(|(query_set, begin, end)| {
+                    wgpu::RenderPassTimestampWrites {
+                        query_set,
+                        beginning_of_pass_write_index: begin,
+                        end_of_pass_write_index: end,
+                    }
+                }),
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
@@ -444,6 +494,12 @@ impl Renderer {
         if n > 0 {
             encoder.copy_buffer_to_buffer(&state.visible, 0, &state.readback, 0, n);
         }
+        // Only the passes recorded wrote their timestamps.
+        let timed = if total > 0 { TIMESTAMPS } else { 2 };
+        if let Some((set, resolve, readback)) = &state.timestamps {
+            encoder.resolve_query_set(set, 0..timed as u32, resolve, 0);
+            encoder.copy_buffer_to_buffer(resolve, 0, readback, 0, 8 * timed);
+        }
         self.queue.submit([encoder.finish()]);
         let visible: Vec<u32> = if n > 0 {
             map_read(
@@ -462,6 +518,20 @@ impl Renderer {
                 })?;
             Vec::new()
         };
+        if let (Some((_, _, readback)), Some(period)) =
+            (&state.timestamps, self.timestamp_period_ns)
+        {
+            let ticks: Vec<u64> = map_read(
+                &self.device,
+                readback,
+                8 * timed,
+                "hzb timestamps",
+                bytemuck::pod_collect_to_vec,
+            )?;
+            let ms = |k: usize| ticks[k + 1].saturating_sub(ticks[k]) as f64 * period * 1e-6;
+            out.compute_ms = ms(0);
+            out.draw_ms = if total > 0 { ms(2) } else { 0.0 };
+        }
         gpu.hzb = Some(state);
         out.visible = visible.iter().map(|&v| v != 0).collect();
         out.triangles = candidates
@@ -482,6 +552,7 @@ impl Renderer {
         state: &HzbGpu,
         depth: &wgpu::TextureView,
         count: usize,
+        times: Option<(&wgpu::QuerySet, Option<u32>, Option<u32>)>,
     ) {
         let p = self.hzb.as_ref().expect("made before the first frame");
         let group = |pipeline: &wgpu::ComputePipeline, entries: &[wgpu::BindGroupEntry<'_>]| {
@@ -535,7 +606,13 @@ impl Renderer {
         );
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("dmu hzb pyramid and tests"),
-            timestamp_writes: None,
+            timestamp_writes: times.map(|(query_set, begin, end)| {
+                wgpu::ComputePassTimestampWrites {
+                    query_set,
+                    beginning_of_pass_write_index: begin,
+                    end_of_pass_write_index: end,
+                }
+            }),
         });
         // Level 0 is half the target, rounded up; each next level halves
         // it, rounded down (as mip levels are).

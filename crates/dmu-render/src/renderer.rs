@@ -302,7 +302,7 @@ pub struct Renderer {
     part_flags: Vec<u32>,
     pub(crate) pool: GeometryPool,
     pub(crate) hierarchy: Hierarchy,
-    timestamp_period_ns: Option<f64>,
+    pub(crate) timestamp_period_ns: Option<f64>,
     /// Reused per-round scratch: resolved slots of the round's draws.
     slots: Vec<(u32, crate::geometry::ChunkSlot)>,
     /// Shading of proxies (merged subtrees), uncut and cut.
