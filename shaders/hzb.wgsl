@@ -117,6 +117,12 @@ fn box_visible(c: Candidate) -> bool {
     let y = 0.5 * c.axis_y.xyz;
     let z = 0.5 * c.axis_z.xyz;
     let o = c.center.xyz;
+    // The whole box first: where it is hidden, so is every octant (an
+    // octant's nearest depth is no nearer and its texels' farthest depth
+    // no farther), and most boxes are hidden.
+    if !part_visible(o, c.axis_x.xyz, c.axis_y.xyz, c.axis_z.xyz) {
+        return false;
+    }
     return part_visible(o - x - y - z, x, y, z) || part_visible(o + x - y - z, x, y, z)
         || part_visible(o - x + y - z, x, y, z) || part_visible(o + x + y - z, x, y, z)
         || part_visible(o - x - y + z, x, y, z) || part_visible(o + x - y + z, x, y, z)
