@@ -205,7 +205,7 @@ impl MeasureTool {
     /// A click that hit `point`: the first of a pair is kept, the second
     /// completes the measurement, which is returned. Two parts with no
     /// distance (no triangles) measure nothing.
-    pub fn click(&mut self, review: &Review, point: Snapped) -> Option<Measurement> {
+    pub fn click(&mut self, review: &mut Review, point: Snapped) -> Option<Measurement> {
         let Some(first) = self.first.take() else {
             self.first = Some(point);
             return None;

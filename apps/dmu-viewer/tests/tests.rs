@@ -4,6 +4,7 @@
 mod fuzz_replay;
 #[path = "../../../fuzz/bodies/script_parse.rs"]
 mod fuzz_script_parse;
+mod budget;
 mod review_tools;
 mod session;
 mod support;
