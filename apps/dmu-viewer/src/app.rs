@@ -8,10 +8,10 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
+use dmu_app::resident::{ResidentSource, StandInSource};
 use dmu_collide::Report;
 use dmu_geom::Ray3d;
 use dmu_render::{Culling, FrameStats, Renderer};
-use dmu_app::resident::{ResidentSource, StandInSource};
 use dmu_scene::PartId;
 use dmu_tree::EntryId;
 use glam::DVec3;
@@ -57,6 +57,9 @@ pub struct Options {
     pub compose: bool,
     /// Pixels of error a chunk's simplified level may show (0: exact).
     pub lod_error_px: f64,
+    /// Coverage threshold of the main view: chunk instances smaller on
+    /// screen (box diagonal, pixels) are not drawn.
+    pub min_pixels: f64,
     /// A frame-time budget for the 3D view, ms.
     pub target_ms: Option<f64>,
     /// The length of a model unit, for BCF issues (BCF is in metres).
@@ -230,6 +233,7 @@ impl App {
             options.culling,
         );
         main.view.options.lod_error_px = options.lod_error_px;
+        main.view.options.min_pixels = options.min_pixels;
         main.view.options.target_ms = options.target_ms;
         let ui = UiState::new(review.source.as_deref());
         let runner = Runner {
@@ -1158,7 +1162,7 @@ impl App {
         if let Some(e) = self.review.geometry_error.take() {
             anyhow::bail!("{e}");
         }
-        self.start_streaming()?;
+        self.start_streaming();
         let gfx = self.gfx.as_mut().expect("made with the window");
         let renderer = self.renderer.as_mut().expect("made with the window");
         gfx.ensure_views(self.panes.len());
@@ -1203,6 +1207,9 @@ impl App {
             let not_resident = stats.iter().map(|s| s.not_resident).sum();
             let streaming = self.streaming.as_mut().expect("checked above");
             streaming.end_frame(tree, stood_in, &drawn, not_resident);
+            if !streaming.is_sized() {
+                streaming.size(tree, dmu_app::progress::rss_bytes().unwrap_or(0))?;
+            }
         } else {
             for (i, pane) in self.panes.iter_mut().enumerate() {
                 stats.push(renderer.render(
@@ -1224,33 +1231,29 @@ impl App {
         Ok(stats)
     }
 
-    /// Under a memory budget, starts the residency manager with the first
-    /// frame: what the process holds then (skeleton, tree, renderer, window)
-    /// comes off the budget.
-    fn start_streaming(&mut self) -> anyhow::Result<()> {
+    /// Under a memory budget, starts streaming with the first frame (drawn
+    /// with stand-ins only); the residency gets its budget once that frame
+    /// shows what the renderer takes.
+    fn start_streaming(&mut self) {
         let (Some(budget), None, Some(geometry)) = (
             self.options.memory_budget,
             &self.streaming,
             &self.review.geometry,
         ) else {
-            return Ok(());
+            return;
         };
-        let fixed = dmu_app::progress::rss_bytes().unwrap_or(0);
         let main = &self.panes[0].view;
         self.streaming = Some(crate::budget::Streaming::new(
             Arc::clone(geometry.store()),
             &self.review.tree,
             budget,
-            fixed,
-            crate::budget::tool_cap_bytes(budget),
             dmu_store::Viewport {
                 width: main.size.0.max(1),
                 height: main.size.1.max(1),
             },
             main.options.min_pixels,
             self.options.stand_ins,
-        )?);
-        Ok(())
+        ));
     }
 
     /// Each pane for the report: kind, rectangle, camera, triangles drawn and,
@@ -1418,6 +1421,7 @@ impl App {
                     "lod_error_px": main.lod_error_px,
                     "min_pixels": main.min_pixels,
                     "queries": main.queries,
+                    "rss_bytes": dmu_app::progress::rss_bytes(),
                     "move_us": self.review.timings.move_us,
                     "check_ms": self.review.timings.check_ms,
                     "clashes": clashes_json(&self.review.report),

@@ -3,8 +3,8 @@
 //! [`dmu_store::Streamer`] as `dmu walk`), and a chunk wanted but not yet
 //! loaded is drawn as its box (a stand-in) unless stand-ins are off, when it
 //! is a hole. The budget is the whole process's: what the skeleton, the tree
-//! and the renderer take when the window opens, the tools' geometry cap and a
-//! frame reserve come off it, and the residency gets half of the rest (the
+//! and the renderer take once the first frame is drawn (with stand-ins only),
+//! the tools' geometry cap and a frame reserve come off it, and the residency gets half of the rest (the
 //! GPU pool holds a second copy of what is resident; on lavapipe in the same
 //! memory).
 
@@ -19,8 +19,12 @@ use dmu_store::{
 use dmu_tree::{EntryId, Tree};
 use serde_json::{Value, json};
 
+/// The coverage threshold under a memory budget unless `--min-pixels` says
+/// otherwise, pixels (box diagonal).
+pub const MIN_PIXELS: f64 = 2.0;
+
 /// Bytes kept for a frame's transient memory (the window's surfaces, egui,
-/// command buffers) besides what is measured when the window opens.
+/// command buffers) besides what is measured after the first frame.
 pub const FRAME_RESERVE_BYTES: u64 = 96 << 20;
 
 /// The share of the budget the tools' meshes (picks, checks) may keep
@@ -33,7 +37,9 @@ pub fn tool_cap_bytes(budget: u64) -> u64 {
 #[derive(Debug)]
 pub struct Streaming {
     streamer: Streamer,
+    store: Arc<Store>,
     viewport: Viewport,
+    min_pixels: f64,
     stand_ins: bool,
     /// Per chunk: the GPU pool holds its stand-in, not its geometry.
     standing: Vec<bool>,
@@ -41,6 +47,7 @@ pub struct Streaming {
     budget_bytes: u64,
     residency_budget_bytes: u64,
     fixed_bytes: u64,
+    sized: bool,
     frames: u64,
     frames_with_hole: u64,
     frames_with_standin: u64,
@@ -49,38 +56,50 @@ pub struct Streaming {
 }
 
 impl Streaming {
-    /// Starts the residency manager over `store` for a process that must stay
-    /// within `budget_bytes`, `fixed_bytes` of which are in use now (resident
-    /// set size) and `tool_bytes` kept for the tools' meshes. Fails when
-    /// nothing is left for geometry.
+    /// Streaming from `store` for a process that must stay within
+    /// `budget_bytes`; until [`Streaming::size`] the residency may hold
+    /// nothing (its budget is 0), so the first frame draws stand-ins only
+    /// and shows what the renderer itself takes.
     pub fn new(
         store: Arc<Store>,
         tree: &Tree,
         budget_bytes: u64,
-        fixed_bytes: u64,
-        tool_bytes: u64,
         viewport: Viewport,
         min_pixels: f64,
         stand_ins: bool,
-    ) -> anyhow::Result<Self> {
-        let taken = fixed_bytes + tool_bytes + FRAME_RESERVE_BYTES;
-        let left = budget_bytes.saturating_sub(taken);
-        anyhow::ensure!(
-            left >= 16 << 20,
-            "--memory-budget {:.0} MB: the model's structure, tree and renderer take {:.0} MB, \
-             with {:.0} MB for picks and checks and {:.0} MB for frames, leaving under 16 MB \
-             for geometry",
-            budget_bytes as f64 / 1e6,
-            fixed_bytes as f64 / 1e6,
-            tool_bytes as f64 / 1e6,
-            FRAME_RESERVE_BYTES as f64 / 1e6
-        );
+    ) -> Self {
         let chunks = store.skeleton().chunks().len();
-        let residency_budget_bytes = left / 2;
-        let streamer = Streamer::new(
+        Self {
+            streamer: Self::streamer(Arc::clone(&store), tree, 0, viewport, min_pixels),
+            store,
+            viewport,
+            min_pixels,
+            stand_ins,
+            standing: vec![false; chunks],
+            standing_list: Vec::new(),
+            budget_bytes,
+            residency_budget_bytes: 0,
+            fixed_bytes: 0,
+            sized: false,
+            frames: 0,
+            frames_with_hole: 0,
+            frames_with_standin: 0,
+            holes: 0,
+            stand_ins_drawn: 0,
+        }
+    }
+
+    fn streamer(
+        store: Arc<Store>,
+        tree: &Tree,
+        budget_bytes: u64,
+        viewport: Viewport,
+        min_pixels: f64,
+    ) -> Streamer {
+        Streamer::new(
             store,
             ResidencyOptions {
-                budget_bytes: residency_budget_bytes,
+                budget_bytes,
                 loader_threads: 2,
                 order: LoadOrder::Visibility,
                 pacing: Pacing::Free,
@@ -88,22 +107,46 @@ impl Streaming {
             Some(PrefetchOptions::for_tree(tree, min_pixels)),
             viewport,
             min_pixels,
+        )
+    }
+
+    /// Whether the residency has its budget yet.
+    pub fn is_sized(&self) -> bool {
+        self.sized
+    }
+
+    /// Gives the residency its budget once the first frame is drawn:
+    /// `fixed_bytes` are in use now (the resident set: skeleton, tree,
+    /// renderer, window, a frame drawn), the tools' cap and a frame reserve
+    /// come off too, and the residency gets half of what is left. Fails when
+    /// that is under 16 MB.
+    pub fn size(&mut self, tree: &Tree, fixed_bytes: u64) -> anyhow::Result<()> {
+        let tool_bytes = tool_cap_bytes(self.budget_bytes);
+        let taken = fixed_bytes + tool_bytes + FRAME_RESERVE_BYTES;
+        let left = self.budget_bytes.saturating_sub(taken);
+        anyhow::ensure!(
+            left >= 16 << 20,
+            "--memory-budget {:.0} MB: the model's structure, its tree and the renderer \
+             take {:.0} MB once a frame is drawn; with {:.0} MB for picks and checks and \
+             {:.0} MB for frames, under 16 MB would be left for geometry",
+            self.budget_bytes as f64 / 1e6,
+            fixed_bytes as f64 / 1e6,
+            tool_bytes as f64 / 1e6,
+            FRAME_RESERVE_BYTES as f64 / 1e6
         );
-        Ok(Self {
-            streamer,
-            viewport,
-            stand_ins,
-            standing: vec![false; chunks],
-            standing_list: Vec::new(),
-            budget_bytes,
-            residency_budget_bytes,
-            fixed_bytes,
-            frames: 0,
-            frames_with_hole: 0,
-            frames_with_standin: 0,
-            holes: 0,
-            stand_ins_drawn: 0,
-        })
+        self.fixed_bytes = fixed_bytes;
+        self.residency_budget_bytes = left / 2;
+        // Nothing is resident under the first budget (0): the pool holds
+        // stand-ins only, which stay listed.
+        self.streamer = Self::streamer(
+            Arc::clone(&self.store),
+            tree,
+            self.residency_budget_bytes,
+            self.viewport,
+            self.min_pixels,
+        );
+        self.sized = true;
+        Ok(())
     }
 
     /// Whether chunks not resident are drawn as their boxes.

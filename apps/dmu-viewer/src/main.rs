@@ -116,6 +116,13 @@ struct Cli {
     /// loads the meshes it reads. Without it the whole model is loaded.
     #[arg(long, value_parser = dmu_app::units::parse_bytes, conflicts_with = "xr")]
     memory_budget: Option<u64>,
+    /// Chunk instances whose box is smaller on screen than this (its
+    /// diagonal, pixels) are not drawn, nor loaded under --memory-budget.
+    /// Default 0 (everything drawn), and 2 under --memory-budget: a model
+    /// seen whole has far more chunks than pixels, and the chunks a view
+    /// wants must fit the budget.
+    #[arg(long, value_parser = dmu_app::units::number_in(0.0, 1e6))]
+    min_pixels: Option<f64>,
     /// Under --memory-budget, what a chunk wanted but not loaded yet is
     /// drawn as: its box, flat-shaded (box), or nothing (none: a hole).
     #[arg(long, default_value = "box", value_parser = ["box", "none"], requires = "memory_budget")]
@@ -200,6 +207,11 @@ fn run(cli: &Cli, started: Instant) -> anyhow::Result<()> {
         vsync: !(cli.no_vsync || automated),
         compose: !cli.paint_whole,
         lod_error_px: cli.lod_error_px,
+        min_pixels: cli.min_pixels.unwrap_or(if cli.memory_budget.is_some() {
+            budget::MIN_PIXELS
+        } else {
+            0.0
+        }),
         target_ms: cli.target_ms,
         unit: cli.unit,
         memory_budget: cli.memory_budget,
@@ -305,6 +317,7 @@ fn load_review(
             (loaded, None)
         }
     };
+    let rss_after_open = dmu_app::progress::rss_bytes();
     let tree_start = Instant::now();
     let mut review = review::Review::new(loaded.scene, loaded.source);
     if let (Some(budget), Some(store)) = (memory_budget, store) {
@@ -328,6 +341,8 @@ fn load_review(
             "parts": review.scene.parts().len(),
             "load_ms": loaded.load_ms,
             "tree_ms": tree_ms,
+            "rss_after_open_bytes": rss_after_open,
+            "rss_after_load_bytes": dmu_app::progress::rss_bytes(),
             "proxies": proxies.as_ref().map(|p| dmu_app::progress::proxies_json(&p.stats())),
             "cells": review.tree.cell_count(),
             "bounds": { "min": b.min.to_array(), "max": b.max.to_array() },
@@ -348,9 +363,9 @@ fn open_skeleton(
              `dmu import` makes a store of a glTF file)"
         )
     })?;
-    let store = dmu_store::Store::open(path)?;
+    let mut store = dmu_store::Store::open(path)?;
     let loaded = dmu_app::load::Loaded {
-        scene: store.skeleton().clone(),
+        scene: store.take_skeleton(),
         report: Default::default(),
         source: Some(path.clone()),
         load_ms: start.elapsed().as_secs_f64() * 1e3,

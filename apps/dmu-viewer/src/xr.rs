@@ -748,9 +748,11 @@ fn known_points(review: &Review, eyes: &[(dmu_geom::Camera, Eye); 2], size: (u32
     let hit_at = |x: f64, y: f64| {
         let through = dmu_xr::eye_ray(&left.0, &left.1.fov, size, x, y);
         // The headset's review holds the whole model: nothing to load.
-        review
-            .tree
-            .pick_kept(&review.scene, &Ray3d::new(mid, through.dir), &review.section.planes())
+        review.tree.pick_kept(
+            &review.scene,
+            &Ray3d::new(mid, through.dir),
+            &review.section.planes(),
+        )
     };
     let pixels = |p| {
         Some((

@@ -36,7 +36,7 @@ fn run(dir: &std::path::Path, store: &std::path::Path, extra: &[&str], script: &
 /// A walk, a pick in the middle of the view and a drag of what it picked.
 fn walk_pick_drag() -> Value {
     let mut actions = vec![json!({"frames": 20})];
-    actions.push(json!({"pick": [300.0, 200.0]}));
+    actions.push(json!({"pick": [340.0, 363.0]}));
     actions.push(json!({"drag": {"by": [0.0, 0.0, 500.0], "steps": 5}}));
     actions.push(json!({"frames": 40}));
     json!(actions)
@@ -59,7 +59,11 @@ fn a_budgeted_run_picks_like_a_loaded_one_and_counts_stand_ins_under_xvfb() {
         &script,
     );
     let pick = |r: &Value| step(r, 1, "pick")["hit"].clone();
-    assert!(pick(&loaded)["part_id"].is_u64(), "the pick hits: {}", pick(&loaded));
+    assert!(
+        pick(&loaded)["part_id"].is_u64(),
+        "the pick hits: {}",
+        pick(&loaded)
+    );
     // The oracle: the whole model loaded; the budgeted pick loads meshes
     // along the ray until the hit is exact.
     assert_eq!(pick(&boxes), pick(&loaded));
@@ -109,7 +113,13 @@ fn a_store_damaged_on_disk_gives_a_one_line_error_under_xvfb() {
     let out = Command::new("xvfb-run")
         .args(["-a", "-s", "-screen 0 1600x1000x24"])
         .arg(env!("CARGO_BIN_EXE_dmu-viewer"))
-        .args([path_str(&store), "--memory-budget", "4GiB", "--frames", "30"])
+        .args([
+            path_str(&store),
+            "--memory-budget",
+            "4GiB",
+            "--frames",
+            "30",
+        ])
         .env("WGPU_BACKEND", "vulkan")
         .env("VK_ICD_FILENAMES", crate::support::LVP_ICD)
         .output()

@@ -1,10 +1,10 @@
 //! The real `dmu-viewer` binary, run under Xvfb on lavapipe.
 
+mod budget;
 #[path = "../../../fuzz/replay.rs"]
 mod fuzz_replay;
 #[path = "../../../fuzz/bodies/script_parse.rs"]
 mod fuzz_script_parse;
-mod budget;
 mod review_tools;
 mod session;
 mod support;

@@ -215,8 +215,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         width: args.width,
         height: args.height,
     };
-    let prefetch =
-        (!args.no_prefetch).then(|| PrefetchOptions::for_tree(&tree, args.min_pixels));
+    let prefetch = (!args.no_prefetch).then(|| PrefetchOptions::for_tree(&tree, args.min_pixels));
     let options = |order: &Order| WalkOptions {
         order: match order {
             Order::Visibility => LoadOrder::Visibility,

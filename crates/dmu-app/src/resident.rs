@@ -160,3 +160,31 @@ impl GeometrySource for StandInSource<'_> {
         chunk.index() < self.boxes.len()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_stand_in_is_its_box_with_outward_faces() {
+        let b = Aabb3f {
+            min: Vec3::new(-2.0, 1.0, 10.0),
+            max: Vec3::new(3.5, 1.25, 40.0),
+        };
+        let g = BoxGeometry::new(&b);
+        assert_eq!((g.positions.len(), g.indices.len()), (24, 36));
+        // It fills the chunk's box exactly (the renderer's tree boxes stay true).
+        assert_eq!(Aabb3f::from_points(g.positions.iter().copied()), b);
+        let centre = (b.min + b.max) * 0.5;
+        for t in g.indices.chunks_exact(3) {
+            let [p, q, r] = [0, 1, 2].map(|k| g.positions[t[k] as usize]);
+            let n = g.normals[t[0] as usize];
+            assert!(t.iter().all(|&i| g.normals[i as usize] == n), "flat faces");
+            // Counter-clockwise seen from outside: the winding's normal is the
+            // face normal, and it points away from the box's centre.
+            let winding = (q - p).cross(r - p);
+            assert!(winding.dot(n) > 0.0, "{t:?}");
+            assert!((p - centre).dot(n) > 0.0, "{t:?}");
+        }
+    }
+}

@@ -300,7 +300,9 @@ impl Scene {
                 || g.indices.len() != 3 * chunk.triangle_count() as usize
                 || bad_index
             {
-                return Err(invalid(format!("chunk {c}'s geometry does not fit its table")));
+                return Err(invalid(format!(
+                    "chunk {c}'s geometry does not fit its table"
+                )));
             }
         }
         let m = &mut self.meshes[id.index()];
