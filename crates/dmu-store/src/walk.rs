@@ -128,7 +128,7 @@ pub struct WalkReport {
 pub struct Drawn {
     /// Chunks the frame wanted to draw that were not resident.
     pub missing_chunks: u64,
-    /// Chunks drawn: requested as [`Class::Visible`] next frame.
+    /// Chunks drawn: requested as [`crate::Class::Visible`] next frame.
     pub visible: Vec<ChunkId>,
     /// Geometry in use until the frame ends (the loaders run meanwhile).
     pub pins: Vec<Arc<OwnedChunkGeometry>>,
