@@ -4,9 +4,9 @@
 //! loaded is drawn as its box (a stand-in) unless stand-ins are off, when it
 //! is a hole. The budget is the whole process's: what the skeleton, the tree
 //! and the renderer take once the first frame is drawn (with stand-ins only),
-//! the tools' geometry cap and a frame reserve come off it, and the residency gets half of the rest (the
-//! GPU pool holds a second copy of what is resident; on lavapipe in the same
-//! memory).
+//! the tools' geometry cap and a frame reserve come off it, and the residency
+//! gets half of the rest (the GPU pool holds a second copy of what is
+//! resident; on lavapipe in the same memory).
 
 use std::sync::Arc;
 
@@ -238,6 +238,7 @@ impl Streaming {
             "fixed_bytes": self.fixed_bytes,
             "residency_budget_bytes": self.residency_budget_bytes,
             "stand_ins": if self.stand_ins { "box" } else { "none" },
+            "frames": self.frames,
             "frames_with_hole": self.frames_with_hole,
             "frames_with_standin": self.frames_with_standin,
             "holes": self.holes,
