@@ -8,10 +8,12 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
+use dmu_app::resident::{ResidentSource, StandInSource};
 use dmu_collide::Report;
 use dmu_geom::Ray3d;
 use dmu_render::{Culling, FrameStats, Renderer};
 use dmu_scene::PartId;
+use dmu_tree::EntryId;
 use glam::DVec3;
 use serde_json::{Value, json};
 use winit::application::ApplicationHandler;
@@ -55,10 +57,20 @@ pub struct Options {
     pub compose: bool,
     /// Pixels of error a chunk's simplified level may show (0: exact).
     pub lod_error_px: f64,
+    /// Coverage threshold of the main view: chunk instances smaller on
+    /// screen (box diagonal, pixels) are not drawn.
+    pub min_pixels: f64,
     /// A frame-time budget for the 3D view, ms.
     pub target_ms: Option<f64>,
     /// The length of a model unit, for BCF issues (BCF is in metres).
     pub unit: dmu_app::units::LengthUnit,
+    /// The whole process's memory budget, bytes: the model streams from its
+    /// store (the review's scene is its skeleton).
+    pub memory_budget: Option<u64>,
+    /// Under the budget, draw chunks not loaded yet as their boxes.
+    pub stand_ins: bool,
+    /// When the process started (for the first frame's time).
+    pub started: Instant,
 }
 
 impl Options {
@@ -175,6 +187,14 @@ pub struct App {
     error: Option<anyhow::Error>,
     /// A BCF export in progress: a frame per topic for its snapshot.
     export: Option<Export>,
+    /// Under a memory budget: the residency and its counts (made with the
+    /// first frame, once the renderer's memory is in use).
+    streaming: Option<crate::budget::Streaming>,
+    /// Milliseconds from the start of the process to the end of the first
+    /// frame of the model.
+    first_frame_ms: Option<f64>,
+    /// Every frame's time, ms.
+    frame_times: Vec<f64>,
 }
 
 /// A BCF export in progress.
@@ -213,6 +233,7 @@ impl App {
             options.culling,
         );
         main.view.options.lod_error_px = options.lod_error_px;
+        main.view.options.min_pixels = options.min_pixels;
         main.view.options.target_ms = options.target_ms;
         let ui = UiState::new(review.source.as_deref());
         let runner = Runner {
@@ -246,6 +267,9 @@ impl App {
             keep_drawing: true,
             error: None,
             export: None,
+            streaming: None,
+            first_frame_ms: None,
+            frame_times: Vec::new(),
         }
     }
 
@@ -271,6 +295,23 @@ impl App {
                 .collect::<Vec<_>>()
         );
         report["frames"] = json!(self.runner.frames);
+        report["peak_rss_bytes"] = json!(dmu_app::progress::peak_rss_bytes());
+        report["first_frame_ms"] = json!(self.first_frame_ms);
+        report["median_frame_ms"] = summary(&self.frame_times)["median"].clone();
+        if let Some(s) = &self.streaming {
+            let facts = s.json();
+            report["frames_with_hole"] = facts["frames_with_hole"].clone();
+            report["frames_with_standin"] = facts["frames_with_standin"].clone();
+            report["memory"] = facts;
+        }
+        if let Some(g) = &self.review.geometry {
+            let (bytes, peak) = g.bytes();
+            report["tool_geometry"] = json!({
+                "bytes": bytes,
+                "peak_bytes": peak,
+                "mesh_loads": g.loads(),
+            });
+        }
         let drag: Vec<f64> = self
             .runner
             .frames
@@ -421,12 +462,11 @@ impl App {
         let px =
             crate::nav::world_per_pixel(pane.nav.fov_y_rad, depth, f64::from(pane.view.size.1));
         let point = crate::measure::snap(&self.review.scene, &hit, SNAP_PX * px);
-        let scene = &self.review.scene;
-        let result = self.ui.measure.click(&self.review, point);
+        let result = self.ui.measure.click(&mut self.review, point);
         Ok(match result {
             Some(m) => {
                 self.ui.status = format!("measured {}", m.label());
-                m.json(scene)
+                m.json(&self.review.scene)
             }
             None => json!({ "first": point.point.to_array(), "snap": point.snap.name() }),
         })
@@ -1118,7 +1158,11 @@ impl App {
 
     /// Renders every pane into its target (sized as laid out); the stats of
     /// each. The main pane's drawn cells are noted for cells panes.
-    fn render_panes(&mut self) -> anyhow::Result<Vec<FrameStats>> {
+    fn render_panes(&mut self, dt: f64) -> anyhow::Result<Vec<FrameStats>> {
+        if let Some(e) = self.review.geometry_error.take() {
+            anyhow::bail!("{e}");
+        }
+        self.start_streaming();
         let gfx = self.gfx.as_mut().expect("made with the window");
         let renderer = self.renderer.as_mut().expect("made with the window");
         gfx.ensure_views(self.panes.len());
@@ -1130,13 +1174,52 @@ impl App {
             gfx.resize_view(i, (rect.2, rect.3));
             pane.view.size = gfx.views[i].size;
             pane.view.camera = pane.nav.camera();
-            stats.push(renderer.render(
-                &mut pane.view,
-                &self.review.scene,
-                &self.review.tree,
-                &self.review.scene,
-                gfx.views[i].frame_target(),
-            )?);
+        }
+        let (scene, tree) = (&self.review.scene, &self.review.tree);
+        if let Some(streaming) = self.streaming.as_mut() {
+            let camera = self.panes[0].view.camera;
+            streaming.begin_frame(renderer.geometry_pool(), tree, scene, &camera, dt)?;
+            let streaming = &*streaming;
+            let stand_ins = streaming
+                .stand_ins()
+                .then(|| StandInSource::new(streaming.residency(), scene));
+            let resident = ResidentSource::new(streaming.residency(), scene.chunks().len());
+            let source: &dyn dmu_render::GeometrySource = match &stand_ins {
+                Some(s) => s,
+                None => &resident,
+            };
+            for (i, pane) in self.panes.iter_mut().enumerate() {
+                stats.push(renderer.render(
+                    &mut pane.view,
+                    scene,
+                    tree,
+                    source,
+                    gfx.views[i].frame_target(),
+                )?);
+            }
+            let stood_in = stand_ins.map(StandInSource::stood_in).unwrap_or_default();
+            drop(resident);
+            let drawn: Vec<Vec<EntryId>> = self
+                .panes
+                .iter()
+                .map(|p| p.view.drawn_entries().collect())
+                .collect();
+            let not_resident = stats.iter().map(|s| s.not_resident).sum();
+            let streaming = self.streaming.as_mut().expect("checked above");
+            streaming.end_frame(tree, stood_in, &drawn, not_resident);
+            if !streaming.is_sized() {
+                streaming.size(tree, dmu_app::progress::rss_bytes().unwrap_or(0))?;
+            }
+        } else {
+            for (i, pane) in self.panes.iter_mut().enumerate() {
+                stats.push(renderer.render(
+                    &mut pane.view,
+                    scene,
+                    tree,
+                    scene,
+                    gfx.views[i].frame_target(),
+                )?);
+            }
         }
         if self.panes.iter().any(|p| p.kind == PaneKind::Cells) {
             crate::panes::drawn_cells(
@@ -1146,6 +1229,31 @@ impl App {
             );
         }
         Ok(stats)
+    }
+
+    /// Under a memory budget, starts streaming with the first frame (drawn
+    /// with stand-ins only); the residency gets its budget once that frame
+    /// shows what the renderer takes.
+    fn start_streaming(&mut self) {
+        let (Some(budget), None, Some(geometry)) = (
+            self.options.memory_budget,
+            &self.streaming,
+            &self.review.geometry,
+        ) else {
+            return;
+        };
+        let main = &self.panes[0].view;
+        self.streaming = Some(crate::budget::Streaming::new(
+            Arc::clone(geometry.store()),
+            &self.review.tree,
+            budget,
+            dmu_store::Viewport {
+                width: main.size.0.max(1),
+                height: main.size.1.max(1),
+            },
+            main.options.min_pixels,
+            self.options.stand_ins,
+        ));
     }
 
     /// Each pane for the report: kind, rectangle, camera, triangles drawn and,
@@ -1239,7 +1347,7 @@ impl App {
             let ui_ms = ms_since(ui_start);
             self.sync_tints();
             let view_start = Instant::now();
-            let stats = match self.render_panes() {
+            let stats = match self.render_panes(dt) {
                 Ok(stats) => stats,
                 Err(e) => {
                     // egui's output is dropped unpainted; say so, or it asserts.
@@ -1273,6 +1381,10 @@ impl App {
                 dmu_render::save_png(&image, path)?;
             }
             let frame_ms = ms_since(start);
+            self.frame_times.push(frame_ms);
+            if self.first_frame_ms.is_none() {
+                self.first_frame_ms = Some(ms_since(self.options.started));
+            }
             self.frame_ms.push_back(frame_ms);
             if self.frame_ms.len() > 30 {
                 self.frame_ms.pop_front();
@@ -1310,6 +1422,7 @@ impl App {
                     "lod_error_px": main.lod_error_px,
                     "min_pixels": main.min_pixels,
                     "queries": main.queries,
+                    "rss_bytes": dmu_app::progress::rss_bytes(),
                     "move_us": self.review.timings.move_us,
                     "check_ms": self.review.timings.check_ms,
                     "clashes": clashes_json(&self.review.report),

@@ -10,6 +10,7 @@ pub mod gizmo;
 pub mod issues;
 pub mod measure;
 pub mod nav;
+pub mod on_demand;
 pub mod record;
 pub mod review;
 pub mod script;

@@ -29,6 +29,7 @@
 //! coordinates; view pixels are physical pixels of the 3D view, y down.
 
 mod app;
+mod budget;
 mod compose;
 mod gfx;
 mod launch;
@@ -112,6 +113,23 @@ struct Cli {
     /// the choice.
     #[arg(long, value_parser = dmu_app::units::number_in(1.0, 1e6))]
     target_ms: Option<f64>,
+    /// Keep the whole process within this much memory (e.g. 1GiB): the model
+    /// (a .dmu store) opens as its structure alone, chunks are read as the
+    /// views want them and dropped least recently used, each pick or check
+    /// loads the meshes it reads. Without it the whole model is loaded.
+    #[arg(long, value_parser = dmu_app::units::parse_bytes, conflicts_with = "xr")]
+    memory_budget: Option<u64>,
+    /// Chunk instances whose box is smaller on screen than this (its
+    /// diagonal, pixels) are not drawn, nor loaded under --memory-budget.
+    /// Default 0 (everything drawn), and 2 under --memory-budget: a model
+    /// seen whole has far more chunks than pixels, and the chunks a view
+    /// wants must fit the budget.
+    #[arg(long, value_parser = dmu_app::units::number_in(0.0, 1e6))]
+    min_pixels: Option<f64>,
+    /// Under --memory-budget, what a chunk wanted but not loaded yet is
+    /// drawn as: its box, flat-shaded (box), or nothing (none: a hole).
+    #[arg(long, default_value = "box", value_parser = ["box", "none"], requires = "memory_budget")]
+    stand_ins: String,
     /// The length of one model unit, for BCF issues written and read (BCF is
     /// in metres; the built-in plant is in millimetres).
     #[arg(long, value_enum, default_value = "mm")]
@@ -150,7 +168,7 @@ struct Cli {
     json: bool,
 }
 
-fn run(cli: &Cli) -> anyhow::Result<()> {
+fn run(cli: &Cli, started: Instant) -> anyhow::Result<()> {
     let script = cli
         .script
         .as_deref()
@@ -167,7 +185,9 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
     let progress = Arc::new(launch::LoadProgress::default());
     let (send, result) = std::sync::mpsc::channel();
     let (model, record_path, shared) = (cli.model.clone(), cli.record.clone(), progress.clone());
-    let proxies = cli.lod_error_px > 0.0 && !cli.no_proxies;
+    // Proxies merge every chunk: not under a memory budget.
+    let proxies = cli.lod_error_px > 0.0 && !cli.no_proxies && cli.memory_budget.is_none();
+    let budget = cli.memory_budget;
     std::thread::Builder::new()
         .name("dmu load".into())
         .spawn(move || {
@@ -176,6 +196,7 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
                 record_path.as_deref(),
                 &shared,
                 proxies,
+                budget,
             ));
         })
         .context("starting the loading thread")?;
@@ -189,8 +210,16 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
         vsync: !(cli.no_vsync || automated),
         compose: !cli.paint_whole,
         lod_error_px: cli.lod_error_px,
+        min_pixels: cli.min_pixels.unwrap_or(if cli.memory_budget.is_some() {
+            budget::MIN_PIXELS
+        } else {
+            0.0
+        }),
         target_ms: cli.target_ms,
         unit: cli.unit,
+        memory_budget: cli.memory_budget,
+        stand_ins: cli.stand_ins == "box",
+        started,
     };
     let event_loop = match winit::event_loop::EventLoop::new() {
         Ok(e) => e,
@@ -260,6 +289,7 @@ fn run_xr(cli: &Cli) -> anyhow::Result<()> {
         cli.record.as_deref(),
         &launch::LoadProgress::default(),
         false,
+        None,
     )?;
     let report = xr::run(review, args, facts)?;
     if cli.json {
@@ -275,13 +305,30 @@ fn load_review(
     record_path: Option<&std::path::Path>,
     progress: &launch::LoadProgress,
     proxies: bool,
+    memory_budget: Option<u64>,
 ) -> launch::LoadResult {
-    let loaded = dmu_app::load::load_reporting(model, &|done, total| {
-        progress.total.store(total, Ordering::Relaxed);
-        progress.done.store(done, Ordering::Relaxed);
-    })?;
+    let (loaded, store) = match memory_budget {
+        Some(budget) => {
+            let (loaded, store) = open_skeleton(model, budget)?;
+            (loaded, Some(store))
+        }
+        None => {
+            let loaded = dmu_app::load::load_reporting(model, &|done, total| {
+                progress.total.store(total, Ordering::Relaxed);
+                progress.done.store(done, Ordering::Relaxed);
+            })?;
+            (loaded, None)
+        }
+    };
+    let rss_after_open = dmu_app::progress::rss_bytes();
     let tree_start = Instant::now();
     let mut review = review::Review::new(loaded.scene, loaded.source);
+    if let (Some(budget), Some(store)) = (memory_budget, store) {
+        review.geometry = Some(dmu_viewer::on_demand::OnDemand::new(
+            store,
+            budget::tool_cap_bytes(budget),
+        ));
+    }
     review.recorder = record_path.map(record::Recorder::create).transpose()?;
     let tree_ms = tree_start.elapsed().as_secs_f64() * 1e3;
     let proxies = proxies.then(|| {
@@ -297,6 +344,8 @@ fn load_review(
             "parts": review.scene.parts().len(),
             "load_ms": loaded.load_ms,
             "tree_ms": tree_ms,
+            "rss_after_open_bytes": rss_after_open,
+            "rss_after_load_bytes": dmu_app::progress::rss_bytes(),
             "proxies": proxies.as_ref().map(|p| dmu_app::progress::proxies_json(&p.stats())),
             "cells": review.tree.cell_count(),
             "bounds": { "min": b.min.to_array(), "max": b.max.to_array() },
@@ -305,12 +354,35 @@ fn load_review(
     Ok((review, facts, proxies))
 }
 
+/// Under `--memory-budget`: the store's structure alone, no geometry.
+fn open_skeleton(
+    model: &dmu_app::load::ModelArgs,
+    budget: u64,
+) -> anyhow::Result<(dmu_app::load::Loaded, Arc<dmu_store::Store>)> {
+    let start = Instant::now();
+    let path = model.file.as_ref().with_context(|| {
+        format!(
+            "--memory-budget {budget}: needs a .dmu store (the built-in plant is made in memory; \
+             `dmu import` makes a store of a glTF file)"
+        )
+    })?;
+    let mut store = dmu_store::Store::open(path)?;
+    let loaded = dmu_app::load::Loaded {
+        scene: store.take_skeleton(),
+        report: Default::default(),
+        source: Some(path.clone()),
+        load_ms: start.elapsed().as_secs_f64() * 1e3,
+    };
+    Ok((loaded, Arc::new(store)))
+}
+
 #[expect(unsafe_code, reason = "quiet_device_select runs before any thread")]
 fn main() -> ExitCode {
     // SAFETY: first in main, while the process has one thread.
     unsafe { dmu_app::quiet_device_select() };
+    let started = Instant::now();
     let cli = Cli::parse();
-    match run(&cli) {
+    match run(&cli, started) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("dmu-viewer: error: {e:#}");

@@ -205,7 +205,7 @@ impl MeasureTool {
     /// A click that hit `point`: the first of a pair is kept, the second
     /// completes the measurement, which is returned. Two parts with no
     /// distance (no triangles) measure nothing.
-    pub fn click(&mut self, review: &Review, point: Snapped) -> Option<Measurement> {
+    pub fn click(&mut self, review: &mut Review, point: Snapped) -> Option<Measurement> {
         let Some(first) = self.first.take() else {
             self.first = Some(point);
             return None;
@@ -232,10 +232,10 @@ mod tests {
     /// A hit near a corner snaps to it, near an edge to the edge, else stays.
     #[test]
     fn picks_snap_to_vertices_then_edges() {
-        let review = Review::new(dmu_samples::grid(2, 10.0, 4.0, 2048), None);
+        let mut review = Review::new(dmu_samples::grid(2, 10.0, 4.0, 2048), None);
         // Box box_0_0_0 spans -2..2; look down at its top face (z = 2) from
         // below the layer above.
-        let shot = |x: f64, y: f64| {
+        let mut shot = |x: f64, y: f64| {
             let hit = review
                 .pick(&Ray3d::new(DVec3::new(x, y, 5.0), -DVec3::Z))
                 .expect("hit");
@@ -257,8 +257,8 @@ mod tests {
     /// angles measure 90°, parallel ones 0°.
     #[test]
     fn parts_and_angles() {
-        let review = Review::new(dmu_samples::grid(2, 10.0, 4.0, 2048), None);
-        let top = |x: f64| {
+        let mut review = Review::new(dmu_samples::grid(2, 10.0, 4.0, 2048), None);
+        let top = |review: &mut Review, x: f64| {
             let hit = review
                 .pick(&Ray3d::new(DVec3::new(x, 0.0, 5.0), -DVec3::Z))
                 .unwrap();
@@ -271,20 +271,29 @@ mod tests {
             snap(&review.scene, &hit, 0.0)
         };
         let mut tool = MeasureTool::default();
+        // Clicks the top face at `x` (picking it first).
+        let mut click_top = |tool: &mut MeasureTool, x: f64| {
+            let p = top(&mut review, x);
+            tool.click(&mut review, p)
+        };
         tool.set_mode(MeasureMode::Parts);
-        assert!(tool.click(&review, top(0.0)).is_none());
-        let m = tool.click(&review, top(10.0)).unwrap();
+        assert!(click_top(&mut tool, 0.0).is_none());
+        let m = click_top(&mut tool, 10.0).unwrap();
         let Measurement::Parts(_, _, s) = m else {
             panic!("{m:?}")
         };
         assert!((s.distance - 6.0).abs() < 1e-12, "{s:?}");
         assert!((s.point_a.x - 2.0).abs() < 1e-12 && (s.point_b.x - 8.0).abs() < 1e-12);
         tool.set_mode(MeasureMode::Angle);
-        tool.click(&review, top(0.0));
-        let right = tool.click(&review, side).unwrap();
+        click_top(&mut tool, 0.0);
+        let right = tool.click(&mut review, side).unwrap();
         assert!((angle_degrees(DVec3::Z, -DVec3::X) - 90.0).abs() < 1e-12);
         assert_eq!(right.label(), "90.000°");
-        tool.click(&review, top(0.0));
-        assert_eq!(tool.click(&review, top(10.0)).unwrap().label(), "0.000°");
+        let mut click_top = |tool: &mut MeasureTool, x: f64| {
+            let p = top(&mut review, x);
+            tool.click(&mut review, p)
+        };
+        click_top(&mut tool, 0.0);
+        assert_eq!(click_top(&mut tool, 10.0).unwrap().label(), "0.000°");
     }
 }

@@ -7,12 +7,16 @@ use std::time::Instant;
 
 use dmu_collide::{Checker, Report, Separation, Settings};
 use dmu_geom::Ray3d;
-use dmu_scene::{PartId, Scene};
+use dmu_scene::{MeshId, PartId, Scene};
 use dmu_tree::{Hit, Tree, TreeOptions};
 use glam::{DAffine3, DQuat, DVec3};
 
+use crate::on_demand::OnDemand;
 use crate::record::Recorder;
 use crate::section::Section;
+
+/// Meshes a pick loads before searching again (under a memory budget).
+const PICK_MESHES_AT_ONCE: usize = 8;
 
 /// One undoable move: a part's absolute transform before and after.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -110,6 +114,12 @@ pub struct Review {
     /// Every clash seen in this session (live checks and loaded reports),
     /// one entry per part pair and kind, in the order first seen.
     pub clash_list: Vec<ListedClash>,
+    /// Under a memory budget: where the meshes picks and checks read come
+    /// from (the scene is then the store's skeleton); `None`: all loaded.
+    pub geometry: Option<OnDemand>,
+    /// Why loading geometry for a pick or check failed (the store changed
+    /// on disk, say); the viewer ends the run with it.
+    pub geometry_error: Option<String>,
     checker: Checker,
     undo: Vec<Edit>,
     redo: Vec<Edit>,
@@ -134,6 +144,8 @@ impl Review {
             record_error: None,
             section: Section::Off,
             clash_list: Vec::new(),
+            geometry: None,
+            geometry_error: None,
             checker,
             undo: Vec::new(),
             redo: Vec::new(),
@@ -143,14 +155,79 @@ impl Review {
 
     /// The nearest visible part along `ray` (exact, f64), as `dmu pick` finds
     /// it, seeing through what the section cuts away.
-    pub fn pick(&self, ray: &Ray3d) -> Option<Hit> {
-        self.tree
-            .pick_kept(&self.scene, ray, &self.section.planes())
+    pub fn pick(&mut self, ray: &Ray3d) -> Option<Hit> {
+        let planes = self.section.planes();
+        if let Some(g) = self.geometry.as_mut() {
+            g.begin();
+        }
+        loop {
+            let (hit, unloaded) = self.tree.pick_loaded(&self.scene, ray, &planes);
+            let Some(g) = self.geometry.as_mut() else {
+                return hit;
+            };
+            if unloaded.is_empty() {
+                return hit;
+            }
+            // The nearest few meshes the ray meets before the hit, then again.
+            let mut meshes: Vec<MeshId> = Vec::new();
+            for e in unloaded {
+                let mesh = self.scene.part(self.tree.entries()[e.0 as usize].part).mesh;
+                if !meshes.contains(&mesh) {
+                    meshes.push(mesh);
+                }
+                if meshes.len() == PICK_MESHES_AT_ONCE {
+                    break;
+                }
+            }
+            if let Err(e) = g.ensure(&mut self.scene, &meshes) {
+                self.geometry_error = Some(format!("{e:#}"));
+                return None;
+            }
+        }
+    }
+
+    /// Under a memory budget, loads the meshes an exact test of `parts`
+    /// reads: theirs, and with `near` those of every part whose chunk boxes
+    /// come within the clearance of theirs (plus a margin for the contact
+    /// tolerance). Returns false when loading failed
+    /// ([`Review::geometry_error`]).
+    fn load_near(&mut self, parts: &[PartId], near: bool) -> bool {
+        let Some(g) = self.geometry.as_mut() else {
+            return true;
+        };
+        g.begin();
+        let mut meshes: Vec<MeshId> = Vec::new();
+        for &part in parts {
+            let b = self.scene.part_world_bounds(part);
+            let margin = self.settings.clearance + 1e-3 * b.extent().length();
+            meshes.push(self.scene.part(part).mesh);
+            if !near {
+                continue;
+            }
+            let mut near_entries = Vec::new();
+            self.tree
+                .entries_in_box(&b.inflated(margin), &mut near_entries);
+            for e in near_entries {
+                meshes.push(self.scene.part(self.tree.entries()[e.0 as usize].part).mesh);
+            }
+        }
+        meshes.sort_unstable();
+        meshes.dedup();
+        match g.ensure(&mut self.scene, &meshes) {
+            Ok(()) => true,
+            Err(e) => {
+                self.geometry_error = Some(format!("{e:#}"));
+                false
+            }
+        }
     }
 
     /// The minimum distance between two parts and its closest points (f64),
     /// by the collision check's own narrow phase.
-    pub fn distance(&self, a: PartId, b: PartId) -> Option<Separation> {
+    pub fn distance(&mut self, a: PartId, b: PartId) -> Option<Separation> {
+        if !self.load_near(&[a, b], false) {
+            return None;
+        }
         self.checker.distance(&self.scene, &self.settings, a, b)
     }
 
@@ -169,6 +246,10 @@ impl Review {
         match self.selected {
             Some(part) if self.live_collision => {
                 let start = Instant::now();
+                if !self.load_near(&[part], true) {
+                    self.report.clear();
+                    return;
+                }
                 self.checker.check(
                     &self.scene,
                     &self.tree,

@@ -747,7 +747,12 @@ fn known_points(review: &Review, eyes: &[(dmu_geom::Camera, Eye); 2], size: (u32
     let mid = (left.0.eye + right.0.eye) * 0.5;
     let hit_at = |x: f64, y: f64| {
         let through = dmu_xr::eye_ray(&left.0, &left.1.fov, size, x, y);
-        review.pick(&Ray3d::new(mid, through.dir))
+        // The headset's review holds the whole model: nothing to load.
+        review.tree.pick_kept(
+            &review.scene,
+            &Ray3d::new(mid, through.dir),
+            &review.section.planes(),
+        )
     };
     let pixels = |p| {
         Some((

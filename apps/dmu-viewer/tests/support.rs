@@ -8,10 +8,15 @@ use std::sync::Mutex;
 use serde_json::Value;
 
 /// Lavapipe's Vulkan driver: the same CPU renderer everywhere.
-const LVP_ICD: &str = "/usr/share/vulkan/icd.d/lvp_icd.x86_64.json";
+pub const LVP_ICD: &str = "/usr/share/vulkan/icd.d/lvp_icd.x86_64.json";
 
 /// `xvfb-run -a` picks a free display racily: viewer runs go one at a time.
 static XVFB: Mutex<()> = Mutex::new(());
+
+/// Holds the one-at-a-time lock of viewer runs.
+pub fn xvfb_lock() -> std::sync::MutexGuard<'static, ()> {
+    XVFB.lock().unwrap_or_else(|e| e.into_inner())
+}
 
 /// Whether the viewer can run here; prints why a test skips (and fails in CI,
 /// where the script installs Xvfb and lavapipe).
@@ -37,7 +42,7 @@ pub fn can_run(test: &str) -> bool {
 /// Runs the viewer with `args` in a 1600x1000 virtual screen on lavapipe and
 /// returns its JSON report.
 pub fn viewer(args: &[&str]) -> Value {
-    let _one_at_a_time = XVFB.lock().unwrap_or_else(|e| e.into_inner());
+    let _one_at_a_time = xvfb_lock();
     let out = Command::new("xvfb-run")
         .args(["-a", "-s", "-screen 0 1600x1000x24"])
         .arg(env!("CARGO_BIN_EXE_dmu-viewer"))

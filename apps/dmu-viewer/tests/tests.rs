@@ -1,5 +1,6 @@
 //! The real `dmu-viewer` binary, run under Xvfb on lavapipe.
 
+mod budget;
 #[path = "../../../fuzz/replay.rs"]
 mod fuzz_replay;
 #[path = "../../../fuzz/bodies/script_parse.rs"]

@@ -216,13 +216,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         width: args.width,
         height: args.height,
     };
-    let prefetch = (!args.no_prefetch).then(|| PrefetchOptions {
-        spacing: typical_cell_size(&tree),
-        horizon_s: 1.0,
-        fast_after_s: 1.0,
-        turn_deg: 30.0,
-        min_pixels: args.min_pixels,
-    });
+    let prefetch = (!args.no_prefetch).then(|| PrefetchOptions::for_tree(&tree, args.min_pixels));
     let options = |order: &Order| WalkOptions {
         order: match order {
             Order::Visibility => LoadOrder::Visibility,
@@ -432,22 +426,6 @@ fn print_text(args: &Args, info: &dmu_store::StoreInfo, budget: u64, reports: &[
             println!("  load errors: {} (first: {e})", t.failed_loads);
         }
     }
-}
-
-/// The median largest extent of the tree's cells: MMR's virtual cell, the step
-/// between predicted viewpoints.
-fn typical_cell_size(tree: &Tree) -> f64 {
-    let mut sizes: Vec<f64> = tree
-        .cell_ids()
-        .map(|c| tree.cell_bounds(c).extent().max_element())
-        .filter(|s| s.is_finite())
-        .collect();
-    if sizes.is_empty() {
-        return 1.0;
-    }
-    let mid = sizes.len() / 2;
-    sizes.select_nth_unstable_by(mid, f64::total_cmp);
-    sizes[mid].max(f64::MIN_POSITIVE)
 }
 
 /// A walk through the plant of `dmu generate plant` (default origin, 48 m plots

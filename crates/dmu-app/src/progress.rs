@@ -33,8 +33,19 @@ pub fn style_input_bar(bar: &ProgressBar, what: &str, known_length: bool) {
 /// The process's peak resident set size in bytes (Linux `VmHWM`), or `None`
 /// where the kernel does not report it.
 pub fn peak_rss_bytes() -> Option<u64> {
+    status_bytes("VmHWM:")
+}
+
+/// The process's resident set size now in bytes (Linux `VmRSS`), or `None`
+/// where the kernel does not report it.
+pub fn rss_bytes() -> Option<u64> {
+    status_bytes("VmRSS:")
+}
+
+/// A `/proc/self/status` line in KiB, as bytes.
+fn status_bytes(key: &str) -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let line = status.lines().find(|l| l.starts_with(key))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kib * 1024)
 }

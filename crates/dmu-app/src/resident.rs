@@ -1,11 +1,13 @@
 //! The bridge from a store's residency manager to the renderer: chunk geometry
 //! streamed from disk, drawn as it arrives.
 
-use std::sync::{Arc, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 
+use dmu_geom::Aabb3f;
 use dmu_render::GeometrySource;
-use dmu_scene::{ChunkGeometry, ChunkId};
+use dmu_scene::{ChunkGeometry, ChunkId, Scene};
 use dmu_store::Residency;
+use glam::Vec3;
 
 /// Chunk geometry for one frame from a residency manager: each chunk the
 /// renderer asks for is looked up once (resident or not) and pinned until
@@ -41,5 +43,148 @@ impl GeometrySource for ResidentSource<'_> {
             .get_or_init(|| self.residency.get(chunk))
             .as_ref()?;
         Some(g.geometry())
+    }
+}
+
+/// A [`ResidentSource`] that answers for a chunk not resident with a stand-in:
+/// its box (the skeleton's chunk bounds, which the geometry fills exactly),
+/// flat-shaded (a face normal per side), drawn with the chunk's material by
+/// whatever instances it. The renderer uploads it as the chunk, so the
+/// caller keeps the chunks given a stand-in ([`StandInSource::stood_in`])
+/// and hands them to `geometry_pool().evict` once they are resident, for
+/// the real geometry to replace the box.
+#[derive(Debug)]
+pub struct StandInSource<'a> {
+    resident: ResidentSource<'a>,
+    scene: &'a Scene,
+    boxes: Vec<OnceLock<BoxGeometry>>,
+    stood_in: Mutex<Vec<ChunkId>>,
+}
+
+/// A box as chunk geometry: 24 vertices (four per face, each face its own
+/// normal) and 12 triangles.
+#[derive(Debug)]
+struct BoxGeometry {
+    positions: Vec<Vec3>,
+    normals: Vec<Vec3>,
+    indices: Vec<u32>,
+}
+
+impl BoxGeometry {
+    fn new(b: &Aabb3f) -> Self {
+        let corner = |x: bool, y: bool, z: bool| {
+            Vec3::new(
+                if x { b.max.x } else { b.min.x },
+                if y { b.max.y } else { b.min.y },
+                if z { b.max.z } else { b.min.z },
+            )
+        };
+        let mut g = Self {
+            positions: Vec::with_capacity(24),
+            normals: Vec::with_capacity(24),
+            indices: Vec::with_capacity(36),
+        };
+        for axis in 0..3 {
+            for high in [false, true] {
+                // The face's four corners counter-clockwise seen from outside.
+                let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+                let mut quad = [(false, false), (true, false), (true, true), (false, true)];
+                if !high {
+                    quad.reverse();
+                }
+                let base = g.positions.len() as u32;
+                for (a, c) in quad {
+                    let mut bits = [false; 3];
+                    bits[axis] = high;
+                    bits[u] = a;
+                    bits[v] = c;
+                    g.positions.push(corner(bits[0], bits[1], bits[2]));
+                    let mut n = Vec3::ZERO;
+                    n[axis] = if high { 1.0 } else { -1.0 };
+                    g.normals.push(n);
+                }
+                g.indices
+                    .extend([0, 1, 2, 0, 2, 3].into_iter().map(|i| base + i));
+            }
+        }
+        g
+    }
+}
+
+impl<'a> StandInSource<'a> {
+    /// Stand-ins from `scene`'s chunk boxes (the store's skeleton, or a scene
+    /// of the same structure) for what `residency` lacks.
+    pub fn new(residency: &'a Residency, scene: &'a Scene) -> Self {
+        let chunks = scene.chunks().len();
+        Self {
+            resident: ResidentSource::new(residency, chunks),
+            scene,
+            boxes: (0..chunks).map(|_| OnceLock::new()).collect(),
+            stood_in: Mutex::new(Vec::new()),
+        }
+    }
+
+    /// The chunks given a stand-in through this source (each once).
+    pub fn stood_in(self) -> Vec<ChunkId> {
+        let mut v = self
+            .stood_in
+            .into_inner()
+            .unwrap_or_else(PoisonError::into_inner);
+        v.sort_unstable();
+        v.dedup();
+        v
+    }
+}
+
+impl GeometrySource for StandInSource<'_> {
+    fn chunk_geometry(&self, chunk: ChunkId) -> Option<ChunkGeometry<'_>> {
+        if let Some(g) = self.resident.chunk_geometry(chunk) {
+            return Some(g);
+        }
+        let slot = self.boxes.get(chunk.index())?;
+        let g = slot.get_or_init(|| {
+            self.stood_in
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .push(chunk);
+            BoxGeometry::new(&self.scene.chunk(chunk).bounds)
+        });
+        Some(ChunkGeometry {
+            positions: &g.positions,
+            normals: &g.normals,
+            indices: &g.indices,
+        })
+    }
+
+    fn has(&self, chunk: ChunkId) -> bool {
+        chunk.index() < self.boxes.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_stand_in_is_its_box_with_outward_faces() {
+        let b = Aabb3f {
+            min: Vec3::new(-2.0, 1.0, 10.0),
+            max: Vec3::new(3.5, 1.25, 40.0),
+        };
+        let g = BoxGeometry::new(&b);
+        assert_eq!((g.positions.len(), g.indices.len()), (24, 36));
+        // It fills the chunk's box exactly (the renderer's tree boxes stay true).
+        assert_eq!(Aabb3f::from_points(g.positions.iter().copied()), b);
+        let centre = (b.min + b.max) * 0.5;
+        for t in g.indices.chunks_exact(3) {
+            let [p, q, r] = [0, 1, 2].map(|k| g.positions[t[k] as usize]);
+            let n = g.normals[t[0] as usize];
+            assert!(t.iter().all(|&i| g.normals[i as usize] == n), "flat faces");
+            // Counter-clockwise seen from outside: the winding's normal is the
+            // face normal, and it points away from the box's centre.
+            let winding = (q - p).cross(r - p);
+            assert!(winding.dot(n) > 0.0, "{t:?}");
+            assert!((p - centre).dot(n) > 0.0, "{t:?}");
+        }
     }
 }

@@ -270,6 +270,58 @@ impl Scene {
         let node = self.part(id).node;
         self.nodes[node.index()].world = world;
     }
+    /// Loads a mesh's geometry into a scene that holds its chunk table only
+    /// (a store's skeleton): `chunks` are the mesh's chunks in order, each
+    /// checked against its chunk's vertex and triangle counts (indices
+    /// below its vertices). Picking and collision then read it like any
+    /// loaded mesh. Fails, changing nothing, when a count differs.
+    pub fn load_mesh_geometry(
+        &mut self,
+        id: MeshId,
+        chunks: &[ChunkGeometry<'_>],
+    ) -> Result<(), SceneError> {
+        let m = &self.meshes[id.index()];
+        let invalid = |what: String| SceneError::Invalid {
+            what: format!("mesh {id} ({:?}): {what}", m.name),
+        };
+        if chunks.len() != m.chunks.len() {
+            return Err(invalid(format!(
+                "{} chunks given for {}",
+                chunks.len(),
+                m.chunks.len()
+            )));
+        }
+        for (c, g) in m.chunk_ids().zip(chunks) {
+            let chunk = &self.chunks[c.index()];
+            let vertices = (chunk.vertices.end - chunk.vertices.start) as usize;
+            let bad_index = g.indices.iter().any(|&i| i as usize >= vertices);
+            if g.positions.len() != vertices
+                || g.normals.len() != vertices
+                || g.indices.len() != 3 * chunk.triangle_count() as usize
+                || bad_index
+            {
+                return Err(invalid(format!(
+                    "chunk {c}'s geometry does not fit its table"
+                )));
+            }
+        }
+        let m = &mut self.meshes[id.index()];
+        m.positions = chunks.iter().flat_map(|g| g.positions).copied().collect();
+        m.normals = chunks.iter().flat_map(|g| g.normals).copied().collect();
+        m.indices = chunks.iter().flat_map(|g| g.indices).copied().collect();
+        Ok(())
+    }
+
+    /// Drops a mesh's geometry, keeping its chunk table (the inverse of
+    /// [`Scene::load_mesh_geometry`]).
+    pub fn unload_mesh_geometry(&mut self, id: MeshId) {
+        let m = &mut self.meshes[id.index()];
+        if m.triangles > 0 {
+            m.positions = Vec::new();
+            m.normals = Vec::new();
+            m.indices = Vec::new();
+        }
+    }
     /// Shows or hides a part.
     pub fn set_part_hidden(&mut self, id: PartId, hidden: bool) {
         self.parts[id.index()].hidden = hidden;

@@ -67,6 +67,7 @@ mod read;
 mod residency;
 mod save;
 mod skeleton;
+mod streamer;
 mod view;
 mod walk;
 mod write;
@@ -81,6 +82,7 @@ pub use priority::{Class, LoadOrder, Request};
 pub use read::{Store, StoreInfo};
 pub use residency::{Pacing, Residency, ResidencyOptions, ResidencyStats};
 pub use save::{SavedFormat, prepare_save, save_edits, save_scene};
+pub use streamer::Streamer;
 pub use view::{CameraFrame, View, Viewport, Wanted, wanted};
 pub use walk::{
     DrawError, Drawn, FrameReport, WalkOptions, WalkReport, WalkTotals, walk, walk_with,

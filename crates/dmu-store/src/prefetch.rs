@@ -38,6 +38,33 @@ pub struct PrefetchOptions {
     pub min_pixels: f64,
 }
 
+impl PrefetchOptions {
+    /// MMR's settings for `tree`: viewpoints a typical cell apart (the
+    /// median cell's largest extent), one second ahead, fast when covering a
+    /// cell in under a second, rebuilt past a 30-degree turn.
+    pub fn for_tree(tree: &Tree, min_pixels: f64) -> Self {
+        let mut sizes: Vec<f64> = tree
+            .cell_ids()
+            .map(|c| tree.cell_bounds(c).extent().max_element())
+            .filter(|s| s.is_finite())
+            .collect();
+        let spacing = if sizes.is_empty() {
+            1.0
+        } else {
+            let mid = sizes.len() / 2;
+            sizes.select_nth_unstable_by(mid, f64::total_cmp);
+            sizes[mid].max(f64::MIN_POSITIVE)
+        };
+        Self {
+            spacing,
+            horizon_s: 1.0,
+            fast_after_s: 1.0,
+            turn_deg: 30.0,
+            min_pixels,
+        }
+    }
+}
+
 /// Predicts where the camera goes and what it will want there.
 #[derive(Debug)]
 pub struct Prefetcher {

@@ -210,6 +210,33 @@ pub(crate) fn read(
     })
 }
 
+/// A chunk's table row, as the builder takes it.
+fn chunk_data(chunk: &dmu_scene::Chunk) -> ChunkData {
+    ChunkData {
+        material: chunk.material,
+        triangles: chunk.triangles.clone(),
+        vertices: chunk.vertices.clone(),
+        bounds: chunk.bounds,
+    }
+}
+
+/// `skeleton`'s materials, meshes (not loaded) and chunks, under a root
+/// node alone: no other nodes, no parts.
+pub(crate) fn chunk_tables(skeleton: &Scene) -> Scene {
+    let mut b = SceneBuilder::new(skeleton.name(), DEFAULT_CHUNK_TRIANGLES);
+    for m in skeleton.materials() {
+        b.add_material(m.name.clone(), m.base_color);
+    }
+    for mesh in skeleton.meshes() {
+        let table = mesh
+            .chunk_ids()
+            .map(|c| chunk_data(skeleton.chunk(c)))
+            .collect();
+        b.add_unloaded_mesh(mesh.name.clone(), table, mesh.degenerate_triangles);
+    }
+    b.finish()
+}
+
 /// The scene of `skeleton` with its geometry, chunk by chunk from `geometry`.
 pub(crate) fn with_geometry(
     skeleton: &Scene,
@@ -246,12 +273,7 @@ pub(crate) fn with_geometry(
                 out.positions.extend_from_slice(&g.positions);
                 out.normals.extend_from_slice(&g.normals);
                 out.indices.extend_from_slice(&g.indices);
-                out.chunks.push(ChunkData {
-                    material: chunk.material,
-                    triangles: chunk.triangles.clone(),
-                    vertices: chunk.vertices.clone(),
-                    bounds: chunk.bounds,
-                });
+                out.chunks.push(chunk_data(chunk));
             }
             Ok(out)
         })

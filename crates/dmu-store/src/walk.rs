@@ -18,11 +18,12 @@ use dmu_tree::Tree;
 
 use crate::error::WalkError;
 use crate::geometry::OwnedChunkGeometry;
-use crate::prefetch::{PrefetchOptions, Prefetcher};
-use crate::priority::{Class, LoadOrder, Request};
+use crate::prefetch::PrefetchOptions;
+use crate::priority::LoadOrder;
 use crate::read::Store;
 use crate::residency::{Pacing, Residency, ResidencyOptions};
-use crate::view::{CameraFrame, View, Viewport, Wanted, wanted};
+use crate::streamer::Streamer;
+use crate::view::{CameraFrame, View, Viewport, Wanted};
 
 /// Settings of [`walk`].
 #[derive(Clone, Copy, Debug, serde::Serialize)]
@@ -127,7 +128,7 @@ pub struct WalkReport {
 pub struct Drawn {
     /// Chunks the frame wanted to draw that were not resident.
     pub missing_chunks: u64,
-    /// Chunks drawn: requested as [`Class::Visible`] next frame.
+    /// Chunks drawn: requested as [`crate::Class::Visible`] next frame.
     pub visible: Vec<ChunkId>,
     /// Geometry in use until the frame ends (the loaders run meanwhile).
     pub pins: Vec<Arc<OwnedChunkGeometry>>,
@@ -176,7 +177,7 @@ pub fn walk_with(
 ) -> Result<WalkReport, WalkError> {
     let start = Instant::now();
     let scene = store.skeleton();
-    let residency = Residency::new(
+    let mut streamer = Streamer::new(
         Arc::clone(store),
         ResidencyOptions {
             budget_bytes: options.budget_bytes,
@@ -188,15 +189,11 @@ pub fn walk_with(
                 Pacing::Free
             },
         },
+        options.prefetch,
+        options.viewport,
+        options.min_pixels,
     );
-    let mut prefetcher = options
-        .prefetch
-        .map(|p| Prefetcher::new(p, options.viewport));
     let dt = 1.0 / options.frame_rate_hz;
-    let mut set = Wanted::default();
-    let mut visible_last = vec![false; scene.chunks().len()];
-    let mut visible_now: Vec<ChunkId> = Vec::new();
-    let mut requests: Vec<Request> = Vec::new();
     let mut frames = Vec::with_capacity(path.len());
     let mut loaded_before = 0;
     for (i, frame) in path.iter().enumerate() {
@@ -211,42 +208,12 @@ pub fn walk_with(
                 frame.fov_y_deg
             ),
         })?;
-        wanted(tree, scene, &view, options.min_pixels, false, &mut set);
-        requests.clear();
-        requests.extend(set.drawn.iter().map(|&(chunk, area_px)| Request {
-            chunk,
-            class: if visible_last[chunk.index()] {
-                Class::Visible
-            } else {
-                Class::InFrustum
-            },
-            area_px,
-        }));
-        requests.extend(set.subpixel.iter().map(|&(chunk, area_px)| Request {
-            chunk,
-            class: Class::Subpixel,
-            area_px,
-        }));
-        // Drawn last frame although culling no longer wants it (e.g. under the
-        // coverage threshold now): still the most likely to be seen again.
-        requests.extend(visible_now.iter().map(|&chunk| Request {
-            chunk,
-            class: Class::Visible,
-            area_px: 0.0,
-        }));
-        let rebuilt = match &mut prefetcher {
-            Some(p) => {
-                let rebuilt = p.update(tree, scene, &view, dt);
-                requests.extend_from_slice(p.requests());
-                rebuilt
-            }
-            None => false,
-        };
-        residency.request(&requests);
+        let rebuilt = streamer.request(tree, scene, &view, dt);
+        let (set, residency) = (streamer.wanted(), streamer.residency());
 
         // Draw: what is resident is used (pinned) until the frame ends.
         let drawn =
-            draw(i, &set, &residency).map_err(|source| WalkError::Draw { frame: i, source })?;
+            draw(i, set, residency).map_err(|source| WalkError::Draw { frame: i, source })?;
         let wanted_bytes = set
             .drawn
             .iter()
@@ -259,20 +226,14 @@ pub fn walk_with(
                 std::thread::sleep(frame_time.saturating_sub(frame_start.elapsed()));
             }
         }
-        for c in visible_now.drain(..) {
-            visible_last[c.index()] = false;
-        }
-        for &c in &drawn.visible {
-            if !visible_last[c.index()] {
-                visible_last[c.index()] = true;
-                visible_now.push(c);
-            }
-        }
+        let wanted_chunks = set.drawn.len() as u64;
+        streamer.drawn(&drawn.visible);
         let missing = drawn.missing_chunks;
         drop(drawn);
+        let residency = streamer.residency();
         let stats = residency.stats();
         frames.push(FrameReport {
-            wanted_chunks: set.drawn.len() as u64,
+            wanted_chunks,
             wanted_bytes,
             missing_chunks: missing,
             loaded_bytes: stats.loaded_file_bytes - loaded_before,
@@ -284,6 +245,7 @@ pub fn walk_with(
         loaded_before = stats.loaded_file_bytes;
         debug_assert_eq!(residency.validate(), Ok(()));
     }
+    let residency = streamer.residency();
     residency.validate()?;
     let stats = residency.stats();
     let warm = &frames[options.warmup_frames.min(frames.len())..];
@@ -304,7 +266,7 @@ pub fn walk_with(
         budget_bytes: options.budget_bytes,
         mean_queue_len: frames.iter().map(|f| f.queue_len as f64).sum::<f64>()
             / frames.len().max(1) as f64,
-        prefetch_rebuilds: prefetcher.as_ref().map_or(0, Prefetcher::rebuilds),
+        prefetch_rebuilds: streamer.prefetch_rebuilds(),
         failed_loads: stats.failures,
         wall_ms: start.elapsed().as_secs_f64() * 1e3,
     };

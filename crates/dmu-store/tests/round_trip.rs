@@ -199,3 +199,51 @@ fn saving_a_different_model_is_refused() {
         store.skeleton().parts().len()
     );
 }
+
+#[test]
+fn a_taken_skeleton_loads_mesh_by_mesh_and_picks_as_the_whole_scene() {
+    let scene = small_plant(60_000);
+    let (_dir, path) = stored(&scene, WriteOptions::default());
+    let mut store = Store::open(&path).unwrap();
+    let mut skeleton = store.take_skeleton();
+    // The store keeps its chunk tables only.
+    assert!(store.skeleton().parts().is_empty());
+    assert_eq!(store.skeleton().chunks(), scene.chunks());
+    assert_eq!(skeleton.parts().len(), scene.parts().len());
+    let tree = dmu_tree::Tree::build(&skeleton, Default::default());
+    let full_tree = dmu_tree::Tree::build(&scene, Default::default());
+    // Rays from above the plant's box down through it, a grid of them: the
+    // pick on the skeleton loads the meshes the ray meets before its hit
+    // until none is left, and must then equal the whole scene's pick.
+    let b = scene.world_bounds();
+    let mut loads = 0;
+    for i in 0..12 {
+        for j in 0..12 {
+            let x = b.min.x + (b.max.x - b.min.x) * (f64::from(i) + 0.5) / 12.0;
+            let y = b.min.y + (b.max.y - b.min.y) * (f64::from(j) + 0.37) / 12.0;
+            let ray = dmu_geom::Ray3d::new(
+                DVec3::new(x, y, b.max.z + 1000.0),
+                DVec3::new(0.1, -0.05, -1.0),
+            );
+            let hit = loop {
+                let (hit, unloaded) = tree.pick_loaded(&skeleton, &ray, &[]);
+                let Some(&first) = unloaded.first() else {
+                    break hit;
+                };
+                let mesh = skeleton.part(tree.entries()[first.0 as usize].part).mesh;
+                let chunks = store.mesh_geometry(mesh).unwrap();
+                let borrowed: Vec<_> = chunks.iter().map(|c| c.geometry()).collect();
+                skeleton.load_mesh_geometry(mesh, &borrowed).unwrap();
+                assert_eq!(skeleton.mesh(mesh), scene.mesh(mesh));
+                loads += 1;
+            };
+            assert_eq!(hit, full_tree.pick(&scene, &ray), "ray {i}, {j}");
+        }
+    }
+    assert!(loads > 0);
+    // Unloading keeps the chunk table; a wrong chunk count is refused.
+    let m = MeshId::from_index(0);
+    skeleton.unload_mesh_geometry(m);
+    assert!(!skeleton.mesh(m).is_loaded() || skeleton.mesh(m).triangles == 0);
+    assert!(skeleton.load_mesh_geometry(m, &[]).is_err() || scene.mesh(m).chunks.is_empty());
+}

@@ -7,7 +7,7 @@ use dmu_scene::{ChunkId, PartId, Scene};
 use glam::DVec3;
 
 use crate::smallest::Smallest;
-use crate::tree::{CellId, Kind, Tree};
+use crate::tree::{CellId, EntryId, Kind, Tree};
 
 /// A ray hit on a triangle.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -88,15 +88,38 @@ impl Tree {
     /// negative side of any of `section`'s planes (cut away, not drawn) are
     /// passed through, as the eye sees through them. No planes: [`Tree::pick`].
     pub fn pick_kept(&self, scene: &Scene, ray: &Ray3d, section: &[Plane]) -> Option<Hit> {
+        self.pick_loaded(scene, ray, section).0
+    }
+
+    /// [`Tree::pick_kept`] over the parts whose mesh is loaded (a store's
+    /// skeleton loads meshes on demand), and the chunk instances whose mesh
+    /// is not loaded that the ray meets before that hit (all it meets when
+    /// there is none), nearest first. With none, the hit is exact; else
+    /// loading their meshes and picking again may find a nearer one.
+    pub fn pick_loaded(
+        &self,
+        scene: &Scene,
+        ray: &Ray3d,
+        section: &[Plane],
+    ) -> (Option<Hit>, Vec<EntryId>) {
         let mut best: Option<Hit> = None;
-        self.ray_search(scene, ray, &mut |hit| {
-            let kept = section.iter().all(|p| p.signed_distance(hit.point) >= 0.0);
-            if kept && best.is_none_or(|b| hit.t < b.t) {
-                best = Some(hit);
-            }
-            best.map_or(f64::INFINITY, |b| b.t)
-        });
-        best
+        let mut unloaded = Vec::new();
+        self.ray_search(
+            scene,
+            ray,
+            &mut |hit| {
+                let kept = section.iter().all(|p| p.signed_distance(hit.point) >= 0.0);
+                if kept && best.is_none_or(|b| hit.t < b.t) {
+                    best = Some(hit);
+                }
+                best.map_or(f64::INFINITY, |b| b.t)
+            },
+            &mut |entry, t| unloaded.push((t, entry)),
+        );
+        let limit = best.map_or(f64::INFINITY, |b| b.t);
+        unloaded.retain(|&(t, _)| t < limit);
+        unloaded.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.0.cmp(&b.1.0)));
+        (best, unloaded.into_iter().map(|(_, e)| e).collect())
     }
 
     /// Every hit of a world ray on visible parts, nearest first. A ray through
@@ -104,10 +127,15 @@ impl Tree {
     /// same point: such hits (same part, `t` equal to 1e-12 relative) count once.
     pub fn pick_all(&self, scene: &Scene, ray: &Ray3d) -> Vec<Hit> {
         let mut hits = Vec::new();
-        self.ray_search(scene, ray, &mut |hit| {
-            hits.push(hit);
-            f64::INFINITY
-        });
+        self.ray_search(
+            scene,
+            ray,
+            &mut |hit| {
+                hits.push(hit);
+                f64::INFINITY
+            },
+            &mut |_, _| {},
+        );
         hits.sort_by(|a, b| {
             a.part
                 .cmp(&b.part)
@@ -122,8 +150,16 @@ impl Tree {
     /// Best-first traversal: nodes by the distance at which the ray enters them.
     /// `found` gets each hit and returns the farthest `t` still of interest (the
     /// hit's own `t` for the nearest hit, infinity for all hits); the search stops
-    /// once the next node starts beyond it.
-    fn ray_search(&self, scene: &Scene, ray: &Ray3d, found: &mut dyn FnMut(Hit) -> f64) {
+    /// once the next node starts beyond it. Chunk instances whose mesh is not
+    /// loaded are not searched: `unloaded` gets each with the `t` at which
+    /// the ray enters its box.
+    fn ray_search(
+        &self,
+        scene: &Scene,
+        ray: &Ray3d,
+        found: &mut dyn FnMut(Hit) -> f64,
+        unloaded: &mut dyn FnMut(EntryId, f64),
+    ) {
         if !(ray.origin.is_finite() && ray.dir.is_finite()) || ray.dir == DVec3::ZERO {
             return;
         }
@@ -152,6 +188,16 @@ impl Tree {
                 Kind::Leaf(cell) => {
                     for (part, entries) in self.cell_groups(CellId(cell)) {
                         if scene.part(part).hidden {
+                            continue;
+                        }
+                        if !scene.part_mesh(part).is_loaded() {
+                            for &e in entries {
+                                if let Some((t, _)) =
+                                    test.hit(&self.entries[e as usize].bounds, t_max)
+                                {
+                                    unloaded(EntryId(e), t);
+                                }
+                            }
                             continue;
                         }
                         let world = scene.part_world(part);

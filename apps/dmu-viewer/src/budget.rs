@@ -1,0 +1,250 @@
+//! The viewer under `--memory-budget`: the model is a store's skeleton, its
+//! chunks stream in through the store's residency manager (the same
+//! [`dmu_store::Streamer`] as `dmu walk`), and a chunk wanted but not yet
+//! loaded is drawn as its box (a stand-in) unless stand-ins are off, when it
+//! is a hole. The budget is the whole process's: what the skeleton, the tree
+//! and the renderer take once the first frame is drawn (with stand-ins only),
+//! the tools' geometry cap and a frame reserve come off it, and the residency
+//! gets half of the rest (the GPU pool holds a second copy of what is
+//! resident; on lavapipe in the same memory).
+
+use std::sync::Arc;
+
+use dmu_render::{Camera, GeometryPool};
+use dmu_scene::{ChunkId, Scene};
+use dmu_store::{
+    CameraFrame, LoadOrder, Pacing, PrefetchOptions, ResidencyOptions, Store, Streamer, View,
+    Viewport,
+};
+use dmu_tree::{EntryId, Tree};
+use serde_json::{Value, json};
+
+/// The coverage threshold under a memory budget unless `--min-pixels` says
+/// otherwise, pixels (box diagonal).
+pub const MIN_PIXELS: f64 = 2.0;
+
+/// Bytes kept for a frame's transient memory (the window's surfaces, egui,
+/// command buffers) besides what is measured after the first frame.
+pub const FRAME_RESERVE_BYTES: u64 = 96 << 20;
+
+/// The share of the budget the tools' meshes (picks, checks) may keep
+/// loaded: one sixteenth.
+pub fn tool_cap_bytes(budget: u64) -> u64 {
+    budget / 16
+}
+
+/// Streaming state of a viewer under a memory budget.
+#[derive(Debug)]
+pub struct Streaming {
+    streamer: Streamer,
+    store: Arc<Store>,
+    viewport: Viewport,
+    min_pixels: f64,
+    stand_ins: bool,
+    /// Per chunk: the GPU pool holds its stand-in, not its geometry.
+    standing: Vec<bool>,
+    standing_list: Vec<ChunkId>,
+    budget_bytes: u64,
+    residency_budget_bytes: u64,
+    fixed_bytes: u64,
+    sized: bool,
+    frames: u64,
+    frames_with_hole: u64,
+    frames_with_standin: u64,
+    holes: u64,
+    stand_ins_drawn: u64,
+}
+
+impl Streaming {
+    /// Streaming from `store` for a process that must stay within
+    /// `budget_bytes`; until [`Streaming::size`] the residency may hold
+    /// nothing (its budget is 0), so the first frame draws stand-ins only
+    /// and shows what the renderer itself takes.
+    pub fn new(
+        store: Arc<Store>,
+        tree: &Tree,
+        budget_bytes: u64,
+        viewport: Viewport,
+        min_pixels: f64,
+        stand_ins: bool,
+    ) -> Self {
+        let chunks = store.skeleton().chunks().len();
+        Self {
+            streamer: Self::streamer(Arc::clone(&store), tree, 0, viewport, min_pixels),
+            store,
+            viewport,
+            min_pixels,
+            stand_ins,
+            standing: vec![false; chunks],
+            standing_list: Vec::new(),
+            budget_bytes,
+            residency_budget_bytes: 0,
+            fixed_bytes: 0,
+            sized: false,
+            frames: 0,
+            frames_with_hole: 0,
+            frames_with_standin: 0,
+            holes: 0,
+            stand_ins_drawn: 0,
+        }
+    }
+
+    fn streamer(
+        store: Arc<Store>,
+        tree: &Tree,
+        budget_bytes: u64,
+        viewport: Viewport,
+        min_pixels: f64,
+    ) -> Streamer {
+        Streamer::new(
+            store,
+            ResidencyOptions {
+                budget_bytes,
+                loader_threads: 2,
+                order: LoadOrder::Visibility,
+                pacing: Pacing::Free,
+            },
+            Some(PrefetchOptions::for_tree(tree, min_pixels)),
+            viewport,
+            min_pixels,
+        )
+    }
+
+    /// Whether the residency has its budget yet.
+    pub fn is_sized(&self) -> bool {
+        self.sized
+    }
+
+    /// Gives the residency its budget once the first frame is drawn:
+    /// `fixed_bytes` are in use now (the resident set: skeleton, tree,
+    /// renderer, window, a frame drawn), the tools' cap and a frame reserve
+    /// come off too, and the residency gets half of what is left. Fails when
+    /// that is under 16 MB.
+    pub fn size(&mut self, tree: &Tree, fixed_bytes: u64) -> anyhow::Result<()> {
+        let tool_bytes = tool_cap_bytes(self.budget_bytes);
+        let taken = fixed_bytes + tool_bytes + FRAME_RESERVE_BYTES;
+        let left = self.budget_bytes.saturating_sub(taken);
+        anyhow::ensure!(
+            left >= 16 << 20,
+            "--memory-budget {:.0} MB: the model's structure, its tree and the renderer \
+             take {:.0} MB once a frame is drawn; with {:.0} MB for picks and checks and \
+             {:.0} MB for frames, under 16 MB would be left for geometry",
+            self.budget_bytes as f64 / 1e6,
+            fixed_bytes as f64 / 1e6,
+            tool_bytes as f64 / 1e6,
+            FRAME_RESERVE_BYTES as f64 / 1e6
+        );
+        self.fixed_bytes = fixed_bytes;
+        self.residency_budget_bytes = left / 2;
+        // Nothing is resident under the first budget (0): the pool holds
+        // stand-ins only, which stay listed.
+        self.streamer = Self::streamer(
+            Arc::clone(&self.store),
+            tree,
+            self.residency_budget_bytes,
+            self.viewport,
+            self.min_pixels,
+        );
+        self.sized = true;
+        Ok(())
+    }
+
+    /// Whether chunks not resident are drawn as their boxes.
+    pub fn stand_ins(&self) -> bool {
+        self.stand_ins
+    }
+
+    /// The residency manager.
+    pub fn residency(&self) -> &dmu_store::Residency {
+        self.streamer.residency()
+    }
+
+    /// Before a frame: drops from the GPU pool what the residency evicted and
+    /// the stand-ins of chunks now resident, then requests what `camera`
+    /// wants (`dt` seconds after the last frame). Fails with the first load
+    /// error (a store changed or truncated on disk).
+    pub fn begin_frame(
+        &mut self,
+        pool: &mut GeometryPool,
+        tree: &Tree,
+        scene: &Scene,
+        camera: &Camera,
+        dt: f64,
+    ) -> anyhow::Result<()> {
+        let residency = self.streamer.residency();
+        if let Some(e) = residency.first_error() {
+            anyhow::bail!("{e}");
+        }
+        for c in residency.take_evicted() {
+            pool.evict(c);
+        }
+        let standing = &mut self.standing;
+        self.standing_list.retain(|&c| {
+            let resident = residency.is_resident(c);
+            if resident {
+                pool.evict(c);
+                standing[c.index()] = false;
+            }
+            !resident
+        });
+        let frame = CameraFrame {
+            eye: camera.eye,
+            target: camera.target,
+            up: camera.up,
+            fov_y_deg: camera.fov_y_rad.to_degrees(),
+        };
+        if let Some(view) = View::new(&frame, self.viewport) {
+            self.streamer.request(tree, scene, &view, dt);
+        }
+        Ok(())
+    }
+
+    /// After a frame: `stood_in` got stand-ins in the pool, `drawn` are the
+    /// chunk instances the panes drew (the first pane's are requested as
+    /// visible next frame), `not_resident` the draws with nothing to draw.
+    pub fn end_frame(
+        &mut self,
+        tree: &Tree,
+        stood_in: Vec<ChunkId>,
+        drawn: &[Vec<EntryId>],
+        not_resident: u64,
+    ) {
+        for c in stood_in {
+            if !self.standing[c.index()] {
+                self.standing[c.index()] = true;
+                self.standing_list.push(c);
+            }
+        }
+        let chunk = |e: &EntryId| tree.entries()[e.0 as usize].chunk;
+        let stand_ins = drawn
+            .iter()
+            .flatten()
+            .filter(|e| self.standing[chunk(e).index()])
+            .count() as u64;
+        self.frames += 1;
+        self.holes += not_resident;
+        self.stand_ins_drawn += stand_ins;
+        self.frames_with_hole += u64::from(not_resident > 0);
+        self.frames_with_standin += u64::from(stand_ins > 0);
+        let visible: Vec<ChunkId> = drawn.first().into_iter().flatten().map(chunk).collect();
+        self.streamer.drawn(&visible);
+    }
+
+    /// The report's facts.
+    pub fn json(&self) -> Value {
+        let stats = self.streamer.residency().stats();
+        json!({
+            "memory_budget_bytes": self.budget_bytes,
+            "fixed_bytes": self.fixed_bytes,
+            "residency_budget_bytes": self.residency_budget_bytes,
+            "stand_ins": if self.stand_ins { "box" } else { "none" },
+            "frames": self.frames,
+            "frames_with_hole": self.frames_with_hole,
+            "frames_with_standin": self.frames_with_standin,
+            "holes": self.holes,
+            "stand_ins_drawn": self.stand_ins_drawn,
+            "residency": stats,
+            "prefetch_rebuilds": self.streamer.prefetch_rebuilds(),
+        })
+    }
+}
