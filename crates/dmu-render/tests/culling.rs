@@ -8,7 +8,7 @@ use dmu_samples::{PlantOptions, plant};
 use dmu_scene::Scene;
 use dmu_tree::{EntryId, Tree, TreeOptions};
 
-use crate::support::{Rig, camera, differing, image_path};
+use crate::support::{EveryOther, Rig, camera, differing, image_path};
 
 pub fn small_plant() -> (Scene, Tree) {
     let scene = plant(&PlantOptions {
@@ -168,19 +168,6 @@ fn views_are_independent() {
 /// once everything is resident the image converges to the unculled one.
 #[test]
 fn occlusion_culling_survives_geometry_that_is_not_resident() {
-    use dmu_render::GeometrySource;
-    use dmu_scene::{ChunkGeometry, ChunkId};
-
-    struct EveryOther<'a>(&'a Scene);
-    impl GeometrySource for EveryOther<'_> {
-        fn chunk_geometry(&self, chunk: ChunkId) -> Option<ChunkGeometry<'_>> {
-            chunk
-                .index()
-                .is_multiple_of(2)
-                .then(|| self.0.chunk_geometry(chunk))?
-        }
-    }
-
     let (scene, tree) = small_plant();
     let size = (480, 270);
     let Some(mut rig) = Rig::new(&scene, &tree, size) else {
@@ -191,10 +178,7 @@ fn occlusion_culling_survives_geometry_that_is_not_resident() {
     let mut view = View::new(cam, size, Culling::Occlusion);
     view.options.adaptive = false;
     view.options.requery_interval = 1;
-    // The reference frame uploaded everything: drop the withheld chunks.
-    for c in (1..scene.chunks().len()).step_by(2) {
-        rig.renderer.geometry_pool().evict(ChunkId::from_index(c));
-    }
+    rig.evict_odd_chunks(&scene);
     let partial = EveryOther(&scene);
     let mut missing = 0;
     for _ in 0..6 {

@@ -10,7 +10,7 @@ use dmu_scene::PartId;
 use dmu_tree::EntryId;
 
 use crate::culling::{small_plant, viewpoints};
-use crate::support::{Rig, differing, image_path};
+use crate::support::{EveryOther, Rig, differing, image_path};
 
 /// The newly visible are drawn in the frame that finds them: from its first
 /// frame on, an `hzb` view draws the unculled image pixel for pixel and
@@ -252,19 +252,6 @@ fn auto_times_each_mode_then_keeps_the_fastest() {
 /// everything is resident the frames equal the unculled image.
 #[test]
 fn hzb_keeps_chunks_without_geometry_wanted() {
-    use dmu_render::GeometrySource;
-    use dmu_scene::{ChunkGeometry, ChunkId, Scene};
-
-    struct EveryOther<'a>(&'a Scene);
-    impl GeometrySource for EveryOther<'_> {
-        fn chunk_geometry(&self, chunk: ChunkId) -> Option<ChunkGeometry<'_>> {
-            chunk
-                .index()
-                .is_multiple_of(2)
-                .then(|| self.0.chunk_geometry(chunk))?
-        }
-    }
-
     let (scene, tree) = small_plant();
     let size = (480, 270);
     let Some(mut rig) = Rig::new(&scene, &tree, size) else {
@@ -272,9 +259,7 @@ fn hzb_keeps_chunks_without_geometry_wanted() {
     };
     let cam = viewpoints()[0];
     let none = rig.shot(cam, Culling::None, &scene, &tree);
-    for c in (1..scene.chunks().len()).step_by(2) {
-        rig.renderer.geometry_pool().evict(ChunkId::from_index(c));
-    }
+    rig.evict_odd_chunks(&scene);
     let mut view = View::new(cam, size, Culling::Hzb);
     let partial = EveryOther(&scene);
     for _ in 0..3 {

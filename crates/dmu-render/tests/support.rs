@@ -119,6 +119,31 @@ impl Rig {
     }
 }
 
+/// A source holding only every other chunk of a scene: geometry that
+/// arrives late.
+pub struct EveryOther<'a>(pub &'a Scene);
+
+impl dmu_render::GeometrySource for EveryOther<'_> {
+    fn chunk_geometry(&self, chunk: dmu_scene::ChunkId) -> Option<dmu_scene::ChunkGeometry<'_>> {
+        chunk
+            .index()
+            .is_multiple_of(2)
+            .then(|| self.0.chunk_geometry(chunk))?
+    }
+}
+
+impl Rig {
+    /// Drops the chunks [`EveryOther`] withholds from the GPU pool (a
+    /// reference frame uploaded everything).
+    pub fn evict_odd_chunks(&mut self, scene: &Scene) {
+        for c in (1..scene.chunks().len()).step_by(2) {
+            self.renderer
+                .geometry_pool()
+                .evict(dmu_scene::ChunkId::from_index(c));
+        }
+    }
+}
+
 /// Pixels that differ.
 pub fn differing(a: &image::RgbaImage, b: &image::RgbaImage) -> Vec<(u32, u32)> {
     a.enumerate_pixels()
