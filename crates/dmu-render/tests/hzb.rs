@@ -202,8 +202,8 @@ fn hzb_falls_back_to_frustum_where_depth_cannot_be_read() {
 }
 
 /// `auto` times hzb, chc and frustum in turn (four frames each), then runs
-/// the one its own figures say is fastest, reports what each took, and its
-/// frames stay exact.
+/// the one its own figures say is fastest (a mode keeps at least four
+/// frames), reports what each took, and its frames stay exact.
 #[test]
 fn auto_times_each_mode_then_keeps_the_fastest() {
     let (scene, tree) = small_plant();
@@ -221,6 +221,10 @@ fn auto_times_each_mode_then_keeps_the_fastest() {
     assert_eq!(&used[..4], &[Culling::Hzb; 4], "{used:?}");
     assert_eq!(&used[4..8], &[Culling::Occlusion; 4], "{used:?}");
     assert_eq!(&used[8..12], &[Culling::Frustum; 4], "{used:?}");
+    // A mode runs at least four frames once switched to (its times count
+    // from its third); after that a frame runs the fastest by the times
+    // the frame before reported.
+    let mut run = 0;
     for (k, pair) in frames.windows(2).enumerate().skip(11) {
         let a = pair[0].auto.expect("auto reports its times");
         assert!(
@@ -236,8 +240,17 @@ fn auto_times_each_mode_then_keeps_the_fastest() {
         .min_by(|x, y| x.0.total_cmp(&y.0))
         .unwrap()
         .1;
+        run = if k == 11 || a.ran != used[k - 1] {
+            1
+        } else {
+            run + 1
+        };
         let ran = pair[1].auto.unwrap().ran;
-        assert_eq!(ran, fastest, "frame {}: {a:?}", k + 2);
+        if ran != a.ran || run >= 4 {
+            assert_eq!(ran, fastest, "frame {}: {a:?} after {run} frames", k + 2);
+        } else {
+            assert_eq!(ran, a.ran, "frame {}: a mode runs four frames", k + 2);
+        }
     }
     let last = frames.last().unwrap();
     if last.auto.unwrap().ran != Culling::Occlusion {
