@@ -252,30 +252,15 @@ impl Renderer {
                 &mut stats,
             )
         } else {
-            // Empty where no proxy may draw (see `proxy_fit`).
-            let fit = match culling {
-                Culling::None => Vec::new(),
-                _ => self.proxy_fit(&self.hierarchy, &cull, target),
-            };
-            let with_proxies = !fit.is_empty();
-            let mut proxy_nodes = Vec::new();
-            let mut draws = match culling {
-                Culling::None => self.all_draws(scene, tree, &cull, &mut stats),
-                _ if with_proxies => {
-                    let (draws, nodes) = self.proxy_draws(scene, tree, &cull, &fit, &mut stats);
-                    proxy_nodes = nodes;
-                    draws
-                }
-                _ => self.frustum_draws(scene, tree, &cull, &mut stats),
-            };
-            sort_draws(&self.hierarchy, &cell_distance, &mut draws);
-            if !with_proxies {
-                stats.triangles_in_frustum = draws
-                    .iter()
-                    .map(|d| u64::from(tree.entries()[d.entry as usize].triangles))
-                    .sum();
-            }
-            let frames = self.proxy_frames(&self.hierarchy, &mut proxy_nodes, &cull);
+            let (draws, proxy_nodes, frames) = self.candidates(
+                culling,
+                scene,
+                tree,
+                &cull,
+                target,
+                &cell_distance,
+                &mut stats,
+            );
             stats.proxies_drawn = proxy_nodes.len() as u64;
             view.drawn.extend(draws.iter().map(|d| d.entry));
             // A proxy draws the chunk instances below it, approximated.
@@ -529,6 +514,51 @@ impl Renderer {
         cull.proxy_frames(&origins)
     }
 
+    /// What a frame without queries draws under `culling`: the chunk
+    /// instances in canonical order, and the proxies (mirror nodes, front
+    /// to back) drawn instead of the rest with their frames in each eye's
+    /// view space. `None` takes every chunk instance and no proxy; the other
+    /// modes take the frustum's, proxies where they fit (see `proxy_fit`).
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "the frame's context, passed through once"
+    )]
+    fn candidates(
+        &self,
+        culling: Culling,
+        scene: &Scene,
+        tree: &Tree,
+        cull: &Cull,
+        target: RoundTarget<'_>,
+        cell_distance: &[f64],
+        stats: &mut FrameStats,
+    ) -> (Vec<Draw>, Vec<u32>, Vec<QueryBox>) {
+        // Empty where no proxy may draw.
+        let fit = match culling {
+            Culling::None => Vec::new(),
+            _ => self.proxy_fit(&self.hierarchy, cull, target),
+        };
+        let mut proxy_nodes = Vec::new();
+        let mut draws = match culling {
+            Culling::None => self.all_draws(scene, tree, cull, stats),
+            _ if !fit.is_empty() => {
+                let (draws, nodes) = self.proxy_draws(scene, tree, cull, &fit, stats);
+                proxy_nodes = nodes;
+                draws
+            }
+            _ => self.frustum_draws(scene, tree, cull, stats),
+        };
+        sort_draws(&self.hierarchy, cell_distance, &mut draws);
+        if fit.is_empty() {
+            stats.triangles_in_frustum = draws
+                .iter()
+                .map(|d| u64::from(tree.entries()[d.entry as usize].triangles))
+                .sum();
+        }
+        let frames = self.proxy_frames(&self.hierarchy, &mut proxy_nodes, cull);
+        (draws, proxy_nodes, frames)
+    }
+
     /// Two-pass hierarchical-Z occlusion culling ([`crate::hzb`]): the
     /// frustum's candidates (chunk instances and proxies) visible last frame,
     /// or with an eye near their box, are drawn first in canonical order;
@@ -552,20 +582,15 @@ impl Renderer {
         stats: &mut FrameStats,
     ) -> Result<(), RenderError> {
         let frame = view.frame;
-        let fit = self.proxy_fit(&self.hierarchy, cull, target);
-        let (mut draws, mut proxy_nodes) = if fit.is_empty() {
-            (self.frustum_draws(scene, tree, cull, stats), Vec::new())
-        } else {
-            self.proxy_draws(scene, tree, cull, &fit, stats)
-        };
-        sort_draws(&self.hierarchy, cell_distance, &mut draws);
-        if fit.is_empty() {
-            stats.triangles_in_frustum = draws
-                .iter()
-                .map(|d| u64::from(tree.entries()[d.entry as usize].triangles))
-                .sum();
-        }
-        let frames = self.proxy_frames(&self.hierarchy, &mut proxy_nodes, cull);
+        let (draws, proxy_nodes, frames) = self.candidates(
+            Culling::Hzb,
+            scene,
+            tree,
+            cull,
+            target,
+            cell_distance,
+            stats,
+        );
         let h = &self.hierarchy;
         if view.proxy_visible.len() != h.nodes.len() {
             view.proxy_visible = vec![0; h.nodes.len()];
