@@ -24,6 +24,7 @@ pub struct Capture {
     size: (u32, u32),
     color: wgpu::Texture,
     ids: wgpu::Texture,
+    depth: wgpu::Texture,
     /// Colour and depth views of each layer alone.
     layers: Vec<(wgpu::TextureView, wgpu::TextureView)>,
     ids_view: wgpu::TextureView,
@@ -74,6 +75,7 @@ impl Capture {
             }),
             color,
             ids,
+            depth,
         }
     }
 
@@ -152,6 +154,17 @@ impl Capture {
         let bytes = read_texture(device, queue, &self.color, self.size, layer, "colour image")?;
         Ok(image::RgbaImage::from_raw(self.size.0, self.size.1, bytes)
             .expect("readback has width * height * 4 bytes"))
+    }
+
+    /// The depth image (reverse-Z: 1 at the near plane, 0 where nothing
+    /// was drawn), rows from the top.
+    pub fn read_depth(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+    ) -> Result<Vec<f32>, RenderError> {
+        let bytes = read_texture(device, queue, &self.depth, self.size, 0, "depth image")?;
+        Ok(bytemuck::pod_collect_to_vec(&bytes))
     }
 
     /// The id image.

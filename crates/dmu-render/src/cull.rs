@@ -9,6 +9,7 @@ use dmu_tree::{EntryVisibility, Tree};
 use glam::{DAffine3, DVec3};
 
 use crate::capture::{Capture, IdImage};
+use crate::farfield::{FarCut, NearField};
 use crate::geometry::GeometrySource;
 use crate::gpu::QueryBox;
 use crate::hierarchy::{Hierarchy, NodeKind};
@@ -38,6 +39,9 @@ struct Cull {
     lod_error_px: f64,
     /// The view's section planes (what is below one is cut away).
     section: Vec<Plane>,
+    /// What a far field takes over: the frame draws its near field, or a
+    /// capture what lies beyond.
+    far: FarCut,
 }
 
 impl Cull {
@@ -71,6 +75,22 @@ impl Cull {
             near_reach: view.near_reach(),
             lod_error_px: knobs.lod_error_px,
             section: view.section.clone(),
+            far: view
+                .far_only
+                .clone()
+                .map(FarCut::FarOnly)
+                .unwrap_or_default(),
+        }
+    }
+
+    /// True when a far-field capture leaves the chunk instance out (it
+    /// touches the cull box or its part is left out).
+    fn far_cut(&self, entry: &dmu_tree::Entry) -> bool {
+        match &self.far {
+            FarCut::FarOnly(f) => {
+                entry.bounds.overlaps(&f.near_box) || f.excluded.contains(&entry.part.0)
+            }
+            _ => false,
         }
     }
 
@@ -157,6 +177,46 @@ impl Cull {
     }
 }
 
+/// The near field of a frame drawing a far field: the chunk instances
+/// touching the cull box and those of the parts drawn wherever they are, in
+/// the frustum, covering enough pixels, not hidden, not cut away. Found with
+/// the tree's box query, so the cost follows the cull box, not the model.
+fn near_draws(
+    scene: &Scene,
+    tree: &Tree,
+    cull: &Cull,
+    near: &NearField,
+    stats: &mut FrameStats,
+) -> Vec<Draw> {
+    let mut ids = Vec::new();
+    tree.entries_in_box(&near.near_box, &mut ids);
+    for &p in &near.always {
+        ids.extend(tree.part_entries(dmu_scene::PartId::from_index(p as usize)));
+    }
+    ids.sort_unstable();
+    ids.dedup();
+    let mut draws = Vec::with_capacity(ids.len());
+    for e in ids {
+        let entry = &tree.entries()[e.0 as usize];
+        stats.nodes_visited += 1;
+        if !cull.frustum.intersects_aabb(&entry.bounds) {
+            stats.culled_frustum += 1;
+        } else if cull.too_small(&entry.bounds) {
+            stats.culled_coverage += 1;
+        } else if scene.part(entry.part).hidden {
+            stats.hidden += 1;
+        } else if cull.cut_away(&entry.bounds) {
+            stats.culled_section += 1;
+        } else {
+            draws.push(Draw {
+                entry: e.0,
+                query: false,
+            });
+        }
+    }
+    draws
+}
+
 /// The canonical draw order of every mode: cells front to back by box
 /// distance, then by cell and entry. Modes that draw the same visible set draw it in
 /// the same order, so depth ties resolve alike and their images are equal.
@@ -209,14 +269,23 @@ impl Renderer {
         };
         stats.lod_error_px = knobs.lod_error_px;
         stats.min_pixels = knobs.min_pixels;
-        let cull = Cull::new(view, ipd, knobs);
+        let mut cull = Cull::new(view, ipd, knobs);
         let cell_distance = self.cell_distances(cull.eye());
         // The mode of this frame: the view's, or the one `auto` runs now.
         let culling = match view.culling {
             Culling::Auto => view.auto.mode(),
             c => c,
         };
-        let use_queries = culling == Culling::Occlusion && view.decision.enabled;
+        self.sync_far(scene, tree);
+        let near = match culling {
+            Culling::None => None,
+            _ if target.eye_count() > 1 => None,
+            _ => self.near_field(view),
+        };
+        if let Some(near) = &near {
+            cull.far = FarCut::Near(near.clone());
+        }
+        let use_queries = culling == Culling::Occlusion && view.decision.enabled && near.is_none();
         let mut gpu_state = self.prepare_view(view, scene, cull.eye_views());
         view.drawn.clear();
         let hzb = culling == Culling::Hzb
@@ -294,6 +363,11 @@ impl Renderer {
         };
         view.gpu = Some(gpu_state);
         outcome?;
+        if let Some(near) = &near {
+            stats.far_field = true;
+            stats.far_field_moved_parts = near.always.len() as u64;
+            stats.far_field_triangles = self.draw_far_field(view, target.all())?;
+        }
         stats.upload_ms += proxy_time.as_secs_f64() * 1e3;
         stats.proxies_stale = self.proxies.as_ref().map_or(0, |p| p.cpu.stats().stale);
         stats.cpu_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -422,6 +496,7 @@ impl Renderer {
                     }
                     _ if scene.part(entry.part).hidden => stats.hidden += 1,
                     _ if cull.cut_away(&entry.bounds) => stats.culled_section += 1,
+                    _ if cull.far_cut(entry) => {}
                     EntryVisibility::InFrustum { wanted: true, .. } => draws.push(Draw {
                         entry: e.0,
                         query: false,
@@ -534,12 +609,13 @@ impl Renderer {
         stats: &mut FrameStats,
     ) -> (Vec<Draw>, Vec<u32>, Vec<QueryBox>) {
         // Empty where no proxy may draw.
-        let fit = match culling {
-            Culling::None => Vec::new(),
+        let fit = match (culling, &cull.far) {
+            (Culling::None, _) | (_, FarCut::Near(_) | FarCut::FarOnly(_)) => Vec::new(),
             _ => self.proxy_fit(&self.hierarchy, cull, target),
         };
         let mut proxy_nodes = Vec::new();
         let mut draws = match culling {
+            _ if let FarCut::Near(near) = &cull.far => near_draws(scene, tree, cull, near, stats),
             Culling::None => self.all_draws(scene, tree, cull, stats),
             _ if !fit.is_empty() => {
                 let (draws, nodes) = self.proxy_draws(scene, tree, cull, &fit, stats);

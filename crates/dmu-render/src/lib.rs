@@ -88,6 +88,7 @@ mod capture;
 mod cull;
 mod device;
 mod error;
+mod farfield;
 mod geometry;
 mod gpu;
 mod hierarchy;
@@ -105,6 +106,7 @@ pub use capture::{
 pub use device::{OPTIONAL_FEATURES, headless_device};
 pub use dmu_geom::Camera;
 pub use error::RenderError;
+pub use farfield::{FAR_FIELD_RESOLUTIONS, FarField, FarFieldBuild, FarFieldOptions};
 pub use geometry::{GeometryPool, GeometrySource};
 pub use hierarchy::Hierarchy;
 pub use proxy::{CALM_TICKS, Proxies, ProxyOptions, ProxyStats};

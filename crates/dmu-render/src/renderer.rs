@@ -311,6 +311,10 @@ pub struct Renderer {
     pub(crate) proxies: Option<ProxyGpu>,
     /// The compute pipelines of `hzb` frames, made on the first.
     pub(crate) hzb: Option<crate::hzb::HzbPipelines>,
+    /// Moved parts and uploaded far fields, once far fields are enabled.
+    pub(crate) far: Option<crate::farfield::FarState>,
+    /// The far-field pipeline, made when far fields are enabled.
+    pub(crate) far_pipeline: Option<crate::farfield::FarPipeline>,
 }
 
 /// Proxies and the vertex and index buffer of each current one (by mirror node).
@@ -577,6 +581,8 @@ impl Renderer {
             proxy,
             proxies: None,
             hzb: None,
+            far: None,
+            far_pipeline: None,
             pool: GeometryPool::new(scene.chunks().len(), options.page_bytes, options.lod_levels),
             hierarchy: Hierarchy::default(),
             timestamp_period_ns: device

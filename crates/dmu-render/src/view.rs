@@ -206,6 +206,14 @@ pub struct FrameStats {
     pub occlusion: OcclusionDecision,
     /// In an `auto` view: what each mode's frames took here.
     pub auto: Option<AutoChoice>,
+    /// The view's far field was drawn (it served the eye).
+    pub far_field: bool,
+    /// Triangles of the far field's depth meshes drawn (not in
+    /// `triangles_drawn`).
+    pub far_field_triangles: u64,
+    /// Parts drawn as geometry wherever they are because they moved since
+    /// the far field was made (or it left them out).
+    pub far_field_moved_parts: u64,
 }
 
 /// What a [`Culling::Auto`] view measured: each mode's frame time here, ms
@@ -258,6 +266,15 @@ pub struct View {
     /// still) instead of clearing it to the background: a near part over a
     /// far part drawn before.
     pub keep_color: bool,
+    /// The far field of the viewpoint cell the eye is in
+    /// ([`crate::FarField`]): where it serves the eye (and far fields are
+    /// enabled on the renderer, the frame is a single view, and its culling
+    /// is not `none`), the frame draws the chunk instances touching its cull
+    /// box and the far field instead of the rest; `chc` frames run as
+    /// frustum ones then.
+    pub far_field: Option<std::sync::Arc<crate::FarField>>,
+    /// A far-field capture's filter (what the capture leaves out).
+    pub(crate) far_only: Option<crate::farfield::FarOnly>,
     /// Section planes, world space: what lies on the negative side of any of
     /// them is cut away (not drawn, not queried; see [`View::set_section`]).
     pub(crate) section: Vec<Plane>,
@@ -300,6 +317,8 @@ impl View {
             fov: None,
             far: None,
             keep_color: false,
+            far_field: None,
+            far_only: None,
             section: Vec::new(),
             frame: 0,
             entries: Vec::new(),

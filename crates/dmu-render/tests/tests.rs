@@ -1,5 +1,6 @@
 mod culling;
 mod depth_split;
+mod farfield;
 mod fov;
 mod hierarchy;
 mod hzb;

@@ -64,7 +64,8 @@ pub enum StoreError {
     Checksum {
         /// The path.
         path: PathBuf,
-        /// Which segment ("header", "table of contents", "skeleton", "chunk #12").
+        /// Which segment ("header", "table of contents", "skeleton", "chunk #12",
+        /// "the far-field index", "far-field cell #3").
         segment: String,
         /// The checksum recorded.
         stored: u64,
@@ -112,6 +113,18 @@ pub enum StoreError {
     UnknownOutputFormat {
         /// The output file.
         path: PathBuf,
+    },
+    /// A far-field cell asked for (read, or kept by
+    /// [`write_far_fields`](crate::write_far_fields)) that the store does not
+    /// have.
+    #[error("{} has no far-field cell #{cell}: it has {cells}", path.display())]
+    NoSuchFarCell {
+        /// The store.
+        path: PathBuf,
+        /// The cell asked for.
+        cell: u64,
+        /// The far-field cells it has (0 without far fields).
+        cells: u64,
     },
     /// Saving edits: the scene's structure differs from the store's (only
     /// transforms and visibility may change).

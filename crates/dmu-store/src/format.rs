@@ -4,7 +4,8 @@
 //! ```text
 //! 0        header (64 bytes)
 //! 64       segment, segment, ...  each at a 16-byte boundary, zero padded to
-//!          the next one; a chunk's geometry, and one skeleton
+//!          the next one; a chunk's geometry, one skeleton, and optionally
+//!          one far-field index with a blob per far-field cell
 //! toc      table of contents: one 32-byte entry per segment (last in the file,
 //!          so a streaming writer needs no second pass)
 //! ```
@@ -33,6 +34,12 @@ pub(crate) const MAGIC: [u8; 8] = *b"DMUSTORE";
 /// Version 2 (issue 14) holds the skeleton as flat arrays (see `skeleton.rs`);
 /// version 1 stores (a bincode skeleton) are refused with a request to
 /// re-import the model.
+///
+/// Far-field segments (an index and one blob per cell, kinds 3 and 4) were
+/// added within version 2 rather than as version 3: a store without them is
+/// byte for byte what it was, and a version-2 reader from before them refuses
+/// a store that has them with "segment N has unknown kind 3" (or 4) rather
+/// than misreading it, which is acceptable for an optional addition.
 pub const FORMAT_VERSION: u32 = 2;
 /// Written as a native `u32` by a little-endian writer: reads back swapped on a
 /// big-endian one.
@@ -45,6 +52,11 @@ const ENTRY_LEN: u64 = size_of::<TocEntry>() as u64;
 /// Segment kinds.
 pub(crate) const KIND_SKELETON: u32 = 1;
 pub(crate) const KIND_CHUNK: u32 = 2;
+/// The far-field index: opaque bytes (the caller's encoding), id 0, at most one.
+pub(crate) const KIND_FAR_INDEX: u32 = 3;
+/// One far-field cell's blob: opaque bytes, id the cell number (exactly `0..n`,
+/// once each, like chunks); only in a store with a far-field index.
+pub(crate) const KIND_FAR_CELL: u32 = 4;
 
 /// The file header. Little-endian like everything in the file.
 #[repr(C)]
@@ -78,9 +90,10 @@ const _: () = assert!(size_of::<Header>() == 64);
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq, Eq)]
 pub(crate) struct TocEntry {
-    /// The chunk id for chunk geometry; 0 for the skeleton.
+    /// The chunk id for chunk geometry, the cell number for a far-field cell; 0
+    /// for the skeleton and the far-field index.
     pub id: u32,
-    /// [`KIND_SKELETON`] or [`KIND_CHUNK`].
+    /// [`KIND_SKELETON`], [`KIND_CHUNK`], [`KIND_FAR_INDEX`] or [`KIND_FAR_CELL`].
     pub kind: u32,
     /// Start in the file, a multiple of [`ALIGN`].
     pub offset: u64,
@@ -121,12 +134,18 @@ fn header_checksum(header: &[u8]) -> u64 {
     xxh3_64(&header[..HEADER_LEN as usize - 8])
 }
 
-/// A validated layout: where the skeleton and each chunk's geometry are.
+/// A validated layout: where the skeleton, each chunk's geometry and the far
+/// fields are.
 #[derive(Debug)]
 pub(crate) struct Layout {
     pub skeleton: TocEntry,
     /// Indexed by chunk id (the ids are exactly `0..n`).
     pub chunks: Vec<TocEntry>,
+    /// The far-field index; `None` in a store without far fields.
+    pub far_index: Option<TocEntry>,
+    /// Indexed by cell number (the ids are exactly `0..n`); empty when
+    /// `far_index` is `None`.
+    pub far_cells: Vec<TocEntry>,
 }
 
 /// What a file that is not a store looks like, for the error message.
@@ -255,8 +274,9 @@ pub(crate) fn parse(file: &impl ReadAt, path: &Path) -> Result<Layout, StoreErro
     validate_entries(&entries, header.toc_offset).map_err(corrupt)
 }
 
-/// Entries must tile `[HEADER_LEN, toc_offset)` in order, name one skeleton, and
-/// chunk ids `0..n` once each.
+/// Entries must tile `[HEADER_LEN, toc_offset)` in order, name one skeleton,
+/// chunk ids `0..n` once each, at most one far-field index (id 0), and far-field
+/// cell ids `0..m` once each, only beside an index.
 fn validate_entries(entries: &[TocEntry], toc_offset: u64) -> Result<Layout, String> {
     let mut by_offset: Vec<&TocEntry> = entries.iter().collect();
     by_offset.sort_by_key(|e| e.offset);
@@ -283,29 +303,75 @@ fn validate_entries(entries: &[TocEntry], toc_offset: u64) -> Result<Layout, Str
         return Err(format!("bytes {at}..{toc_offset} belong to no segment"));
     }
     let mut skeleton = None;
-    let chunk_count = entries.iter().filter(|e| e.kind == KIND_CHUNK).count();
-    let mut chunks = vec![None; chunk_count];
+    let mut far_index = None;
+    let mut chunks = Dense::new(entries, KIND_CHUNK, "chunk");
+    let mut far_cells = Dense::new(entries, KIND_FAR_CELL, "far-field cell");
     for e in entries {
         match e.kind {
             KIND_SKELETON if skeleton.is_none() => skeleton = Some(*e),
             KIND_SKELETON => return Err("two skeleton segments".into()),
-            KIND_CHUNK => match chunks.get_mut(e.id as usize) {
-                Some(slot @ None) => *slot = Some(*e),
-                Some(Some(_)) => return Err(format!("chunk #{} has two segments", e.id)),
-                None => {
-                    return Err(format!(
-                        "chunk #{} is out of range ({chunk_count} chunk segments)",
-                        e.id
-                    ));
-                }
-            },
+            KIND_CHUNK => chunks.insert(e)?,
+            KIND_FAR_INDEX if e.id != 0 => {
+                return Err(format!("the far-field index has id {}, not 0", e.id));
+            }
+            KIND_FAR_INDEX if far_index.is_none() => far_index = Some(*e),
+            KIND_FAR_INDEX => return Err("two far-field index segments".into()),
+            KIND_FAR_CELL => far_cells.insert(e)?,
             kind => return Err(format!("segment {} has unknown kind {kind}", e.id)),
         }
     }
+    if far_index.is_none() && !far_cells.slots.is_empty() {
+        return Err(format!(
+            "{} far-field cell segments but no far-field index",
+            far_cells.slots.len()
+        ));
+    }
     Ok(Layout {
         skeleton: skeleton.ok_or("no skeleton segment")?,
-        chunks: chunks.into_iter().flatten().collect(),
+        chunks: chunks.into_entries(),
+        far_index,
+        far_cells: far_cells.into_entries(),
     })
+}
+
+/// Segments of one kind whose ids must be exactly `0..n`, once each.
+struct Dense {
+    slots: Vec<Option<TocEntry>>,
+    /// What one is called in errors ("chunk", "far-field cell").
+    name: &'static str,
+}
+
+impl Dense {
+    /// Room for every entry of `kind` in `entries`.
+    fn new(entries: &[TocEntry], kind: u32, name: &'static str) -> Self {
+        let count = entries.iter().filter(|e| e.kind == kind).count();
+        Self {
+            slots: vec![None; count],
+            name,
+        }
+    }
+
+    /// Puts `e` at its id; an id out of range or seen before is an error.
+    fn insert(&mut self, e: &TocEntry) -> Result<(), String> {
+        let count = self.slots.len();
+        match self.slots.get_mut(e.id as usize) {
+            Some(slot @ None) => {
+                *slot = Some(*e);
+                Ok(())
+            }
+            Some(Some(_)) => Err(format!("{} #{} has two segments", self.name, e.id)),
+            None => Err(format!(
+                "{} #{} is out of range ({count} {} segments)",
+                self.name, e.id, self.name
+            )),
+        }
+    }
+
+    /// The entries by id: with as many slots as entries, each one filled once,
+    /// so none is missing.
+    fn into_entries(self) -> Vec<TocEntry> {
+        self.slots.into_iter().flatten().collect()
+    }
 }
 
 /// A segment's bytes (payload only), read from the file and checked against

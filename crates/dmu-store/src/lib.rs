@@ -17,6 +17,12 @@
 //!   the cell tree is built from it (chunk boxes alone, about 80 ms for 100M
 //!   triangles) rather than stored: it is derived data, and rebuilding it cannot
 //!   disagree with the transforms.
+//! - Far fields (a textured depth mesh per viewpoint cell, made by the
+//!   renderer) are kept beside the geometry as opaque blobs: one far-field
+//!   index segment and one segment per cell, read one at a time
+//!   ([`Store::far_field_cell`]) and replaced by [`write_far_fields`], which
+//!   can keep the cells that are not stale. The store does not know their
+//!   encoding, so their producer can change it without a new format version.
 //! - Every byte is covered by a checksum (xxh3-64): the header and the table of
 //!   contents at open, the skeleton at open, a chunk's segment when first
 //!   touched. Every offset and length is checked before use, so a truncated,
@@ -81,7 +87,7 @@ pub use prefetch::{PrefetchOptions, Prefetcher};
 pub use priority::{Class, LoadOrder, Request};
 pub use read::{Store, StoreInfo};
 pub use residency::{Pacing, Residency, ResidencyOptions, ResidencyStats};
-pub use save::{SavedFormat, prepare_save, save_edits, save_scene};
+pub use save::{SavedFormat, prepare_save, save_edits, save_scene, write_far_fields};
 pub use streamer::Streamer;
 pub use view::{CameraFrame, View, Viewport, Wanted, wanted};
 pub use walk::{

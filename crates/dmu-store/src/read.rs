@@ -1,5 +1,6 @@
 //! Reading a store: the header, the table of contents and the skeleton are read
-//! and checked at open, each chunk's geometry segment whenever it is read.
+//! and checked at open, each chunk's geometry segment and each far-field
+//! segment whenever it is read.
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -46,6 +47,10 @@ pub struct StoreInfo {
     pub geometry_resident_bytes: u64,
     /// Bytes of the skeleton segment.
     pub skeleton_bytes: u64,
+    /// Far-field cell segments (0 without far fields).
+    pub far_field_cells: u64,
+    /// Bytes of the far-field index and cell segments in the file.
+    pub far_field_bytes: u64,
 }
 
 impl Store {
@@ -115,6 +120,8 @@ impl Store {
                 .map(|c| self.chunk_resident_bytes(ChunkId::from_index(c)))
                 .sum(),
             skeleton_bytes: self.layout.skeleton.length,
+            far_field_cells: self.layout.far_cells.len() as u64,
+            far_field_bytes: self.far_field_bytes(),
         }
     }
 
@@ -155,6 +162,74 @@ impl Store {
     pub(crate) fn chunk_segment(&self, chunk: ChunkId) -> Result<Vec<u8>, StoreError> {
         let entry = &self.layout.chunks[chunk.index()];
         format::verified(&self.file, entry, || format!("chunk {chunk}"), &self.path)
+    }
+
+    /// The skeleton segment as it is in the file, verified (for copying into a
+    /// new store: unlike [`Store::skeleton`], untouched by
+    /// [`Store::take_skeleton`]).
+    pub(crate) fn skeleton_segment(&self) -> Result<Vec<u8>, StoreError> {
+        format::verified(
+            &self.file,
+            &self.layout.skeleton,
+            || "the skeleton".into(),
+            &self.path,
+        )
+    }
+
+    /// The far-field index blob, its checksum verified; `None` when the store
+    /// has no far fields. Its encoding is the caller's: the store keeps bytes.
+    pub fn far_field_index(&self) -> Result<Option<Vec<u8>>, StoreError> {
+        self.layout
+            .far_index
+            .as_ref()
+            .map(|entry| {
+                format::verified(
+                    &self.file,
+                    entry,
+                    || "the far-field index".into(),
+                    &self.path,
+                )
+            })
+            .transpose()
+    }
+
+    /// How many far-field cells the store holds (numbered `0..n`; 0 without
+    /// far fields).
+    pub fn far_field_cells(&self) -> usize {
+        self.layout.far_cells.len()
+    }
+
+    /// One far-field cell's blob, its checksum verified (a damaged cell fails
+    /// alone; the rest of the store still reads). A cell the store does not
+    /// have is [`StoreError::NoSuchFarCell`].
+    pub fn far_field_cell(&self, cell: u32) -> Result<Vec<u8>, StoreError> {
+        let entry =
+            self.layout
+                .far_cells
+                .get(cell as usize)
+                .ok_or_else(|| StoreError::NoSuchFarCell {
+                    path: self.path.clone(),
+                    cell: u64::from(cell),
+                    cells: self.layout.far_cells.len() as u64,
+                })?;
+        format::verified(
+            &self.file,
+            entry,
+            || format!("far-field cell #{cell}"),
+            &self.path,
+        )
+    }
+
+    /// Bytes the far-field index and cells take in the file (0 without far
+    /// fields).
+    pub fn far_field_bytes(&self) -> u64 {
+        let layout = &self.layout;
+        layout
+            .far_index
+            .iter()
+            .chain(&layout.far_cells)
+            .map(TocEntry::padded_len)
+            .sum()
     }
 
     /// A mesh's chunks, read and decoded in order (for

@@ -14,10 +14,13 @@ use crate::write::{PendingStore, StoreSummary, StoreWriter, WriteOptions};
 /// from, replacing the file by rename (a crash leaves the previous file).
 ///
 /// Only transforms and visibility may differ from the store's skeleton; the
-/// geometry segments are copied verified, byte for byte, into the new file. Cost:
-/// the whole file is read and written once (sequential I/O, no decoding), e.g.
-/// about a second per gigabyte on an SSD. The open `store` keeps reading the
-/// file it opened; open the path again to see the saved one.
+/// geometry segments, and the far-field index and cells if the store has them,
+/// are copied verified, byte for byte, into the new file (whether moved parts
+/// made far-field cells stale is the caller's to decide: see
+/// [`write_far_fields`]). Cost: the whole file is read and written once
+/// (sequential I/O, no decoding), e.g. about a second per gigabyte on an SSD.
+/// The open `store` keeps reading the file it opened; open the path again to
+/// see the saved one.
 pub fn save_edits(store: &Store, scene: &Scene) -> Result<StoreSummary, StoreError> {
     prepare_save(store, scene)?.commit()
 }
@@ -31,6 +34,81 @@ pub fn prepare_save(store: &Store, scene: &Scene) -> Result<PendingStore, StoreE
             what,
         });
     }
+    let mut writer = with_geometry_of(store)?;
+    if let Some(index) = store.far_field_index()? {
+        writer.far_field_index(&index)?;
+        for cell in 0..store.far_field_cells() {
+            writer.far_field_cell(&store.far_field_cell(cell_number(cell))?)?;
+        }
+    }
+    writer.finish(&Structure::of(scene))
+}
+
+/// Replaces the far fields of `store` (an index and one blob per cell, opaque
+/// bytes in the caller's encoding) in a new file written under a temporary
+/// name; committing the result ([`PendingStore::commit`]) renames it over the
+/// store's path. The skeleton and every chunk segment are copied verified, byte
+/// for byte, as [`save_edits`] copies them (edits the caller made to the
+/// skeleton are not saved: use [`save_edits`] for those).
+///
+/// `cells` yields the new cells in order, cell 0 first; as many cells as it
+/// yields, the store will have. Each item is:
+/// - `Ok(Some(blob))`: this cell's new blob;
+/// - `Ok(None)`: keep the store's blob of this cell (copied verified); a cell
+///   the store does not have is [`StoreError::NoSuchFarCell`];
+/// - `Err(e)`: the caller's failure, returned as it is.
+///
+/// So rebuilding a few stale cells is
+/// `cells.map(|c| Ok(stale(c).then(|| build(c))))`. The iterator is drawn one
+/// cell at a time and each blob is written and dropped before the next is
+/// asked for, so the caller may make them as it goes. The index is always
+/// given (pass [`Store::far_field_index`] to keep it). `E` is the caller's
+/// error type (e.g. `anyhow::Error`, or [`StoreError`]).
+///
+/// On any error (the caller's, reading the store, writing), nothing is renamed:
+/// the store's file is as it was and the temporary file is removed.
+///
+/// ```
+/// use dmu_store::{Store, StoreError, WriteOptions, write_far_fields, write_scene};
+///
+/// let dir = tempfile::tempdir().unwrap();
+/// let path = dir.path().join("grid.dmu");
+/// write_scene(&dmu_samples::grid(2, 10.0, 4.0, 8), &path, WriteOptions::default()).unwrap();
+/// let store = Store::open(&path).unwrap();
+/// assert_eq!(store.far_field_index().unwrap(), None);
+/// let cells = (0..3u8).map(|c| Ok::<_, StoreError>(Some(vec![c; 1000])));
+/// write_far_fields(&store, b"index", cells).unwrap().commit().unwrap();
+///
+/// // Cell 1 rebuilt, cells 0 and 2 kept.
+/// let store = Store::open(&path).unwrap();
+/// let cells = [None, Some(vec![7; 10]), None].map(Ok::<_, StoreError>);
+/// write_far_fields(&store, b"index", cells).unwrap().commit().unwrap();
+/// let store = Store::open(&path).unwrap();
+/// assert_eq!(store.far_field_cells(), 3);
+/// assert_eq!(store.far_field_cell(0).unwrap(), vec![0; 1000]);
+/// assert_eq!(store.far_field_cell(1).unwrap(), vec![7; 10]);
+/// ```
+pub fn write_far_fields<E: From<StoreError>>(
+    store: &Store,
+    index: &[u8],
+    cells: impl IntoIterator<Item = Result<Option<Vec<u8>>, E>>,
+) -> Result<PendingStore, E> {
+    let mut writer = with_geometry_of(store)?;
+    writer.far_field_index(index)?;
+    for (cell, blob) in cells.into_iter().enumerate() {
+        let blob = match blob? {
+            Some(blob) => blob,
+            None => store.far_field_cell(cell_number(cell))?,
+        };
+        writer.far_field_cell(&blob)?;
+    }
+    Ok(writer.finish_copied(&store.skeleton_segment()?)?)
+}
+
+/// A writer for a new file at `store`'s path holding `store`'s chunk
+/// segments, copied verified byte for byte: what every rewrite of a store
+/// starts with.
+fn with_geometry_of(store: &Store) -> Result<StoreWriter, StoreError> {
     let mut writer = StoreWriter::create(store.path(), WriteOptions::default())?;
     for (c, chunk) in store.skeleton().chunks().iter().enumerate() {
         let id = ChunkId::from_index(c);
@@ -40,7 +118,15 @@ pub fn prepare_save(store: &Store, scene: &Scene) -> Result<PendingStore, StoreE
             chunk.triangle_count(),
         )?;
     }
-    writer.finish(&Structure::of(scene))
+    Ok(writer)
+}
+
+/// A cell position as a cell number (ids are `u32` on disk).
+///
+/// # Panics
+/// Past `u32::MAX` cells, which no store holds (each takes a 32-byte entry).
+fn cell_number(cell: usize) -> u32 {
+    u32::try_from(cell).expect("over 4G far-field cells")
 }
 
 /// The format a model is saved in, named by the output's extension.

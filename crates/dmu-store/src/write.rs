@@ -11,7 +11,9 @@ use dmu_scene::{AtomicFile, ChunkGeometry, ChunkedMesh, Scene, Structure};
 use xxhash_rust::xxh3::Xxh3;
 
 use crate::error::StoreError;
-use crate::format::{ALIGN, HEADER_LEN, Header, KIND_CHUNK, KIND_SKELETON, TocEntry};
+use crate::format::{
+    ALIGN, HEADER_LEN, Header, KIND_CHUNK, KIND_FAR_CELL, KIND_FAR_INDEX, KIND_SKELETON, TocEntry,
+};
 use crate::geometry::{self, resident_bytes};
 use crate::skeleton;
 
@@ -52,6 +54,10 @@ pub struct StoreWriter {
     toc: Vec<TocEntry>,
     /// (vertices, triangles) of each chunk written, checked against the skeleton.
     shapes: Vec<(u32, u32)>,
+    /// Whether the far-field index is written; far-field cells need it.
+    far_index: bool,
+    /// Far-field cells written (the next cell's number).
+    far_cells: u32,
     options: WriteOptions,
     summary: StoreSummary,
 }
@@ -83,6 +89,8 @@ impl StoreWriter {
             offset: HEADER_LEN,
             toc: Vec::new(),
             shapes: Vec::new(),
+            far_index: false,
+            far_cells: 0,
             options,
             summary: StoreSummary::default(),
         })
@@ -170,6 +178,32 @@ impl StoreWriter {
         Ok(())
     }
 
+    /// Appends the far-field index (opaque bytes).
+    ///
+    /// # Panics
+    /// When an index was written already.
+    pub(crate) fn far_field_index(&mut self, bytes: &[u8]) -> Result<(), StoreError> {
+        assert!(!self.far_index, "a second far-field index");
+        self.segment(0, KIND_FAR_INDEX, &[bytes])?;
+        self.far_index = true;
+        Ok(())
+    }
+
+    /// Appends the next far-field cell's blob (cell numbers follow the write
+    /// order).
+    ///
+    /// # Panics
+    /// Before the far-field index is written.
+    pub(crate) fn far_field_cell(&mut self, bytes: &[u8]) -> Result<(), StoreError> {
+        assert!(self.far_index, "a far-field cell before the index");
+        self.segment(self.far_cells, KIND_FAR_CELL, &[bytes])?;
+        self.far_cells = self
+            .far_cells
+            .checked_add(1)
+            .expect("over 4G far-field cells");
+        Ok(())
+    }
+
     /// Chunks written so far.
     pub fn chunks_written(&self) -> usize {
         self.shapes.len()
@@ -181,7 +215,7 @@ impl StoreWriter {
     ///
     /// # Panics
     /// When the chunks written are not those of the structure's chunk table.
-    pub fn finish(mut self, structure: &Structure) -> Result<PendingStore, StoreError> {
+    pub fn finish(self, structure: &Structure) -> Result<PendingStore, StoreError> {
         let written = self.shapes.len() == structure.chunks.len()
             && self
                 .shapes
@@ -197,7 +231,19 @@ impl StoreWriter {
         let (counts, arrays) = skeleton::pieces(structure);
         let mut pieces = vec![&counts[..]];
         pieces.extend(arrays);
-        let entry = self.segment(0, KIND_SKELETON, &pieces)?;
+        self.finish_with_skeleton(&pieces)
+    }
+
+    /// [`StoreWriter::finish`] with a skeleton segment copied from another
+    /// store (verified, as it was there), whose chunks are the ones written.
+    pub(crate) fn finish_copied(self, skeleton: &[u8]) -> Result<PendingStore, StoreError> {
+        self.finish_with_skeleton(&[skeleton])
+    }
+
+    /// Writes the skeleton segment made of `pieces`, the table of contents and
+    /// the header, and syncs the file.
+    fn finish_with_skeleton(mut self, pieces: &[&[u8]]) -> Result<PendingStore, StoreError> {
+        let entry = self.segment(0, KIND_SKELETON, pieces)?;
         self.summary.skeleton_bytes = entry.length;
         let toc_offset = self.offset;
         let toc = std::mem::take(&mut self.toc);

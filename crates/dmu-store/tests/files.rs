@@ -9,19 +9,12 @@ use std::time::Duration;
 use dmu_store::{FORMAT_VERSION, Store, StoreError, WriteOptions, save_edits};
 use glam::{DAffine3, DVec3};
 
-use crate::support::{small_plant, stored};
+use crate::support::{KIND_SKELETON, entry, small_plant, small_store, stored, with_toc};
 
 /// Opens and reads every chunk: the error, if any.
 fn read_all(path: &Path) -> Result<(), StoreError> {
     let store = Store::open(path)?;
     store.load_scene().map(|_| ())
-}
-
-fn small_store() -> (tempfile::TempDir, std::path::PathBuf, Vec<u8>) {
-    let scene = dmu_samples::grid(3, 10.0, 4.0, 8);
-    let (dir, path) = stored(&scene, WriteOptions::default());
-    let bytes = std::fs::read(&path).unwrap();
-    (dir, path, bytes)
 }
 
 #[test]
@@ -281,27 +274,15 @@ fn issue_20_a_store_changed_while_open_gives_errors_not_signals() {
 /// `bytes` (a whole store) with its skeleton segment changed by `change` and
 /// every checksum above it recomputed, so only the skeleton's own checks see it.
 fn with_skeleton(bytes: &[u8], change: impl FnOnce(&mut [u8])) -> Vec<u8> {
-    use xxhash_rust::xxh3::xxh3_64;
     let mut out = bytes.to_vec();
-    let word = |b: &[u8], at: usize| u64::from_le_bytes(b[at..at + 8].try_into().unwrap());
-    let (toc, entries) = (word(&out, 24) as usize, word(&out, 32) as usize);
-    let entry = (0..entries)
-        .map(|e| toc + 32 * e)
-        .find(|&e| u32::from_le_bytes(out[e + 4..e + 8].try_into().unwrap()) == 1)
-        .expect("a skeleton entry");
-    let (offset, length) = (
-        word(&out, entry + 8) as usize,
-        word(&out, entry + 16) as usize,
-    );
-    let padded = length.next_multiple_of(16);
-    change(&mut out[offset..offset + length]);
-    let sum = xxh3_64(&out[offset..offset + padded]);
-    out[entry + 24..entry + 32].copy_from_slice(&sum.to_le_bytes());
-    let sum = xxh3_64(&out[toc..toc + 32 * entries]);
-    out[40..48].copy_from_slice(&sum.to_le_bytes());
-    let sum = xxh3_64(&out[..56]);
-    out[56..64].copy_from_slice(&sum.to_le_bytes());
-    out
+    let skeleton = entry(&out, KIND_SKELETON, 0);
+    change(&mut out[skeleton.payload()]);
+    let sum = xxhash_rust::xxh3::xxh3_64(&out[skeleton.padded()]);
+    with_toc(&out, |toc| {
+        for e in toc.iter_mut().filter(|e| e.kind == KIND_SKELETON) {
+            e.checksum = sum;
+        }
+    })
 }
 
 /// A skeleton whose checksums hold but whose counts or contents lie (crafted,

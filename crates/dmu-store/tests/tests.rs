@@ -1,3 +1,4 @@
+mod far_field;
 mod files;
 #[path = "../../../fuzz/replay.rs"]
 mod fuzz_replay;
