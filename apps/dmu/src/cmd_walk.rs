@@ -1,6 +1,9 @@
 //! `dmu walk`: replays a camera path against the residency manager, no GPU.
 
 use std::path::PathBuf;
+
+use crate::walk_render::{FarUse, Mode};
+use dmu_app::far_fields::FarFieldSet;
 use std::sync::Arc;
 
 use anyhow::{Context as _, bail};
@@ -102,6 +105,14 @@ pub struct Args {
     /// ratios.
     #[arg(long, requires = "render")]
     compare: bool,
+    /// With --render --compare: draw the store's far fields (`dmu farfield
+    /// build`) beyond each cell's cull box: `on`, or `auto` (only where they
+    /// make frames faster, timed every 60 frames). The run then compares
+    /// exact frustum culling (the reference), --culling without far fields
+    /// and --culling with them, and reports each frame's pixels differing
+    /// from the reference.
+    #[arg(long, default_value = "off", value_parser = ["off", "on", "auto"])]
+    far_field: String,
     /// With --render and chc: a chunk seen visible is assumed visible for this
     /// many frames before it is queried again (fewer: more queries, less
     /// over-draw when the view moves fast).
@@ -134,7 +145,7 @@ enum Budget {
     Percent(f64),
 }
 
-fn parse_range(s: &str) -> anyhow::Result<(usize, usize)> {
+pub fn parse_range(s: &str) -> anyhow::Result<(usize, usize)> {
     let (a, b) = s
         .split_once("..")
         .with_context(|| format!("{s:?}: expected START..END, e.g. 300..420"))?;
@@ -177,41 +188,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         Budget::Percent(p) => (info.geometry_resident_bytes as f64 * p / 100.0) as u64,
     };
     let tree = Tree::build(store.skeleton(), TreeOptions::default());
-    let path = match &args.path {
-        Some(p) => {
-            let text = dmu_scene::read_regular_file(p)
-                .with_context(|| format!("reading the path {}", p.display()))?;
-            let frames: Vec<CameraFrame> = serde_json::from_slice(&text)
-                .with_context(|| format!("{}: not a JSON list of camera frames", p.display()))?;
-            frames
-        }
-        None => {
-            let path = plant_path(args.fps);
-            let bounds = tree.bounds();
-            if !(bounds.contains_point(path[0].eye.with_z(bounds.center().z))) {
-                bail!(
-                    "the built-in path walks the plant of `dmu generate plant` at its default origin, \
-                     outside this model; give --path"
-                );
-            }
-            path
-        }
-    };
-    let path = match args.range {
-        Some((start, end)) => {
-            if end > path.len() {
-                bail!(
-                    "--range {start}..{end}: past the end of the path, which has frames 0..{}",
-                    path.len()
-                );
-            }
-            path[start..end].to_vec()
-        }
-        None => path,
-    };
-    if path.is_empty() {
-        bail!("the camera path has no frames");
-    }
+    let path = camera_path(args.path.as_deref(), args.fps, args.range, &tree)?;
     let viewport = Viewport {
         width: args.width,
         height: args.height,
@@ -240,19 +217,47 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             target_ms: args.target_ms,
             ..CullingOptions::default()
         };
+        let far = match args.far_field.as_str() {
+            "on" => FarUse::On,
+            "auto" => FarUse::Auto,
+            _ => FarUse::Off,
+        };
+        if far != FarUse::Off && !args.compare {
+            bail!(
+                "--far-field {} needs --compare (a walk within a memory budget does not draw far fields yet)",
+                args.far_field
+            );
+        }
         let report = if args.compare {
             let scene = store
                 .load_scene()
                 .with_context(|| format!("loading {}", args.file.display()))?;
+            let (modes, far_fields) = if far == FarUse::Off {
+                (Culling::ALL.map(Mode::plain).to_vec(), None)
+            } else {
+                let set = FarFieldSet::open(&store, &scene)?.with_context(|| {
+                    format!(
+                        "{} has no far fields; make them with `dmu farfield build`",
+                        args.file.display()
+                    )
+                })?;
+                let modes = vec![
+                    Mode::plain(Culling::Frustum),
+                    Mode::plain(culling),
+                    Mode { culling, far },
+                ];
+                (modes, Some(set))
+            };
             crate::walk_render::run(
                 &scene,
                 &tree,
                 &path,
                 (args.width, args.height),
-                &Culling::ALL,
+                &modes,
                 true,
                 culling_options,
                 !args.no_proxies,
+                far_fields,
             )?
         } else {
             let order = args.order.first().unwrap_or(&Order::Visibility);
@@ -293,6 +298,52 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         println!("explain: {WALK_EXPLAIN}");
     }
     Ok(())
+}
+
+/// The camera path of `path` (a JSON file) or the built-in plant walk at
+/// `fps`, limited to `range` (frames START..END).
+pub fn camera_path(
+    path: Option<&std::path::Path>,
+    fps: f64,
+    range: Option<(usize, usize)>,
+    tree: &Tree,
+) -> anyhow::Result<Vec<CameraFrame>> {
+    let path = match path {
+        Some(p) => {
+            let text = dmu_scene::read_regular_file(p)
+                .with_context(|| format!("reading the path {}", p.display()))?;
+            let frames: Vec<CameraFrame> = serde_json::from_slice(&text)
+                .with_context(|| format!("{}: not a JSON list of camera frames", p.display()))?;
+            frames
+        }
+        None => {
+            let path = plant_path(fps);
+            let bounds = tree.bounds();
+            if !(bounds.contains_point(path[0].eye.with_z(bounds.center().z))) {
+                bail!(
+                    "the built-in path walks the plant of `dmu generate plant` at its default origin, \
+                     outside this model; give --path"
+                );
+            }
+            path
+        }
+    };
+    let path = match range {
+        Some((start, end)) => {
+            if end > path.len() {
+                bail!(
+                    "--range {start}..{end}: past the end of the path, which has frames 0..{}",
+                    path.len()
+                );
+            }
+            path[start..end].to_vec()
+        }
+        None => path,
+    };
+    if path.is_empty() {
+        bail!("the camera path has no frames");
+    }
+    Ok(path)
 }
 
 fn print_render(args: &Args, report: &serde_json::Value) -> anyhow::Result<()> {

@@ -4,6 +4,7 @@ mod bench_collide;
 mod cmd_bcf;
 mod cmd_bench;
 mod cmd_collide;
+mod cmd_farfield;
 mod cmd_generate;
 mod cmd_import;
 mod cmd_info;
@@ -49,6 +50,7 @@ enum Command {
     Walk(cmd_walk::Args),
     Bench(cmd_bench::Args),
     Tradeoffs(cmd_tradeoffs::Args),
+    Farfield(cmd_farfield::Args),
 }
 
 /// Ends the process quietly, as Unix tools do, when the reader of stdout goes
@@ -88,6 +90,7 @@ fn main() -> ExitCode {
         Command::Walk(args) => cmd_walk::run(&args),
         Command::Bench(args) => cmd_bench::run(&args),
         Command::Tradeoffs(args) => cmd_tradeoffs::run(&args),
+        Command::Farfield(args) => cmd_farfield::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -9,6 +9,7 @@ use std::collections::BTreeSet;
 use std::sync::Arc;
 
 use anyhow::Context as _;
+use dmu_app::far_fields::FarFieldSet;
 use dmu_render::{
     Camera, Capture, Culling, CullingOptions, FrameStats, Renderer, RendererOptions, View,
     headless_device,
@@ -41,8 +42,14 @@ struct ModeFrame {
     lod_error_px: f64,
     min_pixels: f64,
     occlusion_enabled: bool,
-    /// Pixels differing from the `none` image (with `--compare`).
+    /// The frame drew a far field.
+    far_field: bool,
+    /// Triangles of the far field's depth meshes drawn.
+    far_field_triangles: u64,
+    /// Pixels differing from the reference image (with `--compare`).
     differing_pixels: Option<u64>,
+    /// Mean colour difference of those pixels (0-255, mean over channels).
+    mean_color_error: Option<f64>,
     /// Of those, pixels differing by more than `dmu_render::SURFACE_CHANGE`
     /// in a channel: showing another surface, not the same one shaded a
     /// little differently.
@@ -87,7 +94,9 @@ impl Misses {
 /// Totals of one mode.
 #[derive(Debug, Serialize)]
 struct ModeTotals {
-    culling: &'static str,
+    /// The mode: its culling, `+far` with far fields, `+far-auto` with far
+    /// fields where they pay.
+    culling: String,
     mean_frame_ms: f64,
     median_frame_ms: f64,
     p95_frame_ms: f64,
@@ -125,8 +134,10 @@ fn explain(culling: Culling, target_ms: Option<f64>, frames: &[FrameStats]) -> V
         .collect()
 }
 
-fn mode_frame(stats: &FrameStats, differing: Option<(u64, u64)>) -> ModeFrame {
+fn mode_frame(stats: &FrameStats, differing: Option<Differing>) -> ModeFrame {
     ModeFrame {
+        far_field: stats.far_field,
+        far_field_triangles: stats.far_field_triangles,
         culling: stats.culling.name(),
         frame_ms: stats.cpu_ms,
         gpu_ms: stats.gpu_ms,
@@ -139,15 +150,16 @@ fn mode_frame(stats: &FrameStats, differing: Option<(u64, u64)>) -> ModeFrame {
         min_pixels: stats.min_pixels,
         rounds: stats.rounds,
         occlusion_enabled: stats.occlusion.enabled,
-        differing_pixels: differing.map(|d| d.0),
-        surface_differing_pixels: differing.map(|d| d.1),
+        differing_pixels: differing.map(|d| d.any),
+        surface_differing_pixels: differing.map(|d| d.surface),
+        mean_color_error: differing.map(|d| d.mean_color_error),
     }
 }
 
 /// Frame-time and drawing totals of one mode over its frames, drawn under
 /// `target_ms` if any.
 fn mode_totals<'a>(
-    culling: Culling,
+    name: String,
     target_ms: Option<f64>,
     frames: impl Iterator<Item = &'a ModeFrame>,
 ) -> ModeTotals {
@@ -157,7 +169,7 @@ fn mode_totals<'a>(
     let differing: Vec<u64> = frames.iter().filter_map(|f| f.differing_pixels).collect();
     let compared = !differing.is_empty();
     ModeTotals {
-        culling: culling.name(),
+        culling: name,
         mean_lod_error_px: frames.iter().map(|f| f.lod_error_px).sum::<f64>() / n,
         frames_within_110_percent_of_target: target_ms
             .map(|t| frames.iter().filter(|f| f.frame_ms <= 1.1 * t).count() as f64 / n),
@@ -191,9 +203,127 @@ fn lod_options(culling: &CullingOptions) -> RendererOptions {
     }
 }
 
+/// Far fields in a mode of a walk.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FarUse {
+    /// Not drawn.
+    Off,
+    /// Drawn wherever the eye's cell has one loaded.
+    On,
+    /// Drawn where they pay: [`FarAuto`] times frames with and without.
+    Auto,
+}
+
+/// A walk mode: a culling, with or without far fields.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Mode {
+    pub culling: Culling,
+    pub far: FarUse,
+}
+
+impl Mode {
+    /// The culling alone.
+    pub fn plain(culling: Culling) -> Self {
+        Self {
+            culling,
+            far: FarUse::Off,
+        }
+    }
+
+    /// Its name in the report: the culling's, `+far` or `+far-auto` after it.
+    pub fn name(self) -> String {
+        let far = match self.far {
+            FarUse::Off => "",
+            FarUse::On => "+far",
+            FarUse::Auto => "+far-auto",
+        };
+        format!("{}{far}", self.culling.name())
+    }
+}
+
+/// `--far-field auto`: every 60 frames, two frames without the far field
+/// and two with it are timed (each after one not timed), and the faster way
+/// is kept until the next probe.
+#[derive(Debug, Default)]
+struct FarAuto {
+    frame: u64,
+    off_ms: Vec<f64>,
+    on_ms: Vec<f64>,
+    use_far: bool,
+    /// The last probe's medians, ms (without, with).
+    last: Option<(f64, f64)>,
+    changes: Vec<String>,
+}
+
+impl FarAuto {
+    /// Whether this frame draws the far field.
+    fn next(&mut self) -> bool {
+        let k = self.frame % 60;
+        self.frame += 1;
+        match k {
+            0..=2 => false,
+            3..=5 => true,
+            _ => self.use_far,
+        }
+    }
+
+    /// The frame's time, ms.
+    fn after(&mut self, ms: f64, frame: usize) {
+        match (self.frame - 1) % 60 {
+            1 | 2 => self.off_ms.push(ms),
+            4 | 5 => {
+                self.on_ms.push(ms);
+                if self.on_ms.len() == 2 {
+                    let mean = |v: &mut Vec<f64>| {
+                        let m = v.iter().sum::<f64>() / v.len() as f64;
+                        v.clear();
+                        m
+                    };
+                    let (off, on) = (mean(&mut self.off_ms), mean(&mut self.on_ms));
+                    let use_far = on < off;
+                    if use_far != self.use_far || self.last.is_none() {
+                        self.changes.push(format!(
+                            "frame {frame}: far field {} ({on:.1} ms a frame with it, {off:.1} ms without)",
+                            if use_far { "on" } else { "off" }
+                        ));
+                    }
+                    self.use_far = use_far;
+                    self.last = Some((off, on));
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// How two images differ: pixels differing at all, by more than
+/// `SURFACE_CHANGE`, and the mean colour difference of the differing ones.
+#[derive(Clone, Copy, Debug)]
+struct Differing {
+    any: u64,
+    surface: u64,
+    mean_color_error: f64,
+}
+
+fn differing(reference: &[u8], image: &[u8]) -> Differing {
+    let (any, surface) = dmu_render::count_differing(reference, image);
+    let error: u64 = reference
+        .chunks_exact(4)
+        .zip(image.chunks_exact(4))
+        .filter(|(a, b)| a != b)
+        .map(|(a, b)| (0..3).map(|c| u64::from(a[c].abs_diff(b[c]))).sum::<u64>())
+        .sum();
+    Differing {
+        any,
+        surface,
+        mean_color_error: error as f64 / 3.0 / any.max(1) as f64,
+    }
+}
+
 /// Renders `path` with each of `modes` (the first is the reference when
 /// `compare`, drawn exact whatever `culling.lod_error_px`) and returns the
-/// JSON report.
+/// JSON report. Modes with far fields draw those of `far`, which must be
+/// given then.
 #[expect(
     clippy::too_many_arguments,
     reason = "the walk's settings from the command line, passed through once"
@@ -203,23 +333,27 @@ pub fn run(
     tree: &Tree,
     path: &[CameraFrame],
     size: (u32, u32),
-    modes: &[Culling],
+    modes: &[Mode],
     compare: bool,
     culling: CullingOptions,
     proxies: bool,
+    mut far: Option<FarFieldSet>,
 ) -> anyhow::Result<serde_json::Value> {
     let (device, queue, adapter) = headless_device().context("opening a GPU device")?;
     let mut renderer = Renderer::new(&device, &queue, scene, tree, lod_options(&culling));
     if proxies && culling.may_draw_lods() {
         renderer.set_proxies(dmu_app::progress::build_proxies(scene, tree, scene, false));
     }
+    if far.is_some() {
+        renderer.enable_far_fields(scene, tree);
+    }
     let camera = |f: &CameraFrame| camera(f, tree);
     let captures: Vec<Capture> = modes.iter().map(|_| Capture::new(&device, size)).collect();
     let mut views: Vec<View> = modes
         .iter()
         .enumerate()
-        .map(|(i, &m)| {
-            let mut view = View::new(camera(&path[0]), size, m);
+        .map(|(i, m)| {
+            let mut view = View::new(camera(&path[0]), size, m.culling);
             view.options = culling;
             if compare && i == 0 {
                 // The reference is exact.
@@ -230,27 +364,44 @@ pub fn run(
         })
         .collect();
     let mut oracle_view = View::new(camera(&path[0]), size, Culling::Frustum);
-    let chc = modes.iter().position(|&m| m == Culling::Occlusion);
-    let hzb = modes.iter().position(|&m| m == Culling::Hzb);
+    let plain = |c: Culling| modes.iter().position(|&m| m == Mode::plain(c));
+    let chc = plain(Culling::Occlusion);
+    let hzb = plain(Culling::Hzb);
     let mut frames = Vec::with_capacity(path.len());
     let (mut chc_misses, mut hzb_misses) = (Misses::default(), Misses::default());
     let mut stats_of: Vec<Vec<FrameStats>> = modes.iter().map(|_| Vec::new()).collect();
+    let mut autos: Vec<FarAuto> = modes.iter().map(|_| FarAuto::default()).collect();
     let progress = indicatif::ProgressBar::new(path.len() as u64);
-    for frame in path {
+    for (k, frame) in path.iter().enumerate() {
+        let field = match &mut far {
+            // The first frame waits for its cell; later ones take what the
+            // loader has.
+            Some(set) if k == 0 => set.wait_for(frame.eye)?,
+            Some(set) => set.for_eye(frame.eye)?,
+            None => None,
+        };
         let mut reference: Option<Vec<u8>> = None;
         let mut modes_out = Vec::with_capacity(modes.len());
         for (i, view) in views.iter_mut().enumerate() {
             view.camera = camera(frame);
+            view.far_field = match modes[i].far {
+                FarUse::Off => None,
+                FarUse::On => field.clone(),
+                FarUse::Auto => autos[i].next().then(|| field.clone()).flatten(),
+            };
             let stats: FrameStats =
                 renderer.render(view, scene, tree, scene, captures[i].frame_target())?;
+            if modes[i].far == FarUse::Auto {
+                autos[i].after(stats.cpu_ms - stats.upload_ms, k);
+            }
             let differing = if compare {
                 let image = captures[i].read_color(&device, &queue)?;
                 match &reference {
                     None => {
                         reference = Some(image.into_raw());
-                        Some((0, 0))
+                        Some(differing(&[], &[]))
                     }
-                    Some(r) => Some(dmu_render::count_differing(r, image.as_raw())),
+                    Some(r) => Some(differing(r, image.as_raw())),
                 }
             } else {
                 None
@@ -292,7 +443,7 @@ pub fn run(
         .enumerate()
         .map(|(i, &m)| {
             let target = views[i].options.target_ms;
-            mode_totals(m, target, frames.iter().map(|f| &f.modes[i]))
+            mode_totals(m.name(), target, frames.iter().map(|f| &f.modes[i]))
         })
         .collect();
     let mean_of = |name: &str| {
@@ -340,10 +491,69 @@ pub fn run(
             .iter()
             .zip(&stats_of)
             .zip(&views)
-            .flat_map(|((&m, stats), view)| explain(m, view.options.target_ms, stats))
+            .flat_map(|((&m, stats), view)| explain(m.culling, view.options.target_ms, stats))
+            .chain(modes.iter().zip(&autos).flat_map(|(m, a)| {
+                a.changes.iter().map(move |c| format!("{}: {c}", m.name()))
+            }))
             .collect::<Vec<_>>(),
+        "far_field": far_report(far.as_ref(), modes, &frames),
         "per_frame": frames,
     }))
+}
+
+/// The far fields' figures: their cells, bytes and build times, and per
+/// far-field mode its frames' pixels differing from the reference (median,
+/// worst) and frame time against the same culling without far fields.
+fn far_report(
+    far: Option<&FarFieldSet>,
+    modes: &[Mode],
+    frames: &[PathFrame],
+) -> serde_json::Value {
+    let Some(far) = far else {
+        return serde_json::Value::Null;
+    };
+    let index = far.index();
+    let n = index.cells.len().max(1) as f64;
+    let median_ms = |m: usize| {
+        let mut ms: Vec<f64> = frames.iter().map(|f| f.modes[m].frame_ms).collect();
+        percentile(&mut ms, 0.5)
+    };
+    let per_mode: Vec<serde_json::Value> = modes
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| m.far != FarUse::Off)
+        .map(|(i, m)| {
+            let mut differing: Vec<f64> = frames
+                .iter()
+                .filter_map(|f| f.modes[i].differing_pixels.map(|d| d as f64))
+                .collect();
+            let errors: Vec<f64> = frames
+                .iter()
+                .filter(|f| f.modes[i].differing_pixels.is_some_and(|d| d > 0))
+                .filter_map(|f| f.modes[i].mean_color_error)
+                .collect();
+            let without = modes.iter().position(|&o| o == Mode::plain(m.culling));
+            serde_json::json!({
+                "mode": m.name(),
+                "frames_with_far_field": frames.iter().filter(|f| f.modes[i].far_field).count(),
+                "far_field_differing_pixels_median": (!differing.is_empty()).then(|| percentile(&mut differing, 0.5)),
+                "far_field_differing_pixels_worst": differing.iter().copied().reduce(f64::max),
+                "mean_color_error_of_differing": (!errors.is_empty()).then(|| errors.iter().sum::<f64>() / errors.len() as f64),
+                "median_frame_ms": median_ms(i),
+                "without_over_with_median_frame_time": without.map(|w| median_ms(w) / median_ms(i).max(1e-9)),
+            })
+        })
+        .collect();
+    serde_json::json!({
+        "cells": index.cells.len(),
+        "cell_size": index.cell_size,
+        "triangle_budget": index.triangle_budget,
+        "resolution": index.resolution,
+        "mesh_error_px": index.mesh_error_px,
+        "bytes_per_cell": index.cells.iter().map(|c| c.bytes as f64).sum::<f64>() / n,
+        "build_ms_per_cell": index.cells.iter().map(|c| c.build_ms).sum::<f64>() / n,
+        "modes": per_mode,
+    })
 }
 
 /// Renders `path` from `store` through a residency manager within
@@ -394,7 +604,7 @@ pub fn run_resident(
         "adapter": adapter.name,
         "walk": report,
         "render": {
-            "totals": mode_totals(culling, culling_options.target_ms, rendered.iter()),
+            "totals": mode_totals(culling.name().into(), culling_options.target_ms, rendered.iter()),
             "gpu_pool_bytes": renderer.geometry_pool().resident_bytes(),
             "per_frame": rendered,
         },

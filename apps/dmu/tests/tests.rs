@@ -4,6 +4,7 @@
 mod bcf;
 mod collide;
 mod explain;
+mod far_field;
 mod hostile;
 mod pick_rays;
 mod stereo_far;

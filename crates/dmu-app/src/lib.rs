@@ -31,6 +31,7 @@
 
 pub mod bcf;
 pub mod explain;
+pub mod far_fields;
 pub mod hits;
 pub mod load;
 pub mod progress;

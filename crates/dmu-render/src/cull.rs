@@ -286,7 +286,10 @@ impl Renderer {
             cull.far = FarCut::Near(near.clone());
         }
         let use_queries = culling == Culling::Occlusion && view.decision.enabled && near.is_none();
-        let mut gpu_state = self.prepare_view(view, scene, cull.eye_views());
+        // A near field's frame forms the model-views of its parts only, so
+        // its cost follows the cull box, not the model.
+        let near_parts = near.as_ref().map(|n| n.parts(tree));
+        let mut gpu_state = self.prepare_view(view, scene, cull.eye_views(), near_parts.as_deref());
         view.drawn.clear();
         let hzb = culling == Culling::Hzb
             && target.eye_count() == 1
@@ -415,7 +418,7 @@ impl Renderer {
             ..Cull::new(view, None, KnobsInEffect::default())
         };
         let cell_distance = self.cell_distances(cull.eye());
-        let mut gpu_state = self.prepare_view(view, scene, cull.eye_views());
+        let mut gpu_state = self.prepare_view(view, scene, cull.eye_views(), None);
         let mut scratch = FrameStats::default();
         let mut draws = self.frustum_draws(scene, tree, &cull, &mut scratch);
         sort_draws(&self.hierarchy, &cell_distance, &mut draws);

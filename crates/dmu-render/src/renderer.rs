@@ -732,12 +732,14 @@ impl Renderer {
     /// Takes a view's GPU resources (making them the first time) for the
     /// frame, grows them as needed and uploads its per-frame data: the
     /// projection and every part's camera-relative model-view for each eye
-    /// (one view matrix per eye: one for a view, two for a stereo pair).
+    /// (one view matrix per eye: one for a view, two for a stereo pair), or
+    /// with `only` (sorted part ids) of those parts alone.
     pub(crate) fn prepare_view(
         &self,
         view: &mut View,
         scene: &Scene,
         eye_views: &[DAffine3],
+        only: Option<&[u32]>,
     ) -> ViewGpu {
         let proj = view.projection();
         let parts = scene.parts().len();
@@ -769,33 +771,53 @@ impl Renderer {
         // Formed in f64 for each eye: the eye's large translation cancels the
         // part's before anything is rounded to f32, so far-from-origin models
         // stay exact, and a stereo eye gets what a single view from there gets.
-        g.staging.clear();
-        g.staging.extend(
-            eye_views
-                .iter()
-                .flat_map(|&view_matrix| {
-                    scene
-                        .part_ids()
-                        .map(move |p| view_matrix * scene.part_world(p))
-                })
-                .map(|m| {
-                    let (a, t) = (m.matrix3, m.translation);
-                    let row = |i: usize| {
-                        [
-                            a.x_axis[i] as f32,
-                            a.y_axis[i] as f32,
-                            a.z_axis[i] as f32,
-                            t[i] as f32,
-                        ]
-                    };
-                    ModelView {
-                        rows: [row(0), row(1), row(2)],
-                    }
-                }),
-        );
-        if !g.staging.is_empty() {
-            self.queue
-                .write_buffer(&g.model_views, 0, bytemuck::cast_slice(&g.staging));
+        let model_view = |view_matrix: DAffine3, p: PartId| {
+            let m = view_matrix * scene.part_world(p);
+            let (a, t) = (m.matrix3, m.translation);
+            let row = |i: usize| {
+                [
+                    a.x_axis[i] as f32,
+                    a.y_axis[i] as f32,
+                    a.z_axis[i] as f32,
+                    t[i] as f32,
+                ]
+            };
+            ModelView {
+                rows: [row(0), row(1), row(2)],
+            }
+        };
+        match only {
+            // Only the parts the frame may draw (a single view): the others'
+            // model-views stay as they were, never read.
+            Some(parts) if eye_views.len() == 1 => {
+                let (Some(&first), Some(&last)) = (parts.first(), parts.last()) else {
+                    return g;
+                };
+                g.staging.resize(
+                    scene.parts().len(),
+                    <ModelView as bytemuck::Zeroable>::zeroed(),
+                );
+                for &p in parts {
+                    g.staging[p as usize] =
+                        model_view(eye_views[0], PartId::from_index(p as usize));
+                }
+                let range = &g.staging[first as usize..=last as usize];
+                self.queue.write_buffer(
+                    &g.model_views,
+                    u64::from(first) * size_of::<ModelView>() as u64,
+                    bytemuck::cast_slice(range),
+                );
+            }
+            _ => {
+                g.staging.clear();
+                g.staging.extend(eye_views.iter().flat_map(|&view_matrix| {
+                    scene.part_ids().map(move |p| model_view(view_matrix, p))
+                }));
+                if !g.staging.is_empty() {
+                    self.queue
+                        .write_buffer(&g.model_views, 0, bytemuck::cast_slice(&g.staging));
+                }
+            }
         }
         g
     }

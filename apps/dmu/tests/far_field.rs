@@ -1,0 +1,107 @@
+//! `dmu farfield build` and `dmu walk --render --compare --far-field`: far
+//! fields written into a store, read back by a walk that reports each
+//! frame's pixels against the exact image. Included from `tests.rs`.
+
+use serde_json::Value;
+
+use super::{dmu, on_gpu, path};
+
+/// Far fields built along a stretch of the built-in walk are stored (the
+/// store still opens, with its far fields counted), a walk over that
+/// stretch draws them in every frame with fewer chunk triangles than
+/// without, and reports its pixels against the exact image; a store
+/// without far fields is refused by `--far-field on` with the command that
+/// makes them.
+#[test]
+fn far_fields_are_built_into_the_store_and_drawn_by_a_walk() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = path(dir.path(), "p.dmu");
+    let out = dmu(&["generate", "plant", "--triangles", "200k", "-o", &store]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let walk = [
+        store.as_str(),
+        "--render",
+        "--compare",
+        "--far-field",
+        "on",
+        "--culling",
+        "frustum",
+        "--range",
+        "300..306",
+        "--width",
+        "320",
+        "--height",
+        "180",
+        "--json",
+    ];
+    let Some(out) = on_gpu("far_fields_refused", "walk", &walk) else {
+        return;
+    };
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("dmu farfield build"), "{err}");
+
+    let build = [
+        "build",
+        store.as_str(),
+        "--along-walk",
+        "--range",
+        "300..306",
+        "--cell-size",
+        "4000",
+        "--triangle-budget",
+        "20k",
+        "--resolution",
+        "128",
+        "--json",
+    ];
+    let Some(out) = on_gpu("far_fields_build", "farfield", &build) else {
+        return;
+    };
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let built: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let cells = built["cells"].as_u64().unwrap();
+    assert!(cells >= 1, "{built:#}");
+    for c in built["per_cell"].as_array().unwrap() {
+        assert!(c["near_triangles"].as_u64().unwrap() <= 20_000, "{c:#}");
+        assert!(c["far_triangles"].as_u64().unwrap() > 0, "{c:#}");
+    }
+
+    let out = on_gpu("far_fields_walk", "walk", &walk).unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let names: Vec<&str> = v["totals"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t["culling"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["frustum", "frustum", "frustum+far"]);
+    let far = &v["far_field"];
+    assert_eq!(far["cells"].as_u64(), Some(cells));
+    let mode = &far["modes"][0];
+    assert_eq!(mode["frames_with_far_field"], 6, "{far:#}");
+    let worst = mode["far_field_differing_pixels_worst"].as_f64().unwrap();
+    assert!(worst > 0.0 && worst < 0.5 * 320.0 * 180.0, "{far:#}");
+    assert!(mode["median_frame_ms"].as_f64().unwrap() > 0.0);
+    for (i, f) in v["per_frame"].as_array().unwrap().iter().enumerate() {
+        let (without, with) = (&f["modes"][1], &f["modes"][2]);
+        assert_eq!(with["far_field"], true, "frame {i}");
+        assert!(
+            with["triangles_drawn"].as_u64() < without["triangles_drawn"].as_u64(),
+            "frame {i}: {f:#}"
+        );
+    }
+}
