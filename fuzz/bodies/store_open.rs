@@ -1,5 +1,5 @@
 //! Fuzz body of `store_open`: the bytes as a store file, opened, every chunk's
-//! geometry read, then the whole scene loaded. Errors are fine; a panic is a
+//! geometry and far field read, then the whole scene loaded. Errors are fine; a panic is a
 //! finding.
 
 use dmu_scene::ChunkId;
@@ -16,6 +16,10 @@ pub fn run(data: &[u8]) {
     let _ = store.info();
     for c in 0..store.skeleton().chunks().len() {
         let _ = store.chunk_geometry(ChunkId::from_index(c));
+    }
+    let _ = store.far_field_index();
+    for c in 0..store.far_field_cells() {
+        let _ = store.far_field_cell(c as u32);
     }
     let _ = store.load_scene();
 }

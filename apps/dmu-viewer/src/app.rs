@@ -69,6 +69,8 @@ pub struct Options {
     pub memory_budget: Option<u64>,
     /// Under the budget, draw chunks not loaded yet as their boxes.
     pub stand_ins: bool,
+    /// Where the main view draws the store's far fields.
+    pub far_field: dmu_app::far_fields::FarUse,
     /// When the process started (for the first frame's time).
     pub started: Instant,
 }
@@ -153,6 +155,11 @@ struct ScriptFrame {
 pub struct App {
     /// Proxies for the renderer, until it is made.
     pub proxies: Option<dmu_render::Proxies>,
+    /// The store's far fields (`--far-field on|auto`), until the renderer
+    /// is made.
+    pub far_field_set: Option<dmu_app::far_fields::FarFieldSet>,
+    /// The main view's far fields, once the renderer is made.
+    far: Option<crate::far::FarFields>,
     options: Options,
     instance: wgpu::Instance,
     review: Review,
@@ -242,6 +249,8 @@ impl App {
         };
         Self {
             proxies: None,
+            far_field_set: None,
+            far: None,
             options,
             instance,
             review,
@@ -304,6 +313,9 @@ impl App {
             report["frames_with_standin"] = facts["frames_with_standin"].clone();
             report["memory"] = facts;
         }
+        if let Some(far) = &self.far {
+            report["far_field"] = far.json();
+        }
         if let Some(g) = &self.review.geometry {
             let (bytes, peak) = g.bytes();
             report["tool_geometry"] = json!({
@@ -361,6 +373,16 @@ impl App {
         );
         if let Some(proxies) = self.proxies.take() {
             renderer.set_proxies(proxies);
+        }
+        if let Some(set) = self.far_field_set.take() {
+            // The model as loaded, before any edit: what the far fields show.
+            renderer.enable_far_fields(&self.review.scene, &self.review.tree);
+            self.far = Some(crate::far::FarFields::new(
+                set,
+                self.options.far_field,
+                gfx.device.clone(),
+                gfx.queue.clone(),
+            ));
         }
         gfx.window.request_redraw();
         self.egui_ctx = ctx;
@@ -910,6 +932,22 @@ impl App {
                 pane.nav.preset(*preset, &self.review.tree.bounds());
                 pane.view.reset_visibility();
             }
+            Action::Camera(c) => {
+                let bounds = self.review.tree.bounds();
+                let pivot = if bounds.is_empty() {
+                    1.0
+                } else {
+                    bounds.extent().length() * 0.1
+                };
+                let pane = &mut self.panes[self.active];
+                let (eye, forward) = (DVec3::from_array(c.eye), DVec3::from_array(c.forward));
+                anyhow::ensure!(
+                    pane.nav.look_along(eye, forward, pivot),
+                    "camera: no direction to look along"
+                );
+                pane.view.reset_visibility();
+                result = Some(camera_json(&pane.nav));
+            }
             Action::Panes(n) => {
                 anyhow::ensure!(
                     (1..=crate::panes::MAX_PANES).contains(n),
@@ -1175,6 +1213,9 @@ impl App {
             pane.view.size = gfx.views[i].size;
             pane.view.camera = pane.nav.camera();
         }
+        if let Some(far) = self.far.as_mut() {
+            self.panes[0].view.far_field = far.for_frame(self.panes[0].view.camera.eye)?;
+        }
         let (scene, tree) = (&self.review.scene, &self.review.tree);
         if let Some(streaming) = self.streaming.as_mut() {
             let camera = self.panes[0].view.camera;
@@ -1221,6 +1262,9 @@ impl App {
                 )?);
             }
         }
+        if let Some(far) = self.far.as_mut() {
+            far.after_render(&stats[0], self.frames_drawn);
+        }
         if self.panes.iter().any(|p| p.kind == PaneKind::Cells) {
             crate::panes::drawn_cells(
                 &self.review.tree,
@@ -1229,6 +1273,22 @@ impl App {
             );
         }
         Ok(stats)
+    }
+
+    /// Captures again a far field that moved parts made stale, when the view
+    /// is calm: no drag of a part, the gizmo or a section going on, and no
+    /// camera moved by this frame's input (`moving`).
+    fn rebuild_far_fields(&mut self, moving: bool) -> anyhow::Result<()> {
+        let (Some(far), Some(renderer)) = (self.far.as_mut(), self.renderer.as_ref()) else {
+            return Ok(());
+        };
+        let calm = !moving && self.pointer_drag.is_none() && !self.review.dragging();
+        far.rebuild(
+            &self.review,
+            renderer.moved_parts(),
+            calm,
+            self.panes[0].view.camera.eye,
+        )
     }
 
     /// Under a memory budget, starts streaming with the first frame (drawn
@@ -1380,6 +1440,9 @@ impl App {
                 }
                 dmu_render::save_png(&image, path)?;
             }
+            self.rebuild_far_fields(input.active())?;
+            // A far field loading or to be captured again needs frames.
+            self.keep_drawing |= self.far.as_ref().is_some_and(|f| f.wants_frames());
             let frame_ms = ms_since(start);
             self.frame_times.push(frame_ms);
             if self.first_frame_ms.is_none() {
@@ -1399,6 +1462,7 @@ impl App {
                 painted_whole: presented.painted_whole,
                 model_triangles: self.review.scene.triangle_count(),
                 resident_bytes: resident,
+                far: self.far.as_ref().map(|f| f.report().clone()),
             };
             if let Some((action, step)) = scripted.label {
                 let mut record = json!({
@@ -1427,6 +1491,9 @@ impl App {
                     "check_ms": self.review.timings.check_ms,
                     "clashes": clashes_json(&self.review.report),
                 });
+                if let Some(far) = &self.far {
+                    record["far_field"] = far.report().json();
+                }
                 if stats.len() > 1 {
                     record["pane_triangles_drawn"] =
                         json!(stats.iter().map(|s| s.triangles_drawn).collect::<Vec<_>>());

@@ -28,9 +28,21 @@ pub struct LoadProgress {
     pub total: AtomicUsize,
 }
 
-/// What the loading thread hands over: the review, the report's facts and
-/// the model's proxies (merged subtrees) when they were asked for.
-pub type LoadResult = anyhow::Result<(Review, Value, Option<dmu_render::Proxies>)>;
+/// What the loading thread hands over.
+#[derive(Debug)]
+pub struct Loaded {
+    /// The model under review.
+    pub review: Review,
+    /// The report's facts about the model.
+    pub facts: Value,
+    /// The model's proxies (merged subtrees), when they were asked for.
+    pub proxies: Option<dmu_render::Proxies>,
+    /// The store's far fields, with `--far-field on|auto`.
+    pub far_fields: Option<dmu_app::far_fields::FarFieldSet>,
+}
+
+/// The loading thread's result.
+pub type LoadResult = anyhow::Result<Loaded>;
 
 /// The loading thread's end and its progress.
 #[derive(Debug)]
@@ -109,10 +121,11 @@ impl Launcher {
             }
         };
         match result {
-            Ok((review, facts, proxies)) => {
+            Ok(loaded) => {
                 let options = self.options.take().expect("the viewer starts once");
-                let mut app = App::new(self.instance.clone(), review, options, facts);
-                app.proxies = proxies;
+                let mut app = App::new(self.instance.clone(), loaded.review, options, loaded.facts);
+                app.proxies = loaded.proxies;
+                app.far_field_set = loaded.far_fields;
                 if let Some((gfx, state)) = self.window.take() {
                     app.adopt(gfx, state, self.egui_ctx.clone());
                 }

@@ -21,6 +21,10 @@
 //!   are tinted by the renderer's per-part flags.
 //! - A session can be recorded (`--record`) in the JSON Lines format `dmu
 //!   collide --record` replays: every placement is one absolute pose.
+//! - A store's far fields (`dmu farfield build`) stand in for what lies
+//!   beyond the cull box of the eye's viewpoint cell in the main view
+//!   (`--far-field on|auto`); a move makes those showing the part stale, and
+//!   they are captured again once the view is calm (`far`).
 //! - Automation runs the same frames: `--script` actions go one per frame (a
 //!   drag one step per frame), `--screenshot` reads back the swapchain, and the
 //!   run prints one JSON report (picks with their rays, saves, frame times).
@@ -31,6 +35,7 @@
 mod app;
 mod budget;
 mod compose;
+mod far;
 mod gfx;
 mod launch;
 mod panes;
@@ -46,6 +51,7 @@ use std::time::Instant;
 
 use anyhow::Context as _;
 use clap::Parser;
+use dmu_app::far_fields::{FarFieldSet, FarUse};
 use dmu_viewer::{
     clashes, gizmo, issues, measure, nav, record, review, script, section, settings, viewpoints,
 };
@@ -130,6 +136,14 @@ struct Cli {
     /// drawn as: its box, flat-shaded (box), or nothing (none: a hole).
     #[arg(long, default_value = "box", value_parser = ["box", "none"], requires = "memory_budget")]
     stand_ins: String,
+    /// Far fields (`dmu farfield build`) in the main 3D view, for a .dmu
+    /// store that has them: beyond the cull box of the eye's viewpoint cell
+    /// the model is drawn as the cell's textured depth meshes (on), or only
+    /// where frames are faster with them, timed every 60 frames (auto). Far
+    /// fields made stale by moved parts are captured again once the view is
+    /// calm (in memory; the store keeps its own). Not with --memory-budget.
+    #[arg(long, default_value = "off", value_parser = FarUse::NAMES, conflicts_with = "xr")]
+    far_field: String,
     /// The length of one model unit, for BCF issues written and read (BCF is
     /// in metres; the built-in plant is in millimetres).
     #[arg(long, value_enum, default_value = "mm")]
@@ -181,6 +195,10 @@ fn run(cli: &Cli, started: Instant) -> anyhow::Result<()> {
     if cli.xr {
         return run_xr(cli);
     }
+    let far_field = FarUse::from_name(&cli.far_field)
+        .with_context(|| format!("--far-field {}: not off, on or auto", cli.far_field))?;
+    // Checked before the window opens: the error is the first thing seen.
+    let far_store = far_field_store(cli, far_field)?;
     // The model loads on a thread while the window shows the progress.
     let progress = Arc::new(launch::LoadProgress::default());
     let (send, result) = std::sync::mpsc::channel();
@@ -191,13 +209,14 @@ fn run(cli: &Cli, started: Instant) -> anyhow::Result<()> {
     std::thread::Builder::new()
         .name("dmu load".into())
         .spawn(move || {
-            let _ = send.send(load_review(
-                &model,
-                record_path.as_deref(),
-                &shared,
-                proxies,
-                budget,
-            ));
+            let loaded = load_review(&model, record_path.as_deref(), &shared, proxies, budget)
+                .and_then(|mut loaded| {
+                    if let Some(store) = &far_store {
+                        loaded.far_fields = Some(open_far_fields(store, &loaded.review)?);
+                    }
+                    Ok(loaded)
+                });
+            let _ = send.send(loaded);
         })
         .context("starting the loading thread")?;
     let automated = cli.frames.is_some() || !script.is_empty();
@@ -219,6 +238,7 @@ fn run(cli: &Cli, started: Instant) -> anyhow::Result<()> {
         unit: cli.unit,
         memory_budget: cli.memory_budget,
         stand_ins: cli.stand_ins == "box",
+        far_field,
         started,
     };
     let event_loop = match winit::event_loop::EventLoop::new() {
@@ -284,14 +304,14 @@ fn run_xr(cli: &Cli) -> anyhow::Result<()> {
         budget: cli.xr_budget,
         stereo: cli.xr_stereo,
     };
-    let (review, facts, _) = load_review(
+    let loaded = load_review(
         &cli.model,
         cli.record.as_deref(),
         &launch::LoadProgress::default(),
         false,
         None,
     )?;
-    let report = xr::run(review, args, facts)?;
+    let report = xr::run(loaded.review, args, loaded.facts)?;
     if cli.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
@@ -351,7 +371,63 @@ fn load_review(
             "bounds": { "min": b.min.to_array(), "max": b.max.to_array() },
         },
     });
-    Ok((review, facts, proxies))
+    Ok(launch::Loaded {
+        review,
+        facts,
+        proxies,
+        far_fields: None,
+    })
+}
+
+/// With `--far-field on|auto`: the model's store, checked to hold far
+/// fields (its skeleton dropped: the scene loads apart); `None` with off.
+fn far_field_store(cli: &Cli, far: FarUse) -> anyhow::Result<Option<Arc<dmu_store::Store>>> {
+    if far == FarUse::Off {
+        return Ok(None);
+    }
+    let flag = format!("--far-field {}", far.name());
+    anyhow::ensure!(
+        cli.memory_budget.is_none(),
+        "{flag}: not under --memory-budget (a far field made stale by a move is captured \
+         again from everything outside its cull box, which a store's skeleton has not loaded)"
+    );
+    let path = cli.model.file.as_ref().with_context(|| {
+        format!(
+            "{flag}: the built-in plant has no far fields; make a store that has them with \
+             `dmu generate plant -o plant.dmu` and `dmu farfield build plant.dmu`"
+        )
+    })?;
+    let gltf = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("glb") || e.eq_ignore_ascii_case("gltf"));
+    anyhow::ensure!(
+        !gltf,
+        "{flag}: {} is glTF, and far fields live in .dmu stores; make one with \
+         `dmu import {0} -o model.dmu` and `dmu farfield build model.dmu`",
+        path.display()
+    );
+    let mut store = dmu_store::Store::open(path)?;
+    anyhow::ensure!(
+        store.far_field_index()?.is_some(),
+        "{flag}: {} has no far fields; make them with `dmu farfield build {0}`",
+        path.display()
+    );
+    drop(store.take_skeleton());
+    Ok(Some(Arc::new(store)))
+}
+
+/// The far fields of `store` for the model `review` loaded: made from its
+/// poses, or refused.
+fn open_far_fields(
+    store: &Arc<dmu_store::Store>,
+    review: &review::Review,
+) -> anyhow::Result<FarFieldSet> {
+    FarFieldSet::open(store, &review.scene)?.with_context(|| {
+        format!(
+            "{} has no far fields; make them with `dmu farfield build {0}`",
+            store.path().display()
+        )
+    })
 }
 
 /// Under `--memory-budget`: the store's structure alone, no geometry.

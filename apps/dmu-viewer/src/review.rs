@@ -383,6 +383,11 @@ impl Review {
         true
     }
 
+    /// Whether a drag of the selection is going on.
+    pub fn dragging(&self) -> bool {
+        self.drag.is_some()
+    }
+
     /// One drag step: the dragged part at its start translated by `offset`
     /// (world units); the tree is updated and collisions checked.
     pub fn drag_to(&mut self, offset: DVec3) {

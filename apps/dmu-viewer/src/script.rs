@@ -12,7 +12,7 @@
 //!   {"select": "U00-L1-PIPE-0003"},
 //!   {"rotate": {"axis": "z", "degrees": 90}},
 //!   {"hover": [640, 360]},
-//!   {"view": "top"},
+//!   {"view": "top"}, {"camera": {"eye": [0, 0, 1500], "forward": [1, 0, 0]}},
 //!   {"panes": 4}, {"pane": 1},
 //!   {"record": "/tmp/session.jsonl"}, {"record": null},
 //!   {"clearance": 5},
@@ -203,6 +203,16 @@ pub struct Rotate {
     pub degrees: f64,
 }
 
+/// Where the active pane's eye goes and where it looks.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraAt {
+    /// The eye, world.
+    pub eye: [f64; 3],
+    /// The view direction (any length but 0; the view stays upright).
+    pub forward: [f64; 3],
+}
+
 fn default_steps() -> u32 {
     1
 }
@@ -261,6 +271,8 @@ pub enum Action {
     Hover([f64; 2]),
     /// Look from a preset direction, framing the model (in the active pane).
     View(crate::nav::Preset),
+    /// Put the active pane's eye at a point, looking along a direction.
+    Camera(CameraAt),
     /// Show this many 3D panes (1 to 4): main, top, cells, front.
     Panes(usize),
     /// Make pane `i` (from 0) the active one: picks, moves of the camera,
@@ -335,6 +347,7 @@ impl Action {
             Self::Viewpoint(_) => "viewpoint",
             Self::Hover(_) => "hover",
             Self::View(_) => "view",
+            Self::Camera(_) => "camera",
             Self::Panes(_) => "panes",
             Self::Pane(_) => "pane",
             Self::Record(_) => "record",
@@ -387,6 +400,13 @@ pub fn parse(text: &str) -> anyhow::Result<Vec<Action>> {
             Action::Measure(m) => m.at.iter().flatten().all(|v| v.is_finite()),
             Action::SectionDrag(d) => d.by.iter().all(|v| v.is_finite()),
             Action::Rotate(r) => r.degrees.is_finite(),
+            Action::Camera(c) => {
+                anyhow::ensure!(
+                    c.forward.iter().any(|&v| v != 0.0),
+                    "action {i} (camera): the forward direction is zero"
+                );
+                c.eye.iter().chain(&c.forward).all(|v| v.is_finite())
+            }
             Action::Clearance(c) => {
                 anyhow::ensure!(
                     c.is_finite() && *c >= 0.0,
@@ -515,6 +535,22 @@ mod tests {
         assert!(parse(r#"[{"snap": {"step": -1}}]"#).is_err());
         assert!(parse(r#"[{"gizmo_drag": {"handle": "w", "by": [1, 2]}}]"#).is_err());
         assert!(parse(r#"[{"measure": {"mode": "volume", "at": [[1, 2], [3, 4]]}}]"#).is_err());
+        let zero = r#"[{"camera": {"eye": [1, 2, 3], "forward": [0, 0, 0]}}]"#;
+        assert!(parse(zero).unwrap_err().to_string().contains("zero"));
+        assert!(parse(r#"[{"camera": {"eye": [1, 2], "forward": [1, 0, 0]}}]"#).is_err());
+    }
+
+    #[test]
+    fn parses_a_camera() {
+        let script = parse(r#"[{"camera": {"eye": [1, 2, 3], "forward": [0, 1, 0]}}]"#).unwrap();
+        assert_eq!(
+            script[0],
+            Action::Camera(CameraAt {
+                eye: [1.0, 2.0, 3.0],
+                forward: [0.0, 1.0, 0.0]
+            })
+        );
+        assert_eq!(script[0].name(), "camera");
     }
 
     /// `frames` saturates on the largest counts the format can hold (`parse`

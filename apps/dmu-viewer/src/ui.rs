@@ -74,7 +74,7 @@ impl ViewInput {
 }
 
 /// Counters of the last frame for the overlay.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Overlay {
     /// The renderer's stats of the last frame.
     pub frame: FrameStats,
@@ -95,6 +95,8 @@ pub struct Overlay {
     pub model_triangles: u64,
     /// Chunk geometry on the GPU, bytes.
     pub resident_bytes: u64,
+    /// The main view's far fields (`--far-field on|auto`).
+    pub far: Option<crate::far::FarReport>,
 }
 
 /// State of the panels between frames.
@@ -206,7 +208,7 @@ pub fn show(
             // Long paths wrap instead of widening the panel (and shrinking the view).
             ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Wrap);
             egui::ScrollArea::vertical().show(ui, |ui| {
-                why_section(ui, panes.panes);
+                why_section(ui, panes.panes, overlay);
                 properties_panel(ui, state, review);
                 let active = panes.active.min(panes.panes.len() - 1);
                 crate::tools_ui::panel(ui, state, review, &mut panes.panes[active]);
@@ -509,7 +511,7 @@ pub(crate) fn vec_text(v: DVec3) -> String {
 
 /// "Why": the choices made by measurement in each pane, with the figures
 /// behind them (the same words as `dmu render --explain`).
-fn why_section(ui: &mut egui::Ui, panes: &[Pane]) {
+fn why_section(ui: &mut egui::Ui, panes: &[Pane], overlay: &Overlay) {
     egui::CollapsingHeader::new("Why")
         .default_open(false)
         .show(ui, |ui| {
@@ -521,6 +523,9 @@ fn why_section(ui: &mut egui::Ui, panes: &[Pane]) {
                     None => dmu_app::explain::occlusion_now(view.culling, &last.occlusion),
                 };
                 ui.label(format!("pane {}: {why}", i + 1));
+            }
+            if let Some(auto) = overlay.far.as_ref().and_then(|f| f.auto.as_ref()) {
+                ui.label(format!("pane 1: {auto}"));
             }
         });
 }
@@ -921,6 +926,10 @@ fn stats_overlay(painter: &egui::Painter, rect: Rect, o: &Overlay, review: &Revi
         review.timings.move_us,
         review.timings.check_ms,
     );
+    let text = match &o.far {
+        Some(far) => format!("{text}\n{}", far.overlay_text()),
+        None => text,
+    };
     let font = egui::FontId::monospace(12.0);
     let galley = painter.layout_no_wrap(text, font, Color32::from_gray(230));
     let at = Pos2::new(rect.max.x - galley.size().x - 12.0, rect.min.y + 8.0);

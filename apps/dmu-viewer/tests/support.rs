@@ -65,6 +65,50 @@ pub fn viewer(args: &[&str]) -> Value {
     })
 }
 
+/// Runs the viewer with `args` in Xvfb on lavapipe, expecting it to fail
+/// with exit status 2: its standard error.
+pub fn viewer_fails(args: &[&str]) -> String {
+    let _one_at_a_time = xvfb_lock();
+    let out = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1600x1000x24"])
+        .arg(env!("CARGO_BIN_EXE_dmu-viewer"))
+        .args(args)
+        .env("WGPU_BACKEND", "vulkan")
+        .env("VK_ICD_FILENAMES", LVP_ICD)
+        .output()
+        .expect("run xvfb-run");
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "dmu-viewer {args:?} should fail:\n{stderr}"
+    );
+    stderr
+}
+
+/// Runs `dmu` with `args` on lavapipe (commands that draw: `dmu farfield
+/// build`) and parses its JSON output; it must succeed.
+pub fn dmu_on_lavapipe(args: &[&str]) -> Value {
+    let out = Command::new(dmu_cli())
+        .args(args)
+        .env("WGPU_BACKEND", "vulkan")
+        .env("VK_ICD_FILENAMES", LVP_ICD)
+        .output()
+        .expect("run dmu");
+    assert!(
+        out.status.success(),
+        "dmu {args:?} failed ({}):\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!(
+            "dmu {args:?} printed no JSON ({e}):\n{}",
+            String::from_utf8_lossy(&out.stdout)
+        )
+    })
+}
+
 /// The `dmu` command line of the same build (built here if it is not yet).
 pub fn dmu_cli() -> PathBuf {
     let viewer = PathBuf::from(env!("CARGO_BIN_EXE_dmu-viewer"));

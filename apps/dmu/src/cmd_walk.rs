@@ -375,7 +375,7 @@ fn print_render(args: &Args, report: &serde_json::Value) -> anyhow::Result<()> {
     for t in totals {
         let differing = match t["frames_with_differing_pixels"].as_u64() {
             Some(n) => format!(
-                "; {n} frames differ from none (worst {} pixels)",
+                "; {n} frames differ from the reference (worst {} pixels)",
                 t["worst_differing_pixels"]
             ),
             None => String::new(),
@@ -402,6 +402,27 @@ fn print_render(args: &Args, report: &serde_json::Value) -> anyhow::Result<()> {
             mb(&walk["peak_resident_bytes"]),
             mb(&walk["budget_bytes"]),
         );
+    }
+    if let Some(modes) = report["far_field"]["modes"].as_array() {
+        let far = &report["far_field"];
+        println!(
+            "  far fields: {} cells, {:.0} kB and {:.1} s a cell",
+            far["cells"],
+            far["bytes_per_cell"].as_f64().unwrap_or(f64::NAN) / 1e3,
+            far["build_ms_per_cell"].as_f64().unwrap_or(f64::NAN) / 1e3,
+        );
+        for m in modes {
+            println!(
+                "  {}: drawn in {} frames; differing pixels median {}, worst {}; {:.2}x faster than without",
+                m["mode"].as_str().unwrap_or("?"),
+                m["frames_with_far_field"],
+                m["far_field_differing_pixels_median"],
+                m["far_field_differing_pixels_worst"],
+                m["without_over_with_median_frame_time"]
+                    .as_f64()
+                    .unwrap_or(f64::NAN),
+            );
+        }
     }
     for key in [
         "frustum_over_chc_frame_time",

@@ -9,7 +9,8 @@ use std::collections::BTreeSet;
 use std::sync::Arc;
 
 use anyhow::Context as _;
-use dmu_app::far_fields::FarFieldSet;
+pub use dmu_app::far_fields::FarUse;
+use dmu_app::far_fields::{FarAuto, FarFieldSet};
 use dmu_render::{
     Camera, Capture, Culling, CullingOptions, FrameStats, Renderer, RendererOptions, View,
     headless_device,
@@ -203,17 +204,6 @@ fn lod_options(culling: &CullingOptions) -> RendererOptions {
     }
 }
 
-/// Far fields in a mode of a walk.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum FarUse {
-    /// Not drawn.
-    Off,
-    /// Drawn wherever the eye's cell has one loaded.
-    On,
-    /// Drawn where they pay: [`FarAuto`] times frames with and without.
-    Auto,
-}
-
 /// A walk mode: a culling, with or without far fields.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Mode {
@@ -238,61 +228,6 @@ impl Mode {
             FarUse::Auto => "+far-auto",
         };
         format!("{}{far}", self.culling.name())
-    }
-}
-
-/// `--far-field auto`: every 60 frames, two frames without the far field
-/// and two with it are timed (each after one not timed), and the faster way
-/// is kept until the next probe.
-#[derive(Debug, Default)]
-struct FarAuto {
-    frame: u64,
-    off_ms: Vec<f64>,
-    on_ms: Vec<f64>,
-    use_far: bool,
-    /// The last probe's medians, ms (without, with).
-    last: Option<(f64, f64)>,
-    changes: Vec<String>,
-}
-
-impl FarAuto {
-    /// Whether this frame draws the far field.
-    fn next(&mut self) -> bool {
-        let k = self.frame % 60;
-        self.frame += 1;
-        match k {
-            0..=2 => false,
-            3..=5 => true,
-            _ => self.use_far,
-        }
-    }
-
-    /// The frame's time, ms.
-    fn after(&mut self, ms: f64, frame: usize) {
-        match (self.frame - 1) % 60 {
-            1 | 2 => self.off_ms.push(ms),
-            4 | 5 => {
-                self.on_ms.push(ms);
-                if self.on_ms.len() == 2 {
-                    let mean = |v: &mut Vec<f64>| {
-                        let m = v.iter().sum::<f64>() / v.len() as f64;
-                        v.clear();
-                        m
-                    };
-                    let (off, on) = (mean(&mut self.off_ms), mean(&mut self.on_ms));
-                    let use_far = on < off;
-                    if use_far != self.use_far || self.last.is_none() {
-                        self.changes.push(format!(
-                            "frame {frame}: far field {} ({on:.1} ms a frame with it, {off:.1} ms without)",
-                            if use_far { "on" } else { "off" }
-                        ));
-                    }
-                    self.use_far = use_far;
-                    self.last = Some((off, on));
-                }
-            }
-            _ => {}
-        }
     }
 }
 
@@ -387,7 +322,7 @@ pub fn run(
             view.far_field = match modes[i].far {
                 FarUse::Off => None,
                 FarUse::On => field.clone(),
-                FarUse::Auto => autos[i].next().then(|| field.clone()).flatten(),
+                FarUse::Auto => autos[i].next_frame().then(|| field.clone()).flatten(),
             };
             let stats: FrameStats =
                 renderer.render(view, scene, tree, scene, captures[i].frame_target())?;
@@ -493,7 +428,7 @@ pub fn run(
             .zip(&views)
             .flat_map(|((&m, stats), view)| explain(m.culling, view.options.target_ms, stats))
             .chain(modes.iter().zip(&autos).flat_map(|(m, a)| {
-                a.changes.iter().map(move |c| format!("{}: {c}", m.name()))
+                a.changes().iter().map(move |c| format!("{}: {c}", m.name()))
             }))
             .collect::<Vec<_>>(),
         "far_field": far_report(far.as_ref(), modes, &frames),
@@ -527,6 +462,10 @@ fn far_report(
                 .iter()
                 .filter_map(|f| f.modes[i].differing_pixels.map(|d| d as f64))
                 .collect();
+            let mut surface: Vec<f64> = frames
+                .iter()
+                .filter_map(|f| f.modes[i].surface_differing_pixels.map(|d| d as f64))
+                .collect();
             let errors: Vec<f64> = frames
                 .iter()
                 .filter(|f| f.modes[i].differing_pixels.is_some_and(|d| d > 0))
@@ -538,6 +477,8 @@ fn far_report(
                 "frames_with_far_field": frames.iter().filter(|f| f.modes[i].far_field).count(),
                 "far_field_differing_pixels_median": (!differing.is_empty()).then(|| percentile(&mut differing, 0.5)),
                 "far_field_differing_pixels_worst": differing.iter().copied().reduce(f64::max),
+                "far_field_surface_differing_pixels_median": (!surface.is_empty()).then(|| percentile(&mut surface, 0.5)),
+                "far_field_surface_differing_pixels_worst": surface.iter().copied().reduce(f64::max),
                 "mean_color_error_of_differing": (!errors.is_empty()).then(|| errors.iter().sum::<f64>() / errors.len() as f64),
                 "median_frame_ms": median_ms(i),
                 "without_over_with_median_frame_time": without.map(|w| median_ms(w) / median_ms(i).max(1e-9)),

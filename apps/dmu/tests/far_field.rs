@@ -104,4 +104,36 @@ fn far_fields_are_built_into_the_store_and_drawn_by_a_walk() {
             "frame {i}: {f:#}"
         );
     }
+
+    // Auto: the six frames are its probe (three without, three with, the
+    // first of each untimed); it says what it chose and the times behind it.
+    let auto: Vec<&str> = walk
+        .iter()
+        .map(|&a| if a == "on" { "auto" } else { a })
+        .chain(["--explain"])
+        .collect();
+    let out = on_gpu("far_fields_auto", "walk", &auto).unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["totals"][2]["culling"], "frustum+far-auto");
+    let explain: Vec<&str> = v["explain"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|l| l.as_str())
+        .filter(|l| l.contains("far field"))
+        .collect();
+    assert_eq!(explain.len(), 1, "{:#}", v["explain"]);
+    assert!(explain[0].contains("ms a frame with it"), "{}", explain[0]);
+    let with: Vec<bool> = v["per_frame"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["modes"][2]["far_field"].as_bool().unwrap())
+        .collect();
+    assert_eq!(with, [false, false, false, true, true, true]);
 }

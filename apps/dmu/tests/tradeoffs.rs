@@ -100,6 +100,10 @@ fn tradeoffs_quick_writes_plots_and_every_reference_setting_is_exact() {
             "rendering: coverage threshold",
             "rendering: occlusion re-check interval",
             "rendering: occlusion rounds",
+            "rendering: far field",
+            "rendering: far field resolution",
+            "rendering: far field mesh error",
+            "rendering: far field skins",
         ]);
     }
     for w in &wanted {
@@ -168,6 +172,24 @@ fn tradeoffs_quick_writes_plots_and_every_reference_setting_is_exact() {
                 .all(|p| p["error"] == 0.0),
             "{n}"
         );
+    }
+    // Far fields: every setting but none draws a fraction of the chunk
+    // triangles, and the depth meshes are stored and drawn.
+    if skipped.is_empty() {
+        let far = knob("far field")["points"].as_array().unwrap();
+        let extra = |p: &Value, e: &str| number(&p["extra"][e], e);
+        let chunks = |p: &Value| extra(p, "chunk triangles a frame");
+        assert_eq!(far[0]["label"], "none");
+        for p in &far[1..] {
+            assert!(chunks(p) * 2.0 < chunks(&far[0]), "{p}");
+        }
+        let meshes = far.iter().find(|p| p["label"] == "depth meshes").unwrap();
+        assert!(
+            extra(meshes, "far-field triangles a frame") > 12.0,
+            "{meshes}"
+        );
+        assert!(extra(meshes, "bytes per cell") > 0.0, "{meshes}");
+        assert!(extra(meshes, "build per cell, ms") > 0.0, "{meshes}");
     }
     let discrete = knob("discrete step")["points"].as_array().unwrap();
     let last = discrete.last().unwrap();

@@ -10,6 +10,12 @@
 //! built cells with their boxes, sizes and build times, and a signature of
 //! the model's transforms and visibility: far fields made from other poses
 //! are refused, not drawn wrong.
+//!
+//! Where they are drawn is the caller's choice ([`FarUse`]): always where
+//! the eye's cell has one, or where they pay ([`FarAuto`] times frames with
+//! and without). A caller that moves parts captures the far fields that went
+//! stale again and hands them to [`FarFieldSet::replace`] (in memory only:
+//! the store keeps the far fields of the poses it was built from).
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::sync::mpsc::{Receiver, Sender, channel};
@@ -56,13 +62,39 @@ pub struct FarFieldIndex {
     pub resolution: u32,
     /// The depth meshes' simplification bound, pixels.
     pub mesh_error_px: f64,
+    /// Pixels between depth-mesh grid vertices.
+    #[serde(default = "default_grid_step")]
+    pub grid_step: u32,
+    /// Skins kept across depth discontinuities.
+    #[serde(default = "default_skins")]
+    pub skins: bool,
     /// Signature of the model's part transforms and visibility they show.
     pub model_signature: u64,
     /// Built cells.
     pub cells: Vec<IndexCell>,
 }
 
+fn default_grid_step() -> u32 {
+    FarFieldOptions::default().grid_step
+}
+
+fn default_skins() -> bool {
+    FarFieldOptions::default().skins
+}
+
 impl FarFieldIndex {
+    /// The capture options its far fields were made with (to capture one
+    /// again alike).
+    pub fn capture_options(&self) -> FarFieldOptions {
+        FarFieldOptions {
+            resolution: self.resolution,
+            grid_step: self.grid_step,
+            mesh_error_px: self.mesh_error_px,
+            skins: self.skins,
+            ..FarFieldOptions::default()
+        }
+    }
+
     /// The grid coordinates of the cell holding `p`.
     pub fn grid_of(&self, p: DVec3) -> [i64; 3] {
         let g = ((p - DVec3::from_array(self.origin)) / self.cell_size).floor();
@@ -84,6 +116,20 @@ impl FarFieldIndex {
             && index.cell_size > 0.0;
         if !finite {
             bail!("the far-field index: origin or cell size is not a finite positive number");
+        }
+        // Captured again with these (after moves), so checked here.
+        if !dmu_render::FAR_FIELD_RESOLUTIONS.contains(&index.resolution) {
+            bail!(
+                "the far-field index: resolution {} is not within {:?}",
+                index.resolution,
+                dmu_render::FAR_FIELD_RESOLUTIONS
+            );
+        }
+        if !(index.mesh_error_px.is_finite() && index.mesh_error_px >= 0.0) {
+            bail!(
+                "the far-field index: mesh error {} px is not a finite number of pixels",
+                index.mesh_error_px
+            );
         }
         for (i, c) in index.cells.iter().enumerate() {
             if c.segment as usize != i || !c.near_box.iter().flatten().all(|x| x.is_finite()) {
@@ -182,7 +228,12 @@ impl FarFieldSet {
                         .and_then(|bytes| FarField::decode(&bytes, parts));
                     match result {
                         Ok(field) => {
-                            into.lock().expect("loader").insert(cell, Arc::new(field));
+                            // A far field captured again while this one
+                            // loaded ([`FarFieldSet::replace`]) is newer.
+                            into.lock()
+                                .expect("loader")
+                                .entry(cell)
+                                .or_insert_with(|| Arc::new(field));
                         }
                         Err(e) => {
                             let _ = report.send(format!(
@@ -252,6 +303,37 @@ impl FarFieldSet {
             .filter(|f| f.serves(eye)))
     }
 
+    /// Whether the index has a far field for the cell holding `eye` (loaded
+    /// or not).
+    pub fn has_cell_at(&self, eye: DVec3) -> bool {
+        self.by_grid.contains_key(&self.index.grid_of(eye))
+    }
+
+    /// The far fields in memory now (loaded or replaced), by cell segment.
+    pub fn loaded(&self) -> Vec<(u32, Arc<FarField>)> {
+        let loaded = self.loaded.lock().expect("loader");
+        loaded.iter().map(|(&c, f)| (c, f.clone())).collect()
+    }
+
+    /// Puts `field` (captured again, e.g. after parts moved) in place of the
+    /// in-memory far field of the index cell whose box is `field.cell`, and
+    /// returns that cell's segment; `None` (nothing replaced) when no built
+    /// cell has that box. Memory only: the store is not written, so a
+    /// replaced far field dropped past the capacity loads again as stored
+    /// (stale for the moved parts, which the caller then captures again).
+    pub fn replace(&mut self, field: Arc<FarField>) -> Option<u32> {
+        let g = self.index.grid_of(field.cell.center());
+        let &cell = self.by_grid.get(&g)?;
+        if self.index.cell_box(g) != field.cell {
+            return None;
+        }
+        // Requested, so that `for_eye` never asks the loader for it again
+        // while it is in memory (the loader would not overwrite it anyway).
+        self.requested.insert(cell);
+        self.loaded.lock().expect("loader").insert(cell, field);
+        Some(cell)
+    }
+
     /// Waits until the eye's cell's far field is loaded (none there: at once).
     pub fn wait_for(&mut self, eye: DVec3) -> anyhow::Result<Option<Arc<FarField>>> {
         let Some(&cell) = self.by_grid.get(&self.index.grid_of(eye)) else {
@@ -263,6 +345,148 @@ impl FarFieldSet {
                 return Ok(field);
             }
             std::thread::sleep(std::time::Duration::from_millis(2));
+        }
+    }
+}
+
+/// Where far fields are drawn.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FarUse {
+    /// Not drawn.
+    #[default]
+    Off,
+    /// Drawn wherever the eye's cell has one loaded.
+    On,
+    /// Drawn where they pay: [`FarAuto`] times frames with and without.
+    Auto,
+}
+
+impl FarUse {
+    /// The names on the command line.
+    pub const NAMES: [&'static str; 3] = ["off", "on", "auto"];
+
+    /// From its name on the command line (`off`, `on`, `auto`).
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "off" => Some(Self::Off),
+            "on" => Some(Self::On),
+            "auto" => Some(Self::Auto),
+            _ => None,
+        }
+    }
+
+    /// Its name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Off => "off",
+            Self::On => "on",
+            Self::Auto => "auto",
+        }
+    }
+}
+
+/// Frames between two probes of [`FarAuto`].
+pub const FAR_AUTO_PROBE_EVERY: u64 = 60;
+
+/// `--far-field auto`: every [`FAR_AUTO_PROBE_EVERY`] frames, two frames
+/// without the far field and two with it are timed (each pair after one
+/// frame not timed, which takes the switch's uploads), and the faster way
+/// (by their means) is kept until the next probe.
+///
+/// ```
+/// use dmu_app::far_fields::FarAuto;
+///
+/// let mut auto = FarAuto::default();
+/// for frame in 0..6 {
+///     let with_far = auto.next_frame();
+///     // Frames with the far field take 5 ms here, without 20 ms.
+///     auto.after(if with_far { 5.0 } else { 20.0 }, frame);
+/// }
+/// assert!(auto.uses_far());
+/// assert_eq!(auto.last(), Some((20.0, 5.0)));
+/// assert!(auto.next_frame()); // kept until the next probe
+/// ```
+#[derive(Clone, Debug, Default)]
+pub struct FarAuto {
+    frame: u64,
+    off_ms: Vec<f64>,
+    on_ms: Vec<f64>,
+    use_far: bool,
+    /// The last probe's means, ms (without, with).
+    last: Option<(f64, f64)>,
+    changes: Vec<String>,
+}
+
+impl FarAuto {
+    /// Whether this frame draws the far field (call once a frame, then
+    /// [`FarAuto::after`] with its time).
+    pub fn next_frame(&mut self) -> bool {
+        let k = self.frame % FAR_AUTO_PROBE_EVERY;
+        self.frame += 1;
+        match k {
+            0..=2 => false,
+            3..=5 => true,
+            _ => self.use_far,
+        }
+    }
+
+    /// The time of the frame [`FarAuto::next_frame`] was last asked about, ms;
+    /// `frame` numbers it in the change lines.
+    pub fn after(&mut self, ms: f64, frame: usize) {
+        let Some(k) = self.frame.checked_sub(1) else {
+            return;
+        };
+        match k % FAR_AUTO_PROBE_EVERY {
+            1 | 2 => self.off_ms.push(ms),
+            4 | 5 => {
+                self.on_ms.push(ms);
+                if self.on_ms.len() == 2 {
+                    let mean = |v: &mut Vec<f64>| {
+                        let m = v.iter().sum::<f64>() / v.len() as f64;
+                        v.clear();
+                        m
+                    };
+                    let (off, on) = (mean(&mut self.off_ms), mean(&mut self.on_ms));
+                    let use_far = on < off;
+                    if use_far != self.use_far || self.last.is_none() {
+                        self.changes.push(format!(
+                            "frame {frame}: far field {} ({on:.1} ms a frame with it, {off:.1} ms without)",
+                            if use_far { "on" } else { "off" }
+                        ));
+                    }
+                    self.use_far = use_far;
+                    self.last = Some((off, on));
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// Whether the last probe chose the far field (false before the first).
+    pub fn uses_far(&self) -> bool {
+        self.use_far
+    }
+
+    /// The last probe's mean frame times, ms: (without, with).
+    pub fn last(&self) -> Option<(f64, f64)> {
+        self.last
+    }
+
+    /// Each probe that changed the choice (and the first), `frame N: ...`.
+    pub fn changes(&self) -> &[String] {
+        &self.changes
+    }
+
+    /// The choice now, in one sentence (the viewer's "Why").
+    pub fn now(&self) -> String {
+        match self.last {
+            None => format!(
+                "far field auto: measuring (frames with and without it are timed every {FAR_AUTO_PROBE_EVERY} frames)"
+            ),
+            Some((off, on)) => format!(
+                "far field {} by auto: a frame took {on:.1} ms with it, {off:.1} ms without (timed again every {FAR_AUTO_PROBE_EVERY} frames)",
+                if self.use_far { "on" } else { "off" }
+            ),
         }
     }
 }
@@ -308,6 +532,12 @@ pub fn all_cells(tree: &Tree, cell_size: f64) -> Vec<[i64; 3]> {
     cells
 }
 
+/// The box of the cell at grid coordinates `g` (as [`cells_along`] and
+/// [`all_cells`] give them) of the grid of `cell_size` over `tree`'s bounds.
+pub fn cell_box(tree: &Tree, cell_size: f64, g: [i64; 3]) -> Aabb3d {
+    grid(tree, cell_size).cell_box(g)
+}
+
 fn grid(tree: &Tree, cell_size: f64) -> FarFieldIndex {
     FarFieldIndex {
         origin: tree.bounds().min.to_array(),
@@ -315,6 +545,8 @@ fn grid(tree: &Tree, cell_size: f64) -> FarFieldIndex {
         triangle_budget: 0,
         resolution: 0,
         mesh_error_px: 0.0,
+        grid_step: 0,
+        skins: true,
         model_signature: 0,
         cells: Vec::new(),
     }
@@ -323,10 +555,6 @@ fn grid(tree: &Tree, cell_size: f64) -> FarFieldIndex {
 /// Builds the far fields of `cells` and writes them into the store at
 /// `path` (replacing any it had; temp file, fsync, rename), calling
 /// `progress` after each cell. Returns the index.
-#[expect(
-    clippy::too_many_arguments,
-    reason = "the model, the GPU, the cells and the options, passed through once"
-)]
 pub fn build(
     store: &Store,
     scene: &Scene,
@@ -340,6 +568,8 @@ pub fn build(
     index.triangle_budget = options.triangle_budget;
     index.resolution = options.capture.resolution;
     index.mesh_error_px = options.capture.mesh_error_px;
+    index.grid_step = options.capture.grid_step;
+    index.skins = options.capture.skins;
     index.model_signature = model_signature(scene);
     let mut encoded = Vec::with_capacity(cells.len());
     for &g in cells {
@@ -376,4 +606,143 @@ pub fn build(
     )?
     .commit()?;
     Ok(index)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A far field of the grid cell `cell` showing `seen`: blank images, no
+    /// meshes (enough for the set's bookkeeping; no GPU needed).
+    fn blank(cell: Aabb3d, seen: Vec<u32>) -> FarField {
+        let r = *dmu_render::FAR_FIELD_RESOLUTIONS.start();
+        let texels = 6 * (r * r) as usize;
+        FarField {
+            center: cell.center(),
+            cell,
+            near_box: cell,
+            resolution: r,
+            tan_half: 1.0,
+            vertices: Vec::new(),
+            indices: Vec::new(),
+            face_starts: [0; 7],
+            color: vec![0; 4 * texels],
+            parts: vec![0; texels],
+            seen,
+            excluded: Vec::new(),
+            mesh_error_px: 1.0,
+            build_ms: 0.0,
+        }
+    }
+
+    /// A store of a small grid with blank far fields of two cells, opened
+    /// as a set.
+    fn blank_set() -> (tempfile::TempDir, FarFieldSet, FarFieldIndex) {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("grid.dmu");
+        let scene = dmu_samples::grid(2, 10.0, 4.0, 64);
+        dmu_store::write_scene(&scene, &path, Default::default()).unwrap();
+        let tree = Tree::build(&scene, Default::default());
+        let mut index = grid(&tree, 5.0);
+        index.resolution = *dmu_render::FAR_FIELD_RESOLUTIONS.start();
+        index.mesh_error_px = 1.0;
+        index.model_signature = model_signature(&scene);
+        let mut blobs = Vec::new();
+        for (i, g) in [[0, 0, 0], [1, 0, 0]].into_iter().enumerate() {
+            let cell = index.cell_box(g);
+            blobs.push(blank(cell, vec![0]).encode());
+            index.cells.push(IndexCell {
+                grid: g,
+                segment: i as u32,
+                near_box: [cell.min.to_array(), cell.max.to_array()],
+                near_triangles: 0,
+                far_triangles: 0,
+                bytes: 0,
+                build_ms: 0.0,
+            });
+        }
+        let store = Store::open(&path).unwrap();
+        let json = serde_json::to_vec(&index).unwrap();
+        dmu_store::write_far_fields::<dmu_store::StoreError>(
+            &store,
+            &json,
+            blobs.into_iter().map(|b| Ok(Some(b))),
+        )
+        .unwrap()
+        .commit()
+        .unwrap();
+        let store = Arc::new(Store::open(&path).unwrap());
+        let set = FarFieldSet::open(&store, &scene).unwrap().unwrap();
+        (dir, set, index)
+    }
+
+    #[test]
+    fn a_far_field_captured_again_replaces_the_one_of_its_cell() {
+        let (_dir, mut set, index) = blank_set();
+        let eye = index.cell_box([0, 0, 0]).center();
+        assert!(set.has_cell_at(eye));
+        assert!(!set.has_cell_at(index.cell_box([5, 5, 5]).center()));
+        let stored = set.wait_for(eye).unwrap().expect("loaded");
+        let moved = BTreeSet::from([0]);
+        assert!(stored.is_stale(&moved));
+        // Captured again without part 0: its cell's copy is replaced.
+        let mut again = blank(stored.cell, Vec::new());
+        again.excluded = vec![0];
+        let again = Arc::new(again);
+        assert_eq!(set.replace(again.clone()), Some(0));
+        let now = set.for_eye(eye).unwrap().expect("in memory");
+        assert!(Arc::ptr_eq(&now, &again));
+        assert!(!now.is_stale(&moved));
+        let in_memory = set.loaded();
+        assert!(
+            in_memory
+                .iter()
+                .any(|(c, f)| *c == 0 && Arc::ptr_eq(f, &again))
+        );
+        // A box that is no built cell's replaces nothing.
+        let elsewhere = blank(index.cell_box([5, 5, 5]), Vec::new());
+        assert_eq!(set.replace(Arc::new(elsewhere)), None);
+        let mut shifted = blank(stored.cell, Vec::new());
+        shifted.cell.max.x += 1.0;
+        assert_eq!(set.replace(Arc::new(shifted)), None);
+    }
+
+    #[test]
+    fn an_index_with_a_resolution_out_of_range_is_refused() {
+        let (_dir, _set, mut index) = blank_set();
+        index.resolution = 0;
+        let err = FarFieldIndex::decode(&serde_json::to_vec(&index).unwrap()).unwrap_err();
+        assert!(err.to_string().contains("resolution 0"), "{err}");
+        index.resolution = 128;
+        index.mesh_error_px = -1.0;
+        assert!(FarFieldIndex::decode(&serde_json::to_vec(&index).unwrap()).is_err());
+    }
+
+    #[test]
+    fn auto_keeps_the_faster_way_between_probes() {
+        let mut auto = FarAuto::default();
+        assert!(auto.now().contains("measuring"));
+        let mut drawn = Vec::new();
+        for frame in 0..(2 * FAR_AUTO_PROBE_EVERY) as usize {
+            let with = auto.next_frame();
+            drawn.push(with);
+            // Faster with the far field in the first probe, without in the second.
+            let first = frame < FAR_AUTO_PROBE_EVERY as usize;
+            auto.after(if with == first { 5.0 } else { 9.0 }, frame);
+        }
+        let per = FAR_AUTO_PROBE_EVERY as usize;
+        assert_eq!(drawn[..6], [false, false, false, true, true, true]);
+        assert!(drawn[6..per].iter().all(|&d| d));
+        assert_eq!(drawn[per..per + 6], [false, false, false, true, true, true]);
+        assert!(drawn[per + 6..].iter().all(|&d| !d));
+        assert_eq!(auto.changes().len(), 2, "{:?}", auto.changes());
+        assert!(auto.changes()[1].starts_with(&format!("frame {}: far field off", per + 5)));
+        assert!(!auto.uses_far());
+        assert_eq!(auto.last(), Some((5.0, 9.0)));
+        assert!(
+            auto.now().starts_with("far field off by auto"),
+            "{}",
+            auto.now()
+        );
+    }
 }

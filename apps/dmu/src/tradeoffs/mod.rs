@@ -4,10 +4,13 @@
 //! Markdown report with one plot per knob.
 //!
 //! Design choices:
-//! - **One knob, one entry.** A section (`render`, `loading`, `tree`,
-//!   `collide`, `numerics`) measures and returns [`Knob`]s; the report, the
-//!   JSON and the plots are written once for all of them, so a new knob (the
-//!   renderer's LOD error, far fields) is one more entry in its section's list.
+//! - **One knob, one entry.** A section (`render`, `far_field`, `loading`,
+//!   `tree`, `collide`, `numerics`) measures and returns [`Knob`]s; the
+//!   report, the JSON and the plots are written once for all of them, so a
+//!   new knob (the renderer's LOD error) is one more entry in its section's
+//!   list. Far fields are a section of their own (a setting there is a capture
+//!   per viewpoint cell, not a view's culling) whose knobs the report shows
+//!   under rendering.
 //! - **Errors against a reference, never against the previous setting**: each
 //!   knob names its reference (culling `none`, a fine continuous sweep, a brute
 //!   force pick, an analytic distance), and where one setting *is* the
@@ -17,6 +20,7 @@
 //!   regenerated report cannot contradict its plots.
 
 mod collide;
+mod far_field;
 mod loading;
 mod numerics;
 mod plot;
@@ -45,6 +49,8 @@ pub struct Scale {
     /// Rendered image size and frames of the camera path.
     pub render_size: (u32, u32),
     pub render_frames: usize,
+    /// Viewpoint cells the far-field knobs capture (each at every setting).
+    pub far_field_cells: usize,
     /// Frames of the residency walks.
     pub walk_frames: usize,
     /// Rays picked per tree setting (each checked against a brute force).
@@ -61,7 +67,7 @@ pub struct Scale {
 impl Scale {
     /// The two runs share the model, the image size, the camera path and the
     /// collision grid, so a knob measured in both agrees within noise; the
-    /// full run has more settings, rays and repetitions.
+    /// full run has more settings, rays, repetitions and far-field cells.
     pub fn new(quick: bool, plant_triangles: Option<u64>) -> Self {
         let plant_triangles = plant_triangles.unwrap_or(DEFAULT_PLANT_TRIANGLES);
         if quick {
@@ -70,6 +76,7 @@ impl Scale {
                 plant_triangles,
                 render_size: (320, 180),
                 render_frames: 8,
+                far_field_cells: 2,
                 walk_frames: 600,
                 rays: 100,
                 moves: 1000,
@@ -82,6 +89,7 @@ impl Scale {
                 plant_triangles,
                 render_size: (320, 180),
                 render_frames: 8,
+                far_field_cells: 4,
                 walk_frames: 600,
                 rays: 1000,
                 moves: 1000,
@@ -226,6 +234,8 @@ pub fn run_sections(bench: &Bench<'_>) -> (Vec<Knob>, Vec<(String, String)>, Opt
             k
         }),
     );
+    bench.progress.set_message("far fields");
+    keep("far fields", far_field::run(bench));
     bench.progress.set_message("loading");
     keep("loading", loading::run(bench));
     bench.progress.set_message("tree");
@@ -240,6 +250,7 @@ pub fn run_sections(bench: &Bench<'_>) -> (Vec<Knob>, Vec<(String, String)>, Opt
 /// Steps of the progress bar: one per measured setting (per knob in numerics).
 pub fn steps(quick: bool) -> u64 {
     render::steps(quick)
+        + far_field::steps(quick)
         + loading::steps(quick)
         + tree::steps(quick)
         + collide::steps(quick)

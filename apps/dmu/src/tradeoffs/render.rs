@@ -3,7 +3,8 @@
 //! chunks with the exactly visible ones (chunk ids rendered unculled).
 //!
 //! Each knob is one entry of [`KNOBS`]: how a setting sets up the view. Far
-//! fields become one entry when dmu-render has them ([`PLANNED`]).
+//! fields, whose settings are captures rather than a view's culling, are the
+//! `far_field` section, reported under rendering too.
 
 use std::collections::BTreeSet;
 
@@ -132,11 +133,9 @@ fn lod_error(px: f64) -> (Culling, CullingOptions) {
 }
 
 /// Knobs the issue asks for that the renderer does not have yet, and when
-/// they join [`KNOBS`].
-pub const PLANNED: &[(&str, &str)] = &[(
-    "far field on/off",
-    "one entry in `KNOBS` (apps/dmu/src/tradeoffs/render.rs) once dmu-render has far fields",
-)];
+/// they join [`KNOBS`] (none now: far fields, the last, are measured by the
+/// `far_field` section).
+pub const PLANNED: &[(&str, &str)] = &[];
 
 /// A path along the model's longest horizontal side at a fifth of its height,
 /// looking along it: through the aisles of the plant, across any model.

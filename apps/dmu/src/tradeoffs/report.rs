@@ -248,10 +248,16 @@ pub fn write_report(run: &Run, out: &Path) -> anyhow::Result<std::path::PathBuf>
          - Under a frame-time budget (`--target-ms`), each frame's LOD error and coverage \
          threshold, chosen after the last frame's time; `dmu walk --render` reports them per \
          frame and the viewer's stats overlay shows them.\n\
-         - Not yet: far fields, which the renderer does not have.\n"
+         - Far fields on or off, in a walk with `--far-field auto` (`dmu walk --render \
+         --compare`): now and then a few frames are timed without the far field and a few \
+         with it, and the faster kept until the next probe; the walk's `explain` lists each \
+         switch with both times.\n"
     )?;
-    writeln!(w, "## Knobs not in the code yet\n")?;
-    for (name, when) in super::render::PLANNED {
+    // The heading only when a knob is planned.
+    for (i, (name, when)) in super::render::PLANNED.iter().enumerate() {
+        if i == 0 {
+            writeln!(w, "## Knobs not in the code yet\n")?;
+        }
         writeln!(w, "- {name}: {when}")?;
     }
     let path = out.join("README.md");
