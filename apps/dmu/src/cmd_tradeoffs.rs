@@ -16,7 +16,8 @@ use crate::tradeoffs::{Bench, Machine, Run, Scale, run_sections, write_report};
 /// exact reference (culling none for rendering, a brute-force pick for the
 /// tree, a fine continuous sweep for collision, the analytic answer for
 /// numerics), one section each: rendering (coverage threshold, occlusion
-/// re-check interval and rounds), loading (memory budget, load order), tree
+/// re-check interval and rounds; far fields: kind, resolution, mesh error,
+/// skins, against the full-geometry image), loading (memory budget, load order), tree
 /// (cell and chunk size), collision (discrete, continuous and auto step,
 /// clearance, contact tolerance) and numerics (f32 against f64 at offsets of
 /// 1 to 10^9 mm, store quantization). Rendering needs a GPU adapter (lavapipe
