@@ -406,35 +406,14 @@ impl Renderer {
             .features()
             .contains(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT);
         if total > 0 {
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("dmu hzb second pass"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: target.color,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Load,
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: target.depth,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Load,
-                        store: wgpu::StoreOp::Store,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: writes(2).map(|(query_set, begin, end)| {
-                    wgpu::RenderPassTimestampWrites {
-                        query_set,
-                        beginning_of_pass_write_index: begin,
-                        end_of_pass_write_index: end,
-                    }
-                }),
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let timestamps =
+                writes(2).map(|(query_set, begin, end)| wgpu::RenderPassTimestampWrites {
+                    query_set,
+                    beginning_of_pass_write_index: begin,
+                    end_of_pass_write_index: end,
+                });
+            let mut pass =
+                crate::renderer::pass_over(&mut encoder, "dmu hzb second pass", target, timestamps);
             pass.set_bind_group(0, &gpu.bind_groups[0], &[]);
             let cut = usize::from(gpu.sectioned);
             let mut pipeline_is_proxy = None;

@@ -1312,6 +1312,40 @@ impl Renderer {
     }
 }
 
+/// A render pass over `target` that keeps its colour and depth (draws over
+/// what earlier passes of the frame drew).
+pub(crate) fn pass_over<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    target: FrameTarget<'_>,
+    timestamp_writes: Option<wgpu::RenderPassTimestampWrites<'_>>,
+) -> wgpu::RenderPass<'e> {
+    let keep = wgpu::Operations {
+        load: wgpu::LoadOp::Load,
+        store: wgpu::StoreOp::Store,
+    };
+    encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some(label),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: target.color,
+            depth_slice: None,
+            resolve_target: None,
+            ops: keep,
+        })],
+        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+            view: target.depth,
+            depth_ops: Some(wgpu::Operations {
+                load: wgpu::LoadOp::Load,
+                store: wgpu::StoreOp::Store,
+            }),
+            stencil_ops: None,
+        }),
+        timestamp_writes,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
+}
+
 /// A render pass of a round.
 #[derive(Clone, Debug, PartialEq, Eq)]
 struct Pass {
