@@ -51,18 +51,7 @@ pub fn viewer(args: &[&str]) -> Value {
         .env("VK_ICD_FILENAMES", LVP_ICD)
         .output()
         .expect("run xvfb-run");
-    assert!(
-        out.status.success(),
-        "dmu-viewer {args:?} failed ({}):\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
-        panic!(
-            "dmu-viewer printed no JSON report ({e}):\n{}",
-            String::from_utf8_lossy(&out.stdout)
-        )
-    })
+    json_of("dmu-viewer", args, &out)
 }
 
 /// Runs the viewer with `args` in Xvfb on lavapipe, expecting it to fail
@@ -95,18 +84,7 @@ pub fn dmu_on_lavapipe(args: &[&str]) -> Value {
         .env("VK_ICD_FILENAMES", LVP_ICD)
         .output()
         .expect("run dmu");
-    assert!(
-        out.status.success(),
-        "dmu {args:?} failed ({}):\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
-        panic!(
-            "dmu {args:?} printed no JSON ({e}):\n{}",
-            String::from_utf8_lossy(&out.stdout)
-        )
-    })
+    json_of("dmu", args, &out)
 }
 
 /// The `dmu` command line of the same build (built here if it is not yet).
@@ -291,4 +269,21 @@ pub fn solid_pixel(image: &image::RgbaImage, view: Viewport) -> (u32, u32) {
         }
     }
     best.expect("some part fills a 9x9 patch of the view").0
+}
+
+/// The JSON a successful run of `program` printed; a failure or no JSON
+/// panics with what it printed.
+fn json_of(program: &str, args: &[&str], out: &std::process::Output) -> Value {
+    assert!(
+        out.status.success(),
+        "{program} {args:?} failed ({}):\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!(
+            "{program} {args:?} printed no JSON ({e}):\n{}",
+            String::from_utf8_lossy(&out.stdout)
+        )
+    })
 }
