@@ -179,8 +179,9 @@ impl Cull {
 
 /// The near field of a frame drawing a far field: the chunk instances
 /// touching the cull box and those of the parts drawn wherever they are, in
-/// the frustum, covering enough pixels, not hidden, not cut away. Found with
-/// the tree's box query, so the cost follows the cull box, not the model.
+/// the frustum, covering enough pixels, not hidden, not cut away
+/// ([`NearField::entries`], found with the tree's box query, so the cost
+/// follows the cull box, not the model).
 fn near_draws(
     scene: &Scene,
     tree: &Tree,
@@ -188,15 +189,8 @@ fn near_draws(
     near: &NearField,
     stats: &mut FrameStats,
 ) -> Vec<Draw> {
-    let mut ids = Vec::new();
-    tree.entries_in_box(&near.near_box, &mut ids);
-    for &p in &near.always {
-        ids.extend(tree.part_entries(dmu_scene::PartId::from_index(p as usize)));
-    }
-    ids.sort_unstable();
-    ids.dedup();
-    let mut draws = Vec::with_capacity(ids.len());
-    for e in ids {
+    let mut draws = Vec::with_capacity(near.entries.len());
+    for &e in &near.entries {
         let entry = &tree.entries()[e.0 as usize];
         stats.nodes_visited += 1;
         if !cull.frustum.intersects_aabb(&entry.bounds) {
@@ -280,7 +274,7 @@ impl Renderer {
         let near = match culling {
             Culling::None => None,
             _ if target.eye_count() > 1 => None,
-            _ => self.near_field(view),
+            _ => self.near_field(view, tree),
         };
         if let Some(near) = &near {
             cull.far = FarCut::Near(near.clone());

@@ -34,7 +34,7 @@ use std::time::Instant;
 
 use dmu_geom::Aabb3d;
 use dmu_scene::Scene;
-use dmu_tree::{Changes, Revision, Tree};
+use dmu_tree::{Changes, EntryId, Revision, Tree};
 use glam::{DMat4, DVec3, DVec4};
 
 use crate::capture::Capture;
@@ -194,23 +194,24 @@ impl FaceCamera {
     }
 }
 
-/// A frame's near-field filter: the cull box, and the parts drawn as geometry
-/// wherever they are.
+/// A frame's near field: the chunk instances touching the cull box and
+/// those of the parts drawn as geometry wherever they are (found once a
+/// frame, with the tree's box query).
 #[derive(Clone, Debug)]
 pub(crate) struct NearField {
-    pub near_box: Aabb3d,
+    /// Sorted, each once.
+    pub entries: Vec<EntryId>,
+    /// Parts drawn as geometry wherever they are.
     pub always: Vec<u32>,
 }
 
 impl NearField {
     /// The parts of its chunk instances, sorted.
     pub fn parts(&self, tree: &Tree) -> Vec<u32> {
-        let mut ids = Vec::new();
-        tree.entries_in_box(&self.near_box, &mut ids);
-        let mut parts: Vec<u32> = ids
+        let mut parts: Vec<u32> = self
+            .entries
             .iter()
             .map(|e| tree.entries()[e.0 as usize].part.0)
-            .chain(self.always.iter().copied())
             .collect();
         parts.sort_unstable();
         parts.dedup();
@@ -486,7 +487,7 @@ impl Renderer {
     }
 
     /// The near field of `view`'s frame when its far field serves the eye.
-    pub(crate) fn near_field(&self, view: &View) -> Option<NearField> {
+    pub(crate) fn near_field(&self, view: &View, tree: &Tree) -> Option<NearField> {
         let far = self.far.as_ref()?;
         let field = view.far_field.as_ref()?;
         if !field.serves(view.camera.eye) {
@@ -496,10 +497,14 @@ impl Renderer {
         always.extend_from_slice(&field.excluded);
         always.sort_unstable();
         always.dedup();
-        Some(NearField {
-            near_box: field.near_box,
-            always,
-        })
+        let mut entries = Vec::new();
+        tree.entries_in_box(&field.near_box, &mut entries);
+        for &p in &always {
+            entries.extend(tree.part_entries(dmu_scene::PartId::from_index(p as usize)));
+        }
+        entries.sort_unstable();
+        entries.dedup();
+        Some(NearField { entries, always })
     }
 
     /// Uploads `field` unless it is on the GPU; the most recently used first.
