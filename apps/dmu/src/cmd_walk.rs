@@ -105,6 +105,13 @@ pub struct Args {
     /// ratios.
     #[arg(long, requires = "render")]
     compare: bool,
+    /// With --render --compare: draw the exact reference and the exactly
+    /// visible chunks on every Nth frame only (1: every frame). The other
+    /// modes are timed on every frame and their images compared on those;
+    /// chunks more than one frame late are then not counted. On a 100M
+    /// model the exact frame costs seconds.
+    #[arg(long, default_value_t = 1, requires = "compare", value_parser = clap::value_parser!(u32).range(1..))]
+    reference_every: u32,
     /// With --render --compare: draw the store's far fields (`dmu farfield
     /// build`) beyond each cell's cull box: `on`, or `auto` (only where they
     /// make frames faster, timed every 60 frames). The run then compares
@@ -254,7 +261,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 &path,
                 (args.width, args.height),
                 &modes,
-                true,
+                Some(crate::walk_render::Compare {
+                    reference_every: args.reference_every as usize,
+                }),
                 culling_options,
                 !args.no_proxies,
                 far_fields,

@@ -60,7 +60,9 @@ struct ModeFrame {
 /// One frame of the path.
 #[derive(Debug, Serialize)]
 struct PathFrame {
-    modes: Vec<ModeFrame>,
+    /// Per mode; the reference's is `None` on frames it was not drawn (see
+    /// [`Compare::reference_every`]).
+    modes: Vec<Option<ModeFrame>>,
     /// Triangles of the chunk instances owning at least one pixel.
     exact_visible_triangles: Option<u64>,
     /// Exactly visible chunk instances that `chc` did not draw.
@@ -255,7 +257,24 @@ fn differing(reference: &[u8], image: &[u8]) -> Differing {
     }
 }
 
-/// Renders `path` with each of `modes` (the first is the reference when
+/// How a walk compares its modes with the exact image.
+#[derive(Debug, Clone, Copy)]
+pub struct Compare {
+    /// The reference (the first mode, drawn exact) and the exactly visible
+    /// chunks are drawn on every this many frames only (1: every frame); the
+    /// other modes are timed on every frame and their images compared on
+    /// those. On a large model the exact frame costs seconds.
+    pub reference_every: usize,
+}
+
+impl Compare {
+    /// Whether frame `k` draws the reference.
+    fn sampled(self, k: usize) -> bool {
+        k.is_multiple_of(self.reference_every.max(1))
+    }
+}
+
+/// Renders `path` with each of `modes` (the first is the reference with
 /// `compare`, drawn exact whatever `culling.lod_error_px`) and returns the
 /// JSON report. Modes with far fields draw those of `far`, which must be
 /// given then.
@@ -269,7 +288,7 @@ pub fn run(
     path: &[CameraFrame],
     size: (u32, u32),
     modes: &[Mode],
-    compare: bool,
+    compare: Option<Compare>,
     culling: CullingOptions,
     proxies: bool,
     mut far: Option<FarFieldSet>,
@@ -290,7 +309,7 @@ pub fn run(
         .map(|(i, m)| {
             let mut view = View::new(camera(&path[0]), size, m.culling);
             view.options = culling;
-            if compare && i == 0 {
+            if compare.is_some() && i == 0 {
                 // The reference is exact.
                 view.options.lod_error_px = 0.0;
                 view.options.target_ms = None;
@@ -316,8 +335,13 @@ pub fn run(
             None => None,
         };
         let mut reference: Option<Vec<u8>> = None;
+        let sampled = compare.map(|c| c.sampled(k));
         let mut modes_out = Vec::with_capacity(modes.len());
         for (i, view) in views.iter_mut().enumerate() {
+            if i == 0 && sampled == Some(false) {
+                modes_out.push(None);
+                continue;
+            }
             view.camera = camera(frame);
             view.far_field = match modes[i].far {
                 FarUse::Off => None,
@@ -329,7 +353,7 @@ pub fn run(
             if modes[i].far == FarUse::Auto {
                 autos[i].after(stats.cpu_ms - stats.upload_ms, k);
             }
-            let differing = if compare {
+            let differing = if sampled == Some(true) {
                 let image = captures[i].read_color(&device, &queue)?;
                 match &reference {
                     None => {
@@ -341,11 +365,11 @@ pub fn run(
             } else {
                 None
             };
-            modes_out.push(mode_frame(&stats, differing));
+            modes_out.push(Some(mode_frame(&stats, differing)));
             stats_of[i].push(stats);
         }
         let exact = match chc.or(hzb) {
-            Some(c) if compare => {
+            Some(c) if sampled == Some(true) => {
                 oracle_view.camera = camera(frame);
                 Some(
                     renderer
@@ -378,7 +402,11 @@ pub fn run(
         .enumerate()
         .map(|(i, &m)| {
             let target = views[i].options.target_ms;
-            mode_totals(m.name(), target, frames.iter().map(|f| &f.modes[i]))
+            mode_totals(
+                m.name(),
+                target,
+                frames.iter().filter_map(|f| f.modes[i].as_ref()),
+            )
         })
         .collect();
     let mean_of = |name: &str| {
@@ -395,12 +423,13 @@ pub fn run(
             .iter()
             .filter_map(|f| {
                 let exact = f.exact_visible_triangles?;
-                Some(f.modes[m].triangles_drawn as f64 / exact.max(1) as f64)
+                Some(f.modes[m].as_ref()?.triangles_drawn as f64 / exact.max(1) as f64)
             })
             .collect()
     };
     let mean = |v: &[f64]| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
     let (chc_over, hzb_over) = (over_exact(chc), over_exact(hzb));
+    let every_frame = compare.is_some_and(|c| c.reference_every == 1);
     Ok(serde_json::json!({
         "adapter": adapter.name,
         "size": [size.0, size.1],
@@ -420,8 +449,10 @@ pub fn run(
         "chc_over_exact_triangles_worst": chc_over.iter().copied().reduce(f64::max),
         "hzb_over_exact_triangles_mean": mean(&hzb_over),
         "hzb_over_exact_triangles_worst": hzb_over.iter().copied().reduce(f64::max),
-        "chc_chunks_more_than_one_frame_late": (compare && chc.is_some()).then_some(chc_misses.late),
-        "hzb_chunks_more_than_one_frame_late": (compare && hzb.is_some()).then_some(hzb_misses.late),
+        "reference_every": compare.map(|c| c.reference_every),
+        // Lateness needs the exactly visible chunks of consecutive frames.
+        "chc_chunks_more_than_one_frame_late": (every_frame && chc.is_some()).then_some(chc_misses.late),
+        "hzb_chunks_more_than_one_frame_late": (every_frame && hzb.is_some()).then_some(hzb_misses.late),
         "explain": modes
             .iter()
             .zip(&stats_of)
@@ -449,8 +480,9 @@ fn far_report(
     };
     let index = far.index();
     let n = index.cells.len().max(1) as f64;
+    let of = |m: usize| frames.iter().filter_map(move |f| f.modes[m].as_ref());
     let median_ms = |m: usize| {
-        let mut ms: Vec<f64> = frames.iter().map(|f| f.modes[m].frame_ms).collect();
+        let mut ms: Vec<f64> = of(m).map(|f| f.frame_ms).collect();
         percentile(&mut ms, 0.5)
     };
     let per_mode: Vec<serde_json::Value> = modes
@@ -458,23 +490,20 @@ fn far_report(
         .enumerate()
         .filter(|(_, m)| m.far != FarUse::Off)
         .map(|(i, m)| {
-            let mut differing: Vec<f64> = frames
-                .iter()
-                .filter_map(|f| f.modes[i].differing_pixels.map(|d| d as f64))
+            let mut differing: Vec<f64> = of(i)
+                .filter_map(|f| f.differing_pixels.map(|d| d as f64))
                 .collect();
-            let mut surface: Vec<f64> = frames
-                .iter()
-                .filter_map(|f| f.modes[i].surface_differing_pixels.map(|d| d as f64))
+            let mut surface: Vec<f64> = of(i)
+                .filter_map(|f| f.surface_differing_pixels.map(|d| d as f64))
                 .collect();
-            let errors: Vec<f64> = frames
-                .iter()
-                .filter(|f| f.modes[i].differing_pixels.is_some_and(|d| d > 0))
-                .filter_map(|f| f.modes[i].mean_color_error)
+            let errors: Vec<f64> = of(i)
+                .filter(|f| f.differing_pixels.is_some_and(|d| d > 0))
+                .filter_map(|f| f.mean_color_error)
                 .collect();
             let without = modes.iter().position(|&o| o == Mode::plain(m.culling));
             serde_json::json!({
                 "mode": m.name(),
-                "frames_with_far_field": frames.iter().filter(|f| f.modes[i].far_field).count(),
+                "frames_with_far_field": of(i).filter(|f| f.far_field).count(),
                 "far_field_differing_pixels_median": (!differing.is_empty()).then(|| percentile(&mut differing, 0.5)),
                 "far_field_differing_pixels_worst": differing.iter().copied().reduce(f64::max),
                 "far_field_surface_differing_pixels_median": (!surface.is_empty()).then(|| percentile(&mut surface, 0.5)),

@@ -105,6 +105,44 @@ fn far_fields_are_built_into_the_store_and_drawn_by_a_walk() {
         );
     }
 
+    // The reference drawn on every third frame only: the other modes are
+    // still timed on all six, and compared on frames 0 and 3 with the same
+    // counts as when the reference is drawn on every frame.
+    let sampled: Vec<&str> = walk
+        .iter()
+        .copied()
+        .chain(["--reference-every", "3"])
+        .collect();
+    let out = on_gpu("far_fields_sampled", "walk", &sampled).unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let s: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(s["reference_every"], 3);
+    assert!(s["hzb_chunks_more_than_one_frame_late"].is_null());
+    let (all, some) = (
+        v["per_frame"].as_array().unwrap(),
+        s["per_frame"].as_array().unwrap(),
+    );
+    for (i, (a, f)) in all.iter().zip(some).enumerate() {
+        assert_eq!(f["modes"][0].is_null(), i % 3 != 0, "frame {i}: {f:#}");
+        assert_eq!(f["modes"][2]["far_field"], true, "frame {i}");
+        let expected = if i % 3 == 0 {
+            a["modes"][2]["differing_pixels"].clone()
+        } else {
+            Value::Null
+        };
+        assert_eq!(f["modes"][2]["differing_pixels"], expected, "frame {i}");
+    }
+    assert_eq!(
+        s["totals"][2]["frames_with_differing_pixels"]
+            .as_u64()
+            .map(|n| n <= 2),
+        Some(true)
+    );
+
     // Auto: the six frames are its probe (three without, three with, the
     // first of each untimed); it says what it chose and the times behind it.
     let auto: Vec<&str> = walk
