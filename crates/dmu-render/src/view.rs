@@ -183,8 +183,10 @@ pub struct FrameStats {
     pub lod_error_px: f64,
     /// The coverage threshold the frame drew with, pixels.
     pub min_pixels: f64,
-    /// Draw calls recorded (a chunk instance per pass it is drawn in, and
-    /// each query box).
+    /// Draw commands recorded: an indirect multi-draw (a run of chunk
+    /// instances from the same pages, drawn without queries) counts once,
+    /// as does each other chunk draw, proxy and query box. The draws inside
+    /// them are `chunks_drawn` and `proxies_drawn`.
     pub draw_calls: u64,
     /// Time spent uploading chunks to the GPU pool (with their simplified
     /// levels), ms; part of `cpu_ms`.

@@ -76,6 +76,63 @@ fn frustum_image_equals_unculled_image() {
     }
 }
 
+/// Chunk draws recorded as indirect multi-draws give the images and chunk
+/// ids of the same draws recorded one by one, in every culling mode, with
+/// fewer draw calls where nothing is queried.
+#[test]
+fn batched_draws_equal_draws_one_by_one() {
+    let (scene, tree) = small_plant();
+    let size = (480, 270);
+    let Some(mut batched) = Rig::new(&scene, &tree, size) else {
+        return;
+    };
+    let one_by_one = dmu_render::RendererOptions {
+        batch_draws: false,
+        ..Default::default()
+    };
+    let mut single = Rig::with_options(&scene, &tree, size, one_by_one).unwrap();
+    for (i, cam) in viewpoints().into_iter().enumerate() {
+        for culling in [
+            Culling::None,
+            Culling::Frustum,
+            Culling::Occlusion,
+            Culling::Hzb,
+        ] {
+            let (mut a, mut b) = (View::new(cam, size, culling), View::new(cam, size, culling));
+            let (mut sa, mut sb) = Default::default();
+            // Occlusion culling converges over a few frames, alike in both.
+            for _ in 0..4 {
+                sa = batched.frame(&mut a, &scene, &tree);
+                sb = single.frame(&mut b, &scene, &tree);
+            }
+            let (sa, sb): (dmu_render::FrameStats, dmu_render::FrameStats) = (sa, sb);
+            assert_eq!(sa.chunks_drawn, sb.chunks_drawn, "view {i} {culling:?}");
+            assert_eq!(
+                differing(&batched.image(), &single.image()).len(),
+                0,
+                "view {i} {culling:?}: batched image differs"
+            );
+            if matches!(culling, Culling::None | Culling::Frustum) {
+                assert!(
+                    sa.draw_calls * 4 < sb.draw_calls,
+                    "view {i} {culling:?}: {} draw calls batched, {} one by one",
+                    sa.draw_calls,
+                    sb.draw_calls
+                );
+            }
+        }
+        let mut a = View::new(cam, size, Culling::Frustum);
+        let mut b = View::new(cam, size, Culling::Frustum);
+        let ids = batched.ids(&mut a, &scene, &tree);
+        assert_eq!(
+            ids.visible_entries(),
+            single.ids(&mut b, &scene, &tree).visible_entries(),
+            "view {i}: chunk ids differ"
+        );
+        assert!(!ids.visible_entries().is_empty(), "view {i}");
+    }
+}
+
 /// Converged occlusion culling draws the unculled image exactly, and draws
 /// every chunk instance that owns a pixel.
 #[test]
