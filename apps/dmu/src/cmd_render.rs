@@ -481,6 +481,14 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                             .map_or(0.0, |v| v.iter().filter_map(|x| x.as_f64()).sum::<f64>()
                                 / 2.0)
                 );
+                println!(
+                    "  of which the far pass {:.1} ms ({} draws), the near passes {:.1} ms ({} draws, both eyes); one eye {} draws",
+                    f["far_pass_ms"].as_f64().unwrap_or_default(),
+                    f["draw_calls"]["far"],
+                    f["near_passes_ms"].as_f64().unwrap_or_default(),
+                    f["draw_calls"]["near_both_eyes"],
+                    f["draw_calls"]["one_eye"],
+                );
             }
         }
         if let Some(o) = oracle {

@@ -230,16 +230,18 @@ pub fn compare(
     let (scene, tree) = (s.scene, s.tree);
     let mut far_triangles = 0;
     let mut near_triangles = 0;
+    // Per frame: the far pass's time and draws, the near passes' (both eyes).
+    let mut parts: Vec<[f64; 4]> = Vec::new();
     let shared_ms = timed(device, s.frames, || {
-        far_triangles = renderer
-            .render(
-                &mut far_view,
-                scene,
-                tree,
-                scene,
-                far_capture.frame_target(),
-            )?
-            .triangles_drawn;
+        let far = renderer.render(
+            &mut far_view,
+            scene,
+            tree,
+            scene,
+            far_capture.frame_target(),
+        )?;
+        far_triangles = far.triangles_drawn;
+        let mut part = [far.cpu_ms, far.draw_calls as f64, 0.0, 0.0];
         let mut encoder = device.create_command_encoder(&Default::default());
         for (e, &offset) in window.offsets.iter().enumerate() {
             encoder.copy_texture_to_texture(
@@ -270,10 +272,12 @@ pub fn compare(
         let target = shared.stereo_target();
         near_triangles = 0;
         for (e, v) in near_views.iter_mut().enumerate() {
-            near_triangles += renderer
-                .render(v, scene, tree, scene, target.eyes[e])?
-                .triangles_drawn;
+            let near = renderer.render(v, scene, tree, scene, target.eyes[e])?;
+            near_triangles += near.triangles_drawn;
+            part[2] += near.cpu_ms;
+            part[3] += near.draw_calls as f64;
         }
+        parts.push(part);
         Ok(())
     })?;
     let mut full_triangles = 0;
@@ -287,8 +291,11 @@ pub fn compare(
         }
         Ok(())
     })?;
+    let mut one_draws = 0;
     let one_ms = timed(device, s.frames, || {
-        renderer.render(&mut one_eye, scene, tree, scene, single.frame_target())?;
+        one_draws = renderer
+            .render(&mut one_eye, scene, tree, scene, single.frame_target())?
+            .draw_calls;
         Ok(())
     })?;
     let mut differing = [0usize; 2];
@@ -325,6 +332,11 @@ pub fn compare(
         "ratio": shared_med / one_med,
         "true_stereo_ratio": full_med / one_med,
         "triangles": { "far": far_triangles, "near_both_eyes": near_triangles, "true_stereo": full_triangles },
+        // Where the shared pair's time goes (the rest: copying the far
+        // image into the eyes and waiting), and the draw calls of each part.
+        "far_pass_ms": steady(&parts.iter().map(|p| p[0]).collect::<Vec<_>>()),
+        "near_passes_ms": steady(&parts.iter().map(|p| p[2]).collect::<Vec<_>>()),
+        "draw_calls": { "far": parts.last().map(|p| p[1]), "near_both_eyes": parts.last().map(|p| p[3]), "one_eye": one_draws },
         "image_difference": {
             "pixels_differing": differing,
             "fraction_differing": differing.map(|d| d as f64 / pixels),
