@@ -60,6 +60,11 @@ pub struct Args {
     /// whose queries are off).
     #[arg(long)]
     no_proxies: bool,
+    /// Record every chunk draw as its own draw call instead of batching runs
+    /// of them into indirect multi-draws (the same image; for measuring what
+    /// batching saves).
+    #[arg(long)]
+    no_batch_draws: bool,
     /// Frames rendered from the viewpoint (occlusion culling converges over a
     /// few); the image and stats are the last frame's.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10_000))]
@@ -300,6 +305,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let options = RendererOptions {
         stereo: stereo_mode,
         lod_levels: culling_options.may_draw_lods(),
+        batch_draws: !args.no_batch_draws,
         ..Default::default()
     };
     let mut renderer = Renderer::new(&device, &queue, scene, &tree, options);

@@ -409,11 +409,15 @@ pub fn run(
             )
         })
         .collect();
+    // The last mode of that name: the reference comes first and may share
+    // its culling's name; drawn on some frames only, it is no ratio's side.
+    let every_frame = compare.is_none_or(|c| c.reference_every == 1);
     let mean_of = |name: &str| {
-        totals
+        let (i, t) = totals
             .iter()
-            .find(|t| t.culling == name)
-            .map(|t| t.mean_frame_ms)
+            .enumerate()
+            .rfind(|(_, t)| t.culling == name)?;
+        (i > 0 || every_frame).then_some(t.mean_frame_ms)
     };
     let ratio = |a: &str, b: &str| Some(mean_of(a)? / mean_of(b)?);
     // Per frame, a mode's triangles over the exactly visible ones.
@@ -429,7 +433,6 @@ pub fn run(
     };
     let mean = |v: &[f64]| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
     let (chc_over, hzb_over) = (over_exact(chc), over_exact(hzb));
-    let every_frame = compare.is_some_and(|c| c.reference_every == 1);
     Ok(serde_json::json!({
         "adapter": adapter.name,
         "size": [size.0, size.1],
@@ -451,8 +454,8 @@ pub fn run(
         "hzb_over_exact_triangles_worst": hzb_over.iter().copied().reduce(f64::max),
         "reference_every": compare.map(|c| c.reference_every),
         // Lateness needs the exactly visible chunks of consecutive frames.
-        "chc_chunks_more_than_one_frame_late": (every_frame && chc.is_some()).then_some(chc_misses.late),
-        "hzb_chunks_more_than_one_frame_late": (every_frame && hzb.is_some()).then_some(hzb_misses.late),
+        "chc_chunks_more_than_one_frame_late": (compare.is_some() && every_frame && chc.is_some()).then_some(chc_misses.late),
+        "hzb_chunks_more_than_one_frame_late": (compare.is_some() && every_frame && hzb.is_some()).then_some(hzb_misses.late),
         "explain": modes
             .iter()
             .zip(&stats_of)
@@ -500,7 +503,8 @@ fn far_report(
                 .filter(|f| f.differing_pixels.is_some_and(|d| d > 0))
                 .filter_map(|f| f.mean_color_error)
                 .collect();
-            let without = modes.iter().position(|&o| o == Mode::plain(m.culling));
+            // Not the reference (the first mode), which may share the name.
+            let without = modes.iter().rposition(|&o| o == Mode::plain(m.culling)).filter(|&w| w > 0);
             serde_json::json!({
                 "mode": m.name(),
                 "frames_with_far_field": of(i).filter(|f| f.far_field).count(),

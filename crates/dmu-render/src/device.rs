@@ -4,8 +4,9 @@ use crate::RenderError;
 
 /// The optional features the renderer uses when a device has them: timestamp
 /// queries (GPU times in the stats), multiview (stereo pairs in one pass),
-/// indirect draws with a first instance (`hzb` culling) and with a count
-/// buffer (its second pass compacted). Request `adapter.features() &
+/// indirect draws with a first instance (`hzb` culling, and chunk draws
+/// batched into multi-draws) and with a count buffer (hzb's second pass
+/// compacted). Request `adapter.features() &
 /// OPTIONAL_FEATURES`.
 pub const OPTIONAL_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY
     .union(wgpu::Features::MULTIVIEW)
