@@ -36,6 +36,59 @@ fn every_truncation_is_an_error() {
     assert!(msg.contains("truncated"), "{msg}");
 }
 
+/// A store cut short or rewritten on disk while it is open (another process
+/// copying over it): every chunk read after that is either the chunk as it
+/// was or an error naming the file and the chunk, never a panic or a
+/// signal (the file is read with `pread`, not mapped, so there is no SIGBUS).
+#[test]
+fn a_store_changed_on_disk_while_open_gives_errors_not_crashes() {
+    let (_dir, path, bytes) = small_store();
+    let chunks = Store::open(&path).unwrap().info().chunks as u32;
+    let original: Vec<_> = {
+        let store = Store::open(&path).unwrap();
+        (0..chunks)
+            .map(|c| store.chunk_geometry(dmu_scene::ChunkId(c)).unwrap())
+            .collect()
+    };
+    // Cut at the header (no chunk left), in the middle, just before the end
+    // (chunks in the part kept still read); and rewritten in place with
+    // other bytes of the same length (no chunk left).
+    let mut flipped = bytes.clone();
+    for b in flipped.iter_mut().skip(64) {
+        *b ^= 0xa5;
+    }
+    let changes: [(Vec<u8>, bool); 4] = [
+        (bytes[..64].to_vec(), true),
+        (bytes[..bytes.len() / 2].to_vec(), false),
+        (bytes[..bytes.len() - 1].to_vec(), false),
+        (flipped, true),
+    ];
+    for (k, (changed, none_left)) in changes.iter().enumerate() {
+        std::fs::write(&path, &bytes).unwrap();
+        let store = Store::open(&path).unwrap();
+        // Rewritten through a new handle, as another process would.
+        std::fs::write(&path, changed).unwrap();
+        let mut failed = 0;
+        for c in 0..chunks {
+            match store.chunk_geometry(dmu_scene::ChunkId(c)) {
+                Ok(g) => assert_eq!(g, original[c as usize], "change {k}, chunk {c}"),
+                Err(e) => {
+                    let msg = e.to_string();
+                    assert!(msg.contains("model.dmu"), "change {k}, chunk {c}: {msg}");
+                    assert!(msg.contains("chunk"), "change {k}, chunk {c}: {msg}");
+                    failed += 1;
+                }
+            }
+        }
+        if *none_left {
+            assert_eq!(
+                failed, chunks,
+                "change {k}: a chunk read from changed bytes"
+            );
+        }
+    }
+}
+
 /// Every byte is covered by a checksum: any single flipped byte is caught,
 /// at open or when its chunk is first read.
 #[test]
