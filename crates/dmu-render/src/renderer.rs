@@ -938,17 +938,7 @@ impl Renderer {
     /// hold `model_views` model-views and `boxes` boxes.
     pub(crate) fn ensure_capacity(&self, gpu: &mut ViewGpu, model_views: usize, boxes: usize) {
         let grow = |buffer: &mut wgpu::Buffer, label, need: usize| {
-            let need = need as u64;
-            if buffer.size() >= need {
-                return false;
-            }
-            *buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: need.max(2 * buffer.size()),
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            true
+            grow_buffer(&self.device, buffer, label, need as u64)
         };
         let grown = grow(
             &mut gpu.model_views,
@@ -1112,7 +1102,7 @@ impl Renderer {
                 .device
                 .features()
                 .contains(wgpu::Features::INDIRECT_FIRST_INSTANCE)
-            && !self.slots.is_empty();
+            && queried.contains(&false);
         if batched {
             let args: Vec<u32> = self
                 .slots
@@ -1127,15 +1117,12 @@ impl Renderer {
                     ]
                 })
                 .collect();
-            let need = args.len() as u64 * 4;
-            if gpu.draw_args.size() < need {
-                gpu.draw_args = self.device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("dmu draw arguments"),
-                    size: need.max(2 * gpu.draw_args.size()),
-                    usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::INDIRECT,
-                    mapped_at_creation: false,
-                });
-            }
+            grow_buffer(
+                &self.device,
+                &mut gpu.draw_args,
+                "dmu draw arguments",
+                args.len() as u64 * 4,
+            );
             self.queue
                 .write_buffer(&gpu.draw_args, 0, bytemuck::cast_slice(&args));
         }
@@ -1214,7 +1201,7 @@ impl Renderer {
             while k < range.end {
                 let (entry, slot) = self.slots[k];
                 let wrapped = queried[k];
-                let key = (slot.vertex_page, slot.index_page, slot.short_indices);
+                let key = pages(&slot);
                 if bound != Some(key) {
                     pass.set_vertex_buffer(0, self.pool.vertex_buffer(slot.vertex_page).slice(..));
                     let format = if slot.short_indices {
@@ -1230,10 +1217,7 @@ impl Renderer {
                 }
                 if batched && !wrapped {
                     let mut end = k + 1;
-                    while end < range.end && !queried[end] && {
-                        let s = self.slots[end].1;
-                        (s.vertex_page, s.index_page, s.short_indices) == key
-                    } {
+                    while end < range.end && !queried[end] && pages(&self.slots[end].1) == key {
                         end += 1;
                     }
                     pass.multi_draw_indexed_indirect(
@@ -1437,6 +1421,27 @@ struct Pass {
     queries: u32,
     /// It clears its layers first.
     clear: bool,
+}
+
+/// Replaces `buffer` (keeping its usage) by one of at least `need` bytes,
+/// twice as large as before at least, when it is smaller; whether it did.
+fn grow_buffer(device: &wgpu::Device, buffer: &mut wgpu::Buffer, label: &str, need: u64) -> bool {
+    if buffer.size() >= need {
+        return false;
+    }
+    *buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: need.max(2 * buffer.size()),
+        usage: buffer.usage(),
+        mapped_at_creation: false,
+    });
+    true
+}
+
+/// The pool pages and index format a chunk draw binds: draws with the same
+/// can share a multi-draw.
+fn pages(slot: &crate::geometry::ChunkSlot) -> (u32, u32, bool) {
+    (slot.vertex_page, slot.index_page, slot.short_indices)
 }
 
 /// Sorted `ids` as inclusive runs `(first, last)`, ids at most `gap` apart
