@@ -1367,6 +1367,10 @@ impl App {
         gfx.ensure_views(self.panes.len());
         let textures: Vec<egui::TextureId> = gfx.views.iter().map(|v| v.texture).collect();
         let mut input = ViewInput::default();
+        self.ui.memory = self
+            .streaming
+            .as_ref()
+            .map(crate::budget::Streaming::summary);
         {
             let (ui_state, review, overlay) = (&mut self.ui, &mut self.review, &self.overlay);
             let mut panes = PaneShow {

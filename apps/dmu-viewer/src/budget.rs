@@ -230,6 +230,17 @@ impl Streaming {
         self.streamer.drawn(&visible);
     }
 
+    /// The top bar's line: the budget and the geometry loaded within it.
+    pub fn summary(&self) -> String {
+        let mb = |b: u64| b as f64 / 1e6;
+        format!(
+            "memory: budget {:.0} MB · geometry {:.0} of {:.0} MB loaded",
+            mb(self.budget_bytes),
+            mb(self.streamer.residency().stats().resident_bytes),
+            mb(self.residency_budget_bytes),
+        )
+    }
+
     /// The report's facts.
     pub fn json(&self) -> Value {
         let stats = self.streamer.residency().stats();

@@ -172,6 +172,7 @@ impl Gfx {
             label: Some("dmu-viewer"),
             required_features,
             required_limits: adapter.limits(),
+            memory_hints: dmu_render::memory_hints(&info),
             ..Default::default()
         }))
         .with_context(|| format!("opening {}", info.name))?;

@@ -344,6 +344,7 @@ fn load_review(
     let tree_start = Instant::now();
     let mut review = review::Review::new(loaded.scene, loaded.source);
     if let (Some(budget), Some(store)) = (memory_budget, store) {
+        review.prepare_checks();
         review.geometry = Some(dmu_viewer::on_demand::OnDemand::new(
             store,
             budget::tool_cap_bytes(budget),

@@ -231,6 +231,12 @@ impl Review {
         self.checker.distance(&self.scene, &self.settings, a, b)
     }
 
+    /// Builds the collision check's whole-model index now rather than at the
+    /// first check (under a memory budget, before the budget is shared out).
+    pub fn prepare_checks(&mut self) {
+        self.checker.prepare(&self.scene, &self.tree);
+    }
+
     /// Selects a part (or nothing) and checks what it clashes with.
     pub fn select(&mut self, part: Option<PartId>) {
         if self.selected != part {

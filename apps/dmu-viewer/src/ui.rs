@@ -102,6 +102,9 @@ pub struct Overlay {
 /// State of the panels between frames.
 #[derive(Debug)]
 pub struct UiState {
+    /// Under a memory budget, what the top bar says of it (`None`: the whole
+    /// model is resident).
+    pub memory: Option<String>,
     search: String,
     /// Parts matching `search` (computed when it changes).
     matches: Vec<PartId>,
@@ -152,6 +155,7 @@ impl UiState {
             None => "dmu-review.glb".to_owned(),
         };
         Self {
+            memory: None,
             search: String::new(),
             matches: Vec::new(),
             matches_for: String::new(),
@@ -319,7 +323,10 @@ fn top_bar(
                 "chunks are drawn simplified where the difference is at most this many \
                  pixels (0: exact)",
             );
-            ui.label(memory_text(review)).on_hover_text(MEMORY_HOVER);
+            match &state.memory {
+                Some(text) => ui.label(text).on_hover_text(BUDGET_HOVER),
+                None => ui.label(memory_text(review)).on_hover_text(MEMORY_HOVER),
+            };
             ui.separator();
             for preset in Preset::ALL {
                 if ui.button(preset.name()).clicked() {
@@ -342,8 +349,13 @@ fn top_bar(
 
 /// Why the memory budget is shown but not set.
 const MEMORY_HOVER: &str = "The viewer loads the whole model (a .dmu store too) and \
-    uploads every chunk once: there is no residency manager here yet, so no budget \
-    is enforced.";
+    uploads every chunk once: no budget is enforced. Open a .dmu store with \
+    --memory-budget to stream its chunks within a budget.";
+
+/// What the memory setting under a budget means.
+const BUDGET_HOVER: &str = "--memory-budget: the whole process stays within it. Chunks \
+    stream in from the store as the view needs them; one not loaded yet is drawn as its \
+    box.";
 
 /// The memory setting, read-only: what the model takes.
 fn memory_text(review: &Review) -> String {

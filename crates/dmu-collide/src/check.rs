@@ -284,6 +284,14 @@ impl Checker {
         }
     }
 
+    /// Builds now what the first check would build over the whole model
+    /// (the index of whole-part boxes), so that a process under a memory
+    /// budget holds it before it sizes the rest. `tree` must be up to date
+    /// with `scene`.
+    pub fn prepare(&mut self, scene: &Scene, tree: &Tree) {
+        self.enclosers.sync(scene, tree);
+    }
+
     /// Chunks whose BVH has been built so far (chunks of at most 16 triangles,
     /// which need none, count once tested).
     pub fn chunk_meshes_built(&self) -> usize {

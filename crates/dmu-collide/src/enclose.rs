@@ -32,8 +32,11 @@ pub(crate) struct Enclosers {
     /// The tree revision the index is current with; `None` before the first use.
     revision: Option<Revision>,
     nodes: Vec<Node>,
-    /// Parts with a non-empty box as of the build, in leaf order.
-    parts: Vec<(PartId, Aabb3d)>,
+    /// Parts with a non-empty box as of the build, in leaf order. Their
+    /// boxes are read from the scene when a leaf is reached: a part not
+    /// stale has the box it had at the build (a few bytes a part instead of
+    /// sixty, at 900k parts 50 MB).
+    parts: Vec<PartId>,
     /// Parts moved since the build, sorted, without repeats.
     stale: Vec<PartId>,
     /// Traversal stack, kept between queries.
@@ -66,17 +69,19 @@ impl Enclosers {
 
     fn build(&mut self, scene: &Scene) {
         self.stale.clear();
-        self.parts.clear();
-        self.parts.extend(
+        let mut boxed: Vec<(PartId, Aabb3d)> = Vec::with_capacity(scene.parts().len());
+        boxed.extend(
             scene
                 .part_ids()
                 .map(|p| (p, scene.part_world_bounds(p)))
                 .filter(|(_, b)| !b.is_empty()),
         );
         self.nodes.clear();
-        if !self.parts.is_empty() {
-            build_node(&mut self.nodes, &mut self.parts, 0);
+        if !boxed.is_empty() {
+            build_node(&mut self.nodes, &mut boxed, 0);
         }
+        self.parts.clear();
+        self.parts.extend(boxed.iter().map(|&(p, _)| p));
     }
 
     /// Every part whose current world box contains `inner` (the caller filters
@@ -96,11 +101,9 @@ impl Enclosers {
                 continue;
             }
             let leaf = &self.parts[node.first as usize..(node.first + node.count) as usize];
-            out.extend(
-                leaf.iter()
-                    .filter(|(p, b)| b.contains(inner) && self.stale.binary_search(p).is_err())
-                    .map(|&(p, _)| p),
-            );
+            out.extend(leaf.iter().copied().filter(|p| {
+                self.stale.binary_search(p).is_err() && scene.part_world_bounds(*p).contains(inner)
+            }));
         }
         out.extend(
             self.stale

@@ -13,6 +13,19 @@ pub const OPTIONAL_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY
     .union(wgpu::Features::INDIRECT_FIRST_INSTANCE)
     .union(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT);
 
+/// How wgpu should size the memory blocks it suballocates buffers from on
+/// `adapter`. On a CPU device (lavapipe) GPU memory is process memory, and
+/// wgpu's default blocks (64-256 MiB) stay resident once touched, though
+/// mostly free (short-lived upload buffers go through them): small blocks
+/// there keep a memory budget a promise. Elsewhere wgpu's default.
+pub fn memory_hints(adapter: &wgpu::AdapterInfo) -> wgpu::MemoryHints {
+    if adapter.device_type == wgpu::DeviceType::Cpu {
+        wgpu::MemoryHints::MemoryUsage
+    } else {
+        wgpu::MemoryHints::Performance
+    }
+}
+
 /// A device and queue with no surface, with the [`OPTIONAL_FEATURES`] the
 /// adapter has. Honours `WGPU_BACKEND` and the other `wgpu` environment
 /// variables.
@@ -33,6 +46,7 @@ pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, wgpu::AdapterInfo
         label: Some("dmu headless"),
         required_features,
         required_limits: adapter.limits(),
+        memory_hints: memory_hints(&info),
         ..Default::default()
     }))
     .map_err(|e| RenderError::RequestDevice {

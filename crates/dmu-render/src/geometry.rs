@@ -79,7 +79,31 @@ struct LodRange {
     relative_error: f32,
 }
 
+/// What one draw of a resident chunk reads: a [`ChunkSlot`] at one level,
+/// without the other levels (a frame keeps one per draw).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct SlotDraw {
+    pub vertex_page: u32,
+    pub first_vertex: u32,
+    pub index_page: u32,
+    pub first_index: u32,
+    pub index_count: u32,
+    pub short_indices: bool,
+}
+
 impl ChunkSlot {
+    /// The draw of this slot's current range.
+    pub(crate) fn draw(&self) -> SlotDraw {
+        SlotDraw {
+            vertex_page: self.vertex_page,
+            first_vertex: self.first_vertex,
+            index_page: self.index_page,
+            first_index: self.first_index,
+            index_count: self.index_count,
+            short_indices: self.short_indices,
+        }
+    }
+
     /// Bytes reserved in the index page (padded to 4 for copy alignment).
     fn index_bytes(&self) -> u64 {
         let unit = if self.short_indices { 2 } else { 4 };
@@ -119,6 +143,11 @@ struct Page {
 }
 
 impl Page {
+    /// The bytes handed out so far (at least 4, so the slice is never empty).
+    fn written(&self) -> wgpu::BufferSlice<'_> {
+        self.buffer.slice(..self.used.max(4))
+    }
+
     fn alloc(&mut self, bytes: u64, capacity: u64) -> Option<u64> {
         if let Some(i) = self.free.iter().position(|&(_, len)| len >= bytes) {
             let (offset, len) = self.free[i];
@@ -187,12 +216,24 @@ impl GeometryPool {
         self.slots.iter().filter(|s| s.is_some()).count()
     }
 
-    pub(crate) fn vertex_buffer(&self, page: u32) -> &wgpu::Buffer {
+    fn vertex_buffer(&self, page: u32) -> &wgpu::Buffer {
         &self.vertex_pages[page as usize].buffer
     }
 
-    pub(crate) fn index_buffer(&self, page: u32) -> &wgpu::Buffer {
+    fn index_buffer(&self, page: u32) -> &wgpu::Buffer {
         &self.index_pages[page as usize].buffer
+    }
+
+    /// What draws bind of a vertex page: the part handed out so far. Binding
+    /// the whole page would have wgpu zero what was never written, and on
+    /// lavapipe that makes a mostly empty page cost its full size in memory.
+    pub(crate) fn vertex_slice(&self, page: u32) -> wgpu::BufferSlice<'_> {
+        self.vertex_pages[page as usize].written()
+    }
+
+    /// What draws bind of an index page (see [`GeometryPool::vertex_slice`]).
+    pub(crate) fn index_slice(&self, page: u32) -> wgpu::BufferSlice<'_> {
+        self.index_pages[page as usize].written()
     }
 
     /// The chunk's slot, uploading it from `source` first if needed; `None` when

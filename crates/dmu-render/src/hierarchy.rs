@@ -97,6 +97,9 @@ impl Hierarchy {
     fn rebuild(&mut self, tree: &Tree) {
         let entries = tree.entries();
         self.nodes.clear();
+        // Room for the tree's nodes too: growing by doubling would hold the
+        // old and the new array at once (tens of MB at 500M triangles).
+        self.nodes.reserve_exact(entries.len() + tree.node_slots());
         self.nodes
             .extend(entries.iter().enumerate().map(|(e, entry)| Node {
                 bounds: entry.bounds,

@@ -433,9 +433,9 @@ impl Renderer {
                         index_page,
                         short_indices,
                     } => {
-                        pass.set_vertex_buffer(0, self.pool.vertex_buffer(vertex_page).slice(..));
+                        pass.set_vertex_buffer(0, self.pool.vertex_slice(vertex_page));
                         pass.set_index_buffer(
-                            self.pool.index_buffer(index_page).slice(..),
+                            self.pool.index_slice(index_page),
                             if short_indices {
                                 wgpu::IndexFormat::Uint16
                             } else {

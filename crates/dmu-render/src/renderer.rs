@@ -276,8 +276,6 @@ pub(crate) struct ViewGpu {
     resolve: wgpu::Buffer,
     readback: wgpu::Buffer,
     timestamps: Option<(wgpu::QuerySet, wgpu::Buffer, wgpu::Buffer)>,
-    /// Reused model-view staging.
-    staging: Vec<ModelView>,
     /// A round's indirect draw arguments, one per chunk draw in draw order
     /// (five u32: index count, instance count, first index, base vertex,
     /// first instance).
@@ -320,7 +318,7 @@ pub struct Renderer {
     pub(crate) hierarchy: Hierarchy,
     pub(crate) timestamp_period_ns: Option<f64>,
     /// Reused per-round scratch: resolved slots of the round's draws.
-    slots: Vec<(u32, crate::geometry::ChunkSlot)>,
+    slots: Vec<(u32, crate::geometry::SlotDraw)>,
     /// Shading of proxies (merged subtrees), uncut and cut.
     pub(crate) proxy: [wgpu::RenderPipeline; 2],
     /// Proxies of the tree's subtrees and their GPU buffers, once set.
@@ -808,34 +806,57 @@ impl Renderer {
             // Written in runs of nearby ids: the parts of a cull box may be
             // spread over the whole id range.
             Some(parts) if eye_views.len() == 1 => {
-                g.staging.resize(
-                    scene.parts().len(),
-                    <ModelView as bytemuck::Zeroable>::zeroed(),
-                );
-                for &p in parts {
-                    g.staging[p as usize] =
-                        model_view(eye_views[0], PartId::from_index(p as usize));
-                }
+                let mut next = parts.iter().copied().peekable();
                 for (first, last) in id_runs(parts, MODEL_VIEW_RUN_GAP) {
-                    self.queue.write_buffer(
-                        &g.model_views,
-                        u64::from(first) * size_of::<ModelView>() as u64,
-                        bytemuck::cast_slice(&g.staging[first as usize..=last as usize]),
-                    );
+                    self.write_model_views(&g.model_views, first as usize, last - first + 1, |p| {
+                        // Parts in the gaps of a run are not drawn: zeros.
+                        while next.next_if(|&q| (q as usize) < p).is_some() {}
+                        next.next_if_eq(&(p as u32))
+                            .map_or_else(<ModelView as bytemuck::Zeroable>::zeroed, |_| {
+                                model_view(eye_views[0], PartId::from_index(p))
+                            })
+                    });
                 }
             }
             _ => {
-                g.staging.clear();
-                g.staging.extend(eye_views.iter().flat_map(|&view_matrix| {
-                    scene.part_ids().map(move |p| model_view(view_matrix, p))
-                }));
-                if !g.staging.is_empty() {
-                    self.queue
-                        .write_buffer(&g.model_views, 0, bytemuck::cast_slice(&g.staging));
-                }
+                self.write_model_views(&g.model_views, 0, (parts * eye_views.len()) as u32, |k| {
+                    model_view(eye_views[k / parts], PartId::from_index(k % parts))
+                });
             }
         }
         g
+    }
+
+    /// Writes `count` model-views into `buffer` from index `first`, the
+    /// `k`-th as `at(first + k)`, straight into the queue's staging memory in
+    /// pieces (no model-sized copy on the CPU).
+    fn write_model_views(
+        &self,
+        buffer: &wgpu::Buffer,
+        first: usize,
+        count: u32,
+        mut at: impl FnMut(usize) -> ModelView,
+    ) {
+        const PIECE: usize = 4096;
+        let size = size_of::<ModelView>();
+        let Some(bytes) = wgpu::BufferSize::new(u64::from(count) * size as u64) else {
+            return;
+        };
+        let Some(mut mapped) = self
+            .queue
+            .write_buffer_with(buffer, (first * size) as u64, bytes)
+        else {
+            return;
+        };
+        let mut piece = Vec::with_capacity(PIECE.min(count as usize));
+        for start in (0..count as usize).step_by(PIECE) {
+            let end = (start + PIECE).min(count as usize);
+            piece.clear();
+            piece.extend((start..end).map(|k| at(first + k)));
+            mapped
+                .slice(start * size..end * size)
+                .copy_from_slice(bytemuck::cast_slice(&piece));
+        }
     }
 
     fn make_view_gpu(&self, model_views: usize) -> ViewGpu {
@@ -887,7 +908,6 @@ impl Renderer {
             resolve: buffer("dmu query resolve", 8, resolve_usage),
             readback: buffer("dmu query readback", 8, read_usage),
             timestamps,
-            staging: Vec::new(),
             draw_args: buffer(
                 "dmu draw arguments",
                 DRAW_ARGS_BYTES,
@@ -1022,7 +1042,7 @@ impl Renderer {
             resident.push(slot.is_some());
             match slot {
                 Some(slot) => {
-                    self.slots.push((d.entry, slot));
+                    self.slots.push((d.entry, slot.draw()));
                     queried.push(d.query);
                     result.chunks += 1;
                     result.triangles += u64::from(slot.index_count / 3);
@@ -1203,16 +1223,13 @@ impl Renderer {
                 let wrapped = queried[k];
                 let key = pages(&slot);
                 if bound != Some(key) {
-                    pass.set_vertex_buffer(0, self.pool.vertex_buffer(slot.vertex_page).slice(..));
+                    pass.set_vertex_buffer(0, self.pool.vertex_slice(slot.vertex_page));
                     let format = if slot.short_indices {
                         wgpu::IndexFormat::Uint16
                     } else {
                         wgpu::IndexFormat::Uint32
                     };
-                    pass.set_index_buffer(
-                        self.pool.index_buffer(slot.index_page).slice(..),
-                        format,
-                    );
+                    pass.set_index_buffer(self.pool.index_slice(slot.index_page), format);
                     bound = Some(key);
                 }
                 if batched && !wrapped {
@@ -1440,7 +1457,7 @@ fn grow_buffer(device: &wgpu::Device, buffer: &mut wgpu::Buffer, label: &str, ne
 
 /// The pool pages and index format a chunk draw binds: draws with the same
 /// can share a multi-draw.
-fn pages(slot: &crate::geometry::ChunkSlot) -> (u32, u32, bool) {
+fn pages(slot: &crate::geometry::SlotDraw) -> (u32, u32, bool) {
     (slot.vertex_page, slot.index_page, slot.short_indices)
 }
 
