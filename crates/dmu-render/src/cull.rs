@@ -264,7 +264,7 @@ impl Renderer {
         stats.lod_error_px = knobs.lod_error_px;
         stats.min_pixels = knobs.min_pixels;
         let mut cull = Cull::new(view, ipd, knobs);
-        let cell_distance = self.cell_distances(cull.eye());
+        let cell_distance = self.cell_distances(tree, cull.eye());
         // The mode of this frame: the view's, or the one `auto` runs now.
         let culling = match view.culling {
             Culling::Auto => view.auto.mode(),
@@ -280,11 +280,6 @@ impl Renderer {
             cull.far = FarCut::Near(near.clone());
         }
         let use_queries = culling == Culling::Occlusion && view.decision.enabled && near.is_none();
-        // A near field's frame forms the model-views of its parts only, so
-        // its cost follows the cull box, not the model.
-        let near_parts = near.as_ref().map(|n| n.parts(tree));
-        let mut gpu_state = self.prepare_view(view, scene, cull.eye_views(), near_parts.as_deref());
-        view.drawn.clear();
         let hzb = culling == Culling::Hzb
             && target.eye_count() == 1
             && self.hzb_supported(target.all().depth);
@@ -293,6 +288,37 @@ impl Renderer {
             Culling::Occlusion if !use_queries => Culling::Frustum,
             c => c,
         };
+        // A frame without occlusion culling knows its draws before it draws.
+        let plain = (!hzb && !use_queries).then(|| {
+            self.candidates(
+                culling,
+                scene,
+                tree,
+                &cull,
+                target,
+                &cell_distance,
+                &mut stats,
+            )
+        });
+        // A near field's frame forms the model-views of its parts only, so
+        // its cost follows the cull box, not the model; so does a single
+        // view's frame that knows its draws (the model-views of a whole
+        // model are tens of MB at 500M triangles).
+        let only: Option<Vec<u32>> = match (&near, &plain) {
+            (Some(near), _) => Some(near.parts(tree)),
+            (None, Some((draws, _, _))) if target.eye_count() == 1 => {
+                let mut parts: Vec<u32> = draws
+                    .iter()
+                    .map(|d| tree.entries()[d.entry as usize].part.0)
+                    .collect();
+                parts.sort_unstable();
+                parts.dedup();
+                Some(parts)
+            }
+            _ => None,
+        };
+        let mut gpu_state = self.prepare_view(view, scene, cull.eye_views(), only.as_deref());
+        view.drawn.clear();
         let outcome = if hzb {
             self.frame_hzb(
                 view,
@@ -318,15 +344,7 @@ impl Renderer {
                 &mut stats,
             )
         } else {
-            let (draws, proxy_nodes, frames) = self.candidates(
-                culling,
-                scene,
-                tree,
-                &cull,
-                target,
-                &cell_distance,
-                &mut stats,
-            );
+            let (draws, proxy_nodes, frames) = plain.expect("a frame without occlusion culling");
             stats.proxies_drawn = proxy_nodes.len() as u64;
             view.drawn.extend(draws.iter().map(|d| d.entry));
             // A proxy draws the chunk instances below it, approximated.
@@ -411,7 +429,7 @@ impl Renderer {
             min_pixels: 0.0,
             ..Cull::new(view, None, KnobsInEffect::default())
         };
-        let cell_distance = self.cell_distances(cull.eye());
+        let cell_distance = self.cell_distances(tree, cull.eye());
         let mut gpu_state = self.prepare_view(view, scene, cull.eye_views(), None);
         let mut scratch = FrameStats::default();
         let mut draws = self.frustum_draws(scene, tree, &cull, &mut scratch);
@@ -434,12 +452,11 @@ impl Renderer {
     }
 
     /// Squared eye distance of every cell node's box (0 inside); other nodes 0.
-    fn cell_distances(&self, eye: DVec3) -> Vec<f64> {
-        self.hierarchy
-            .nodes
-            .iter()
-            .map(|n| match n.kind {
-                NodeKind::Cell(_) => box_distance_sq(&n.bounds, eye),
+    fn cell_distances(&self, tree: &Tree, eye: DVec3) -> Vec<f64> {
+        let h = &self.hierarchy;
+        (0..h.len() as u32)
+            .map(|n| match h.kind(n) {
+                NodeKind::Cell(_) => box_distance_sq(h.bounds(tree, n), eye),
                 _ => 0.0,
             })
             .collect()
@@ -524,7 +541,7 @@ impl Renderer {
         let mut walk = Walk::new(h, scene, tree, cull, stats);
         walk.proxy_fit = fit;
         let mut nodes = Vec::new();
-        if h.nodes.is_empty() {
+        if h.len() == 0 {
             return (Vec::new(), nodes);
         }
         let mut stack = vec![h.root];
@@ -550,12 +567,18 @@ impl Renderer {
     /// Per mirror node of `h`, whether this frame draws it as its proxy: its
     /// proxy is current and its error projects within the LOD error (empty
     /// without proxies, LODs, or in multiview rounds, which cannot draw them).
-    fn proxy_fit(&self, h: &Hierarchy, cull: &Cull, target: RoundTarget<'_>) -> Vec<bool> {
+    fn proxy_fit(
+        &self,
+        h: &Hierarchy,
+        tree: &Tree,
+        cull: &Cull,
+        target: RoundTarget<'_>,
+    ) -> Vec<bool> {
         match (&self.proxies, cull.lod()) {
-            (Some(p), Some(_)) if !target.is_multiview() => (0..h.nodes.len() as u32)
+            (Some(p), Some(_)) if !target.is_multiview() => (0..h.len() as u32)
                 .map(|n| {
                     p.cpu.current(n).is_some_and(|x| {
-                        let b = &h.nodes[n as usize].bounds;
+                        let b = h.bounds(tree, n);
                         proxy_fits(&cull.coverage, b, x.error, cull.lod_error_px)
                     })
                 })
@@ -566,9 +589,15 @@ impl Renderer {
 
     /// Puts a round's proxies front to back and gives their frames in each
     /// eye's view space.
-    fn proxy_frames(&self, h: &Hierarchy, nodes: &mut [u32], cull: &Cull) -> Vec<QueryBox> {
+    fn proxy_frames(
+        &self,
+        h: &Hierarchy,
+        tree: &Tree,
+        nodes: &mut [u32],
+        cull: &Cull,
+    ) -> Vec<QueryBox> {
         nodes.sort_by(|&a, &b| {
-            let d = |n: u32| box_distance_sq(&h.nodes[n as usize].bounds, cull.eye());
+            let d = |n: u32| box_distance_sq(h.bounds(tree, n), cull.eye());
             d(a).total_cmp(&d(b)).then(a.cmp(&b))
         });
         let Some(p) = &self.proxies else {
@@ -608,7 +637,7 @@ impl Renderer {
         // Empty where no proxy may draw.
         let fit = match (culling, &cull.far) {
             (Culling::None, _) | (_, FarCut::Near(_) | FarCut::FarOnly(_)) => Vec::new(),
-            _ => self.proxy_fit(&self.hierarchy, cull, target),
+            _ => self.proxy_fit(&self.hierarchy, tree, cull, target),
         };
         let mut proxy_nodes = Vec::new();
         let mut draws = match culling {
@@ -628,7 +657,7 @@ impl Renderer {
                 .map(|d| u64::from(tree.entries()[d.entry as usize].triangles))
                 .sum();
         }
-        let frames = self.proxy_frames(&self.hierarchy, &mut proxy_nodes, cull);
+        let frames = self.proxy_frames(&self.hierarchy, tree, &mut proxy_nodes, cull);
         (draws, proxy_nodes, frames)
     }
 
@@ -665,13 +694,13 @@ impl Renderer {
             stats,
         );
         let h = &self.hierarchy;
-        if view.proxy_visible.len() != h.nodes.len() {
-            view.proxy_visible = vec![0; h.nodes.len()];
+        if view.proxy_visible.len() != h.len() {
+            view.proxy_visible = vec![0; h.len()];
         }
         let entry_bounds: Vec<Aabb3d> = draws
             .iter()
             .map(|d| tree.entries()[d.entry as usize].bounds)
-            .chain(proxy_nodes.iter().map(|&n| h.nodes[n as usize].bounds))
+            .chain(proxy_nodes.iter().map(|&n| *h.bounds(tree, n)))
             .collect();
         let boxes = cull.query_boxes(&entry_bounds);
         let kinds = draws
@@ -802,9 +831,9 @@ impl Renderer {
         // Last frame's visibility, pulled up: a node is visible when any
         // chunk instance below was; children pulled before their parents.
         let order = h.pre_order();
-        let mut was_visible = vec![false; h.nodes.len()];
+        let mut was_visible = vec![false; h.len()];
         for &n in order.iter().rev() {
-            was_visible[n as usize] = match h.nodes[n as usize].kind {
+            was_visible[n as usize] = match h.kind(n) {
                 NodeKind::Entry(e) => view.entries[e.0 as usize].visible_frame + 1 == frame,
                 _ => h.children(n).iter().any(|&c| was_visible[c as usize]),
             };
@@ -816,22 +845,22 @@ impl Renderer {
 
         // Nodes drawn as their proxies: leaves of the traversal, drawn when
         // visible and queried by their boxes as any node.
-        let proxy_fit = self.proxy_fit(&h, cull, target);
+        let proxy_fit = self.proxy_fit(&h, tree, cull, target);
         let mut walk = Walk::new(&h, scene, tree, cull, stats);
         walk.proxy_fit = &proxy_fit;
         if !order.is_empty() {
             let mut stack = vec![h.root];
             while let Some(n) = stack.pop() {
                 let Some(kind) = walk.admit(n) else { continue };
-                let node = &h.nodes[n as usize];
-                let open = was_visible[n as usize] || cull.eye_near(&node.bounds);
+                let bounds = h.bounds(tree, n);
+                let open = was_visible[n as usize] || cull.eye_near(bounds);
                 match kind {
                     NodeKind::Entry(_) => {}
                     // A visible proxy is drawn, and re-checked by its box
                     // (drawn a round later) on a per-node schedule.
                     _ if walk.fits(n) => {
                         let recheck = schedule(n) == frame + interval;
-                        if open && (!recheck || cull.eye_near(&node.bounds)) {
+                        if open && (!recheck || cull.eye_near(bounds)) {
                             walk.draw_proxy(n, view, frame);
                         } else {
                             walk.queries.push(n);
@@ -843,7 +872,7 @@ impl Renderer {
                 match kind {
                     NodeKind::Entry(e) if open => {
                         let state = &mut view.entries[e.0 as usize];
-                        let query = state.requery_frame <= frame && !cull.eye_near(&node.bounds);
+                        let query = state.requery_frame <= frame && !cull.eye_near(bounds);
                         if !query {
                             state.visible_frame = frame;
                         }
@@ -881,16 +910,16 @@ impl Renderer {
             checked.clear();
             checked.extend(draws.iter().filter(|d| d.query).map(|d| d.entry));
             bounds.clear();
-            bounds.extend(queries.iter().map(|&n| h.nodes[n as usize].bounds));
+            bounds.extend(queries.iter().map(|&n| *h.bounds(tree, n)));
             if target.is_multiview() {
                 for d in &mut draws {
                     d.query = false;
                 }
-                bounds.extend(checked.iter().map(|&e| h.nodes[e as usize].bounds));
+                bounds.extend(checked.iter().map(|&e| *h.bounds(tree, e)));
             }
             let boxes = cull.query_boxes(&bounds);
             let mut proxy_nodes = std::mem::take(&mut walk.proxy_draws);
-            let frames = self.proxy_frames(&h, &mut proxy_nodes, cull);
+            let frames = self.proxy_frames(&h, tree, &mut proxy_nodes, cull);
             let r = match self.run_round(
                 gpu,
                 target,
@@ -936,7 +965,7 @@ impl Renderer {
             }
             let last = round + 1 == max_rounds;
             for (&n, &s) in queries.iter().zip(box_samples) {
-                let kind = h.nodes[n as usize].kind;
+                let kind = h.kind(n);
                 if s == 0 {
                     // Chunk instances were counted when admitted; inner nodes
                     // count what they hide.
@@ -1051,21 +1080,22 @@ impl<'a> Walk<'a> {
     /// passes. Admitted chunk instances count towards what frustum culling
     /// alone would draw.
     fn admit(&mut self, n: u32) -> Option<NodeKind> {
-        let node = &self.h.nodes[n as usize];
+        let bounds = self.h.bounds(self.tree, n);
+        let kind = self.h.kind(n);
         self.stats.nodes_visited += 1;
-        if !self.cull.frustum.intersects_aabb(&node.bounds) {
+        if !self.cull.frustum.intersects_aabb(bounds) {
             self.stats.culled_frustum += 1;
             return None;
         }
-        if self.cull.cut_away(&node.bounds) {
+        if self.cull.cut_away(bounds) {
             self.stats.culled_section += 1;
             return None;
         }
-        if self.cull.too_small(&node.bounds) {
+        if self.cull.too_small(bounds) {
             self.stats.culled_coverage += 1;
             return None;
         }
-        if let NodeKind::Entry(e) = node.kind {
+        if let NodeKind::Entry(e) = kind {
             let entry = &self.tree.entries()[e.0 as usize];
             if self.scene.part(entry.part).hidden {
                 self.stats.hidden += 1;
@@ -1074,7 +1104,7 @@ impl<'a> Walk<'a> {
             self.in_frustum_entries += 1;
             self.stats.triangles_in_frustum += u64::from(entry.triangles);
         }
-        Some(node.kind)
+        Some(kind)
     }
 
     /// Counts what frustum culling would draw below a node occlusion culled,
@@ -1082,14 +1112,14 @@ impl<'a> Walk<'a> {
     fn count_below(&mut self, n: u32) {
         let mut stack = vec![n];
         while let Some(n) = stack.pop() {
-            let node = &self.h.nodes[n as usize];
-            if !self.cull.frustum.intersects_aabb(&node.bounds)
-                || self.cull.cut_away(&node.bounds)
-                || self.cull.too_small(&node.bounds)
+            let bounds = self.h.bounds(self.tree, n);
+            if !self.cull.frustum.intersects_aabb(bounds)
+                || self.cull.cut_away(bounds)
+                || self.cull.too_small(bounds)
             {
                 continue;
             }
-            match node.kind {
+            match self.h.kind(n) {
                 NodeKind::Entry(e) => {
                     let entry = &self.tree.entries()[e.0 as usize];
                     if !self.scene.part(entry.part).hidden {
@@ -1109,7 +1139,7 @@ impl<'a> Walk<'a> {
         let mut stack: Vec<(u32, u32)> = self.h.children(n).iter().map(|&c| (c, 1)).collect();
         while let Some((c, depth)) = stack.pop() {
             let Some(kind) = self.admit(c) else { continue };
-            let near = self.cull.eye_near(&self.h.nodes[c as usize].bounds);
+            let near = self.cull.eye_near(self.h.bounds(self.tree, c));
             match kind {
                 NodeKind::Entry(e) if near => {
                     view.entries[e.0 as usize].visible_frame = frame;

@@ -46,10 +46,14 @@ const FREE: Node = Node {
 /// The tree's structure as the renderer walks it. A [`Renderer`](crate::Renderer)
 /// keeps one and brings it up to date with [`Hierarchy::sync`] each frame; it
 /// needs no GPU, so its update cost is measured alone (`dmu bench tree`).
+///
+/// Entries are implicit: mirror node `e` below the entry count is entry `e`,
+/// a leaf whose box is the tree's (`Hierarchy::bounds`); the mirror holds
+/// no copy of the entries' boxes (76 MB at 500M triangles).
 #[derive(Debug, Default, PartialEq)]
 pub struct Hierarchy {
-    /// The entries' nodes (by entry id), then the tree's node slots.
-    pub(crate) nodes: Vec<Node>,
+    /// The tree's node slots (mirror node `entries + n` is slot `n`).
+    tree_nodes: Vec<Node>,
     pub(crate) root: u32,
     /// Entry ids of each cell (by cell id; empty for dead cell ids).
     cell_entries: Vec<Vec<u32>>,
@@ -81,9 +85,8 @@ impl Hierarchy {
                     match change {
                         Change::Node(n) => self.read_node(tree, n),
                         Change::Cell(c) => self.read_cell(tree, c),
-                        Change::Entry(e) => {
-                            self.nodes[e.0 as usize].bounds = tree.entries()[e.0 as usize].bounds;
-                        }
+                        // An entry's box is read from the tree.
+                        Change::Entry(_) => {}
                     }
                 }
                 self.root = self.tree_node(tree.root());
@@ -95,19 +98,9 @@ impl Hierarchy {
 
     /// Re-reads the whole tree, reusing allocations.
     fn rebuild(&mut self, tree: &Tree) {
-        let entries = tree.entries();
-        self.nodes.clear();
-        // Room for the tree's nodes too: growing by doubling would hold the
-        // old and the new array at once (tens of MB at 500M triangles).
-        self.nodes.reserve_exact(entries.len() + tree.node_slots());
-        self.nodes
-            .extend(entries.iter().enumerate().map(|(e, entry)| Node {
-                bounds: entry.bounds,
-                kind: NodeKind::Entry(EntryId(e as u32)),
-                children: [NONE; 2],
-            }));
+        self.tree_nodes.clear();
         self.entry_cell.clear();
-        self.entry_cell.resize(entries.len(), NONE);
+        self.entry_cell.resize(tree.entries().len(), NONE);
         self.cell_node.clear();
         self.cell_entries.truncate(tree.cell_slots());
         self.grow(tree);
@@ -122,8 +115,7 @@ impl Hierarchy {
 
     /// Makes room for the tree's node and cell slots (they only grow between rebuilds).
     fn grow(&mut self, tree: &Tree) {
-        self.nodes
-            .resize(tree.entries().len() + tree.node_slots(), FREE);
+        self.tree_nodes.resize(tree.node_slots(), FREE);
         self.cell_node.resize(tree.cell_slots(), NONE);
         self.cell_entries.resize_with(tree.cell_slots(), Vec::new);
     }
@@ -139,8 +131,7 @@ impl Hierarchy {
             dmu_tree::NodeKind::Cell(c) => (NodeKind::Cell(c), [NONE; 2]),
             dmu_tree::NodeKind::Free => (NodeKind::Free, [NONE; 2]),
         };
-        let id = self.tree_node(node);
-        self.nodes[id as usize] = Node {
+        self.tree_nodes[node.0 as usize] = Node {
             bounds: tree.node_bounds(node),
             kind,
             children,
@@ -159,9 +150,37 @@ impl Hierarchy {
         }
     }
 
+    /// Mirror nodes: entries, then the tree's node slots.
+    pub(crate) fn len(&self) -> usize {
+        self.entry_cell.len() + self.tree_nodes.len()
+    }
+
+    /// The tree node slot of mirror node `node`, `None` for an entry.
+    fn tree_slot(&self, node: u32) -> Option<&Node> {
+        let slot = (node as usize).checked_sub(self.entry_cell.len())?;
+        Some(&self.tree_nodes[slot])
+    }
+
+    /// What mirror node `node` is.
+    pub(crate) fn kind(&self, node: u32) -> NodeKind {
+        self.tree_slot(node)
+            .map_or(NodeKind::Entry(EntryId(node)), |n| n.kind)
+    }
+
+    /// The box of mirror node `node`; an entry's is `tree`'s (the tree this
+    /// mirror was last synced with).
+    pub(crate) fn bounds<'a>(&'a self, tree: &'a Tree, node: u32) -> &'a Aabb3d {
+        match self.tree_slot(node) {
+            Some(n) => &n.bounds,
+            None => &tree.entries()[node as usize].bounds,
+        }
+    }
+
     /// Child ids of a node: an internal node's two, a cell's entries.
     pub(crate) fn children(&self, node: u32) -> &[u32] {
-        let n = &self.nodes[node as usize];
+        let Some(n) = self.tree_slot(node) else {
+            return &[];
+        };
         match n.kind {
             NodeKind::Internal => &n.children,
             NodeKind::Cell(c) => &self.cell_entries[c.0 as usize],
@@ -171,8 +190,8 @@ impl Hierarchy {
 
     /// The nodes under the root, parents before children (empty before the first sync).
     pub(crate) fn pre_order(&self) -> Vec<u32> {
-        let mut order = Vec::with_capacity(self.nodes.len());
-        if self.nodes.is_empty() {
+        let mut order = Vec::with_capacity(self.len());
+        if self.len() == 0 {
             return order;
         }
         let mut stack = vec![self.root];
@@ -187,7 +206,7 @@ impl Hierarchy {
     pub(crate) fn leaves(&self, node: u32, out: &mut Vec<u32>) {
         let mut stack = vec![node];
         while let Some(n) = stack.pop() {
-            match self.nodes[n as usize].kind {
+            match self.kind(n) {
                 NodeKind::Entry(e) => out.push(e.0),
                 _ => stack.extend_from_slice(self.children(n)),
             }
@@ -202,10 +221,10 @@ impl Hierarchy {
     }
 
     fn check(&self, tree: &Tree) -> Result<(), String> {
-        if self.nodes.len() != tree.entries().len() + tree.node_slots() {
+        if self.len() != tree.entries().len() + tree.node_slots() {
             return Err(format!(
                 "{} nodes for {} entries and {} tree nodes",
-                self.nodes.len(),
+                self.len(),
                 tree.entries().len(),
                 tree.node_slots()
             ));
@@ -219,25 +238,19 @@ impl Hierarchy {
         }
         let mut seen = vec![false; tree.entries().len()];
         for n in self.pre_order() {
-            let node = &self.nodes[n as usize];
-            match node.kind {
-                NodeKind::Entry(e) => {
-                    let entry = &tree.entries()[e.0 as usize];
-                    if std::mem::replace(&mut seen[e.0 as usize], true) {
-                        return Err(format!("entry {} reached twice", e.0));
-                    }
-                    if node.bounds != entry.bounds {
-                        return Err(format!(
-                            "entry {}: box {:?}, tree {:?}",
-                            e.0, node.bounds, entry.bounds
-                        ));
-                    }
-                    if self.entry_cell[e.0 as usize]
-                        != self.cell_node[tree.entry_cell(e).0 as usize]
-                    {
-                        return Err(format!("entry {} not in its cell", e.0));
-                    }
+            let Some(node) = self.tree_slot(n) else {
+                if std::mem::replace(&mut seen[n as usize], true) {
+                    return Err(format!("entry {n} reached twice"));
                 }
+                if self.entry_cell[n as usize]
+                    != self.cell_node[tree.entry_cell(EntryId(n)).0 as usize]
+                {
+                    return Err(format!("entry {n} not in its cell"));
+                }
+                continue;
+            };
+            match node.kind {
+                NodeKind::Entry(e) => return Err(format!("tree node {n} holds entry {}", e.0)),
                 NodeKind::Free => return Err(format!("free node {n} in the tree")),
                 NodeKind::Internal | NodeKind::Cell(_) => {
                     let t = NodeId(n - self.entry_cell.len() as u32);
@@ -261,7 +274,7 @@ impl Hierarchy {
                         return Err(format!("node {n} differs from the tree's"));
                     }
                     for &c in self.children(n) {
-                        if !node.bounds.contains(&self.nodes[c as usize].bounds) {
+                        if !node.bounds.contains(self.bounds(tree, c)) {
                             return Err(format!("node {n}: child {c} pokes out"));
                         }
                     }

@@ -256,14 +256,14 @@ impl Proxies {
             }
             hash
         }));
-        let mut signature = vec![0u64; h.nodes.len()];
-        let mut height = vec![0u8; h.nodes.len()];
+        let mut signature = vec![0u64; h.len()];
+        let mut height = vec![0u8; h.len()];
         for n in post_order(h) {
-            if let NodeKind::Internal = h.nodes[n as usize].kind {
+            if let NodeKind::Internal = h.kind(n) {
                 let below = h.children(n).iter().map(|&c| height[c as usize]).max();
                 height[n as usize] = below.unwrap_or(0).saturating_add(1);
             }
-            signature[n as usize] = match h.nodes[n as usize].kind {
+            signature[n as usize] = match h.kind(n) {
                 NodeKind::Entry(e) => {
                     let part = tree.entries()[e.0 as usize].part;
                     // Never 0 (0 is "no content"): an entry's hash is odd.
@@ -275,15 +275,15 @@ impl Proxies {
                     .fold(0u64, |s, &c| s.wrapping_add(signature[c as usize])),
             };
         }
-        self.level = (0..h.nodes.len())
-            .map(|n| match h.nodes[n].kind {
+        self.level = (0..h.len())
+            .map(|n| match h.kind(n as u32) {
                 NodeKind::Entry(_) | NodeKind::Free => false,
                 _ if n as u32 == h.root => true,
                 _ => height[n] > 0 && height[n].is_multiple_of(LEVEL_STEP),
             })
             .collect();
-        self.changed.resize(h.nodes.len(), 0);
-        self.nodes.resize_with(h.nodes.len(), || None);
+        self.changed.resize(h.len(), 0);
+        self.nodes.resize_with(h.len(), || None);
         for (n, (&new, old)) in signature.iter().zip(&self.signature).enumerate() {
             if new != *old {
                 self.changed[n] = self.tick;
@@ -360,12 +360,11 @@ impl Proxies {
         source: &dyn GeometrySource,
         n: u32,
     ) -> bool {
-        let node = &h.nodes[n as usize];
         let mut merged = Merged {
-            origin: node.bounds.center(),
+            origin: h.bounds(tree, n).center(),
             ..Merged::default()
         };
-        let complete = match node.kind {
+        let complete = match h.kind(n) {
             NodeKind::Cell(_) => merged.add_cell(h, scene, tree, source, n),
             _ => h
                 .children(n)
@@ -376,7 +375,7 @@ impl Proxies {
             self.nodes[n as usize] = None;
             return false;
         }
-        let target = self.options.error_fraction * node.bounds.extent().length();
+        let target = self.options.error_fraction * h.bounds(tree, n).extent().length();
         let (vertices, indices, error) = simplify(merged.vertices, &merged.indices, target);
         self.nodes[n as usize] = Some(Box::new(Proxy {
             origin: merged.origin,
@@ -410,7 +409,7 @@ impl Proxies {
                 None => false,
             };
         }
-        match h.nodes[c as usize].kind {
+        match h.kind(c) {
             NodeKind::Cell(_) => merged.add_cell(h, scene, tree, source, c),
             NodeKind::Internal => h
                 .children(c)
@@ -665,7 +664,7 @@ mod tests {
             }
             let truth = fresh(&scene, &tree);
             let mut current = 0;
-            for n in 0..h.nodes.len() as u32 {
+            for n in 0..h.len() as u32 {
                 if let Some(p) = kept.current(n) {
                     current += 1;
                     let t = truth.nodes[n as usize]
@@ -711,7 +710,7 @@ mod tests {
             root.source_triangles
         );
         let mut below = Vec::new();
-        for n in 0..h.nodes.len() as u32 {
+        for n in 0..h.len() as u32 {
             let Some(p) = proxies.current(n) else {
                 continue;
             };
@@ -722,8 +721,7 @@ mod tests {
                 assert!(below.binary_search(&v.entry).is_ok(), "node {n}");
             }
             assert!(p.indices.iter().all(|&i| (i as usize) < p.vertices.len()));
-            let aim = ProxyOptions::default().error_fraction
-                * h.nodes[n as usize].bounds.extent().length();
+            let aim = ProxyOptions::default().error_fraction * h.bounds(&tree, n).extent().length();
             // What it was made of: the proxies of the levels below.
             let mut stack = h.children(n).to_vec();
             let mut children_error = 0f64;
