@@ -2,8 +2,9 @@
 //! chunks stream in through the store's residency manager (the same
 //! [`dmu_store::Streamer`] as `dmu walk`), and a chunk wanted but not yet
 //! loaded is drawn as its box (a stand-in) unless stand-ins are off, when it
-//! is a hole. The budget is the whole process's: what the skeleton, the tree
-//! and the renderer take once the first frame is drawn (with stand-ins only),
+//! is a hole. The budget is the whole process's: what the skeleton, the tree,
+//! the collision check's whole-part index (built at open) and the renderer
+//! take once the first frame is drawn (with stand-ins only),
 //! the tools' geometry cap and a frame reserve come off it, and the residency
 //! gets half of the rest (the GPU pool holds a second copy of what is
 //! resident; on lavapipe in the same memory).
@@ -116,8 +117,8 @@ impl Streaming {
     }
 
     /// Gives the residency its budget once the first frame is drawn:
-    /// `fixed_bytes` are in use now (the resident set: skeleton, tree,
-    /// renderer, window, a frame drawn), the tools' cap and a frame reserve
+    /// `fixed_bytes` are in use now (the resident set: skeleton, tree, the
+    /// checker's index, renderer, window, a frame drawn), the tools' cap and a frame reserve
     /// come off too, and the residency gets half of what is left. Fails when
     /// that is under 16 MB.
     pub fn size(&mut self, tree: &Tree, fixed_bytes: u64) -> anyhow::Result<()> {
@@ -233,6 +234,12 @@ impl Streaming {
     /// The top bar's line: the budget and the geometry loaded within it.
     pub fn summary(&self) -> String {
         let mb = |b: u64| b as f64 / 1e6;
+        if !self.sized {
+            return format!(
+                "memory: budget {:.0} MB · sizing on the first frame",
+                mb(self.budget_bytes)
+            );
+        }
         format!(
             "memory: budget {:.0} MB · geometry {:.0} of {:.0} MB loaded",
             mb(self.budget_bytes),

@@ -343,15 +343,18 @@ fn load_review(
     let rss_after_open = dmu_app::progress::rss_bytes();
     let tree_start = Instant::now();
     let mut review = review::Review::new(loaded.scene, loaded.source);
+    let tree_ms = tree_start.elapsed().as_secs_f64() * 1e3;
+    let mut check_index_ms = None;
     if let (Some(budget), Some(store)) = (memory_budget, store) {
+        let start = Instant::now();
         review.prepare_checks();
+        check_index_ms = Some(start.elapsed().as_secs_f64() * 1e3);
         review.geometry = Some(dmu_viewer::on_demand::OnDemand::new(
             store,
             budget::tool_cap_bytes(budget),
         ));
     }
     review.recorder = record_path.map(record::Recorder::create).transpose()?;
-    let tree_ms = tree_start.elapsed().as_secs_f64() * 1e3;
     let proxies = proxies.then(|| {
         let r = &review;
         dmu_app::progress::build_proxies(&r.scene, &r.tree, &r.scene, true)
@@ -365,6 +368,7 @@ fn load_review(
             "parts": review.scene.parts().len(),
             "load_ms": loaded.load_ms,
             "tree_ms": tree_ms,
+            "check_index_ms": check_index_ms,
             "rss_after_open_bytes": rss_after_open,
             "rss_after_load_bytes": dmu_app::progress::rss_bytes(),
             "proxies": proxies.as_ref().map(|p| dmu_app::progress::proxies_json(&p.stats())),

@@ -355,7 +355,7 @@ const MEMORY_HOVER: &str = "The viewer loads the whole model (a .dmu store too) 
 /// What the memory setting under a budget means.
 const BUDGET_HOVER: &str = "--memory-budget: the whole process stays within it. Chunks \
     stream in from the store as the view needs them; one not loaded yet is drawn as its \
-    box.";
+    box (with --stand-ins none it is a hole).";
 
 /// The memory setting, read-only: what the model takes.
 fn memory_text(review: &Review) -> String {

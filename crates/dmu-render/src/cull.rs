@@ -307,13 +307,16 @@ impl Renderer {
         let only: Option<Vec<u32>> = match (&near, &plain) {
             (Some(near), _) => Some(near.parts(tree)),
             (None, Some((draws, _, _))) if target.eye_count() == 1 => {
-                let mut parts: Vec<u32> = draws
-                    .iter()
-                    .map(|d| tree.entries()[d.entry as usize].part.0)
-                    .collect();
-                parts.sort_unstable();
-                parts.dedup();
-                Some(parts)
+                // Marked, then listed in order: no sort of up to a million ids.
+                let mut drawn = vec![false; scene.parts().len()];
+                for d in draws {
+                    drawn[tree.entries()[d.entry as usize].part.index()] = true;
+                }
+                Some(
+                    (0..drawn.len() as u32)
+                        .filter(|&p| drawn[p as usize])
+                        .collect(),
+                )
             }
             _ => None,
         };
@@ -541,7 +544,7 @@ impl Renderer {
         let mut walk = Walk::new(h, scene, tree, cull, stats);
         walk.proxy_fit = fit;
         let mut nodes = Vec::new();
-        if h.len() == 0 {
+        if h.is_empty() {
             return (Vec::new(), nodes);
         }
         let mut stack = vec![h.root];

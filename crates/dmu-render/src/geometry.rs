@@ -93,7 +93,7 @@ pub(crate) struct SlotDraw {
 
 impl ChunkSlot {
     /// The draw of this slot's current range.
-    pub(crate) fn draw(&self) -> SlotDraw {
+    pub(crate) fn draw_range(&self) -> SlotDraw {
         SlotDraw {
             vertex_page: self.vertex_page,
             first_vertex: self.first_vertex,

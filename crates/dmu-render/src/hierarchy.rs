@@ -28,11 +28,11 @@ pub(crate) enum NodeKind {
     Free,
 }
 
-/// A node of the mirror.
+/// A node of the tree (entries have none: they are implicit).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct Node {
-    pub bounds: Aabb3d,
-    pub kind: NodeKind,
+struct Node {
+    bounds: Aabb3d,
+    kind: NodeKind,
     /// The children of an internal node.
     children: [u32; 2],
 }
@@ -155,6 +155,11 @@ impl Hierarchy {
         self.entry_cell.len() + self.tree_nodes.len()
     }
 
+    /// Whether the mirror is empty (not synced yet).
+    pub(crate) fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
     /// The tree node slot of mirror node `node`, `None` for an entry.
     fn tree_slot(&self, node: u32) -> Option<&Node> {
         let slot = (node as usize).checked_sub(self.entry_cell.len())?;
@@ -184,6 +189,7 @@ impl Hierarchy {
         match n.kind {
             NodeKind::Internal => &n.children,
             NodeKind::Cell(c) => &self.cell_entries[c.0 as usize],
+            // A tree node is never an entry (entries are implicit).
             NodeKind::Entry(_) | NodeKind::Free => &[],
         }
     }
@@ -191,7 +197,7 @@ impl Hierarchy {
     /// The nodes under the root, parents before children (empty before the first sync).
     pub(crate) fn pre_order(&self) -> Vec<u32> {
         let mut order = Vec::with_capacity(self.len());
-        if self.len() == 0 {
+        if self.is_empty() {
             return order;
         }
         let mut stack = vec![self.root];
@@ -221,10 +227,13 @@ impl Hierarchy {
     }
 
     fn check(&self, tree: &Tree) -> Result<(), String> {
-        if self.len() != tree.entries().len() + tree.node_slots() {
+        if self.entry_cell.len() != tree.entries().len()
+            || self.tree_nodes.len() != tree.node_slots()
+        {
             return Err(format!(
-                "{} nodes for {} entries and {} tree nodes",
-                self.len(),
+                "{} entries and {} tree nodes for {} and {}",
+                self.entry_cell.len(),
+                self.tree_nodes.len(),
                 tree.entries().len(),
                 tree.node_slots()
             ));

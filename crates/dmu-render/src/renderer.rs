@@ -31,6 +31,8 @@ const DRAW_ARGS_BYTES: u64 = 20;
 /// Model-views of parts this many ids apart or nearer are written in one run
 /// (the few kilobytes between cost less than another write).
 const MODEL_VIEW_RUN_GAP: u32 = 64;
+/// The most model-view writes a frame makes (see `prepare_view`).
+const MAX_MODEL_VIEW_RUNS: usize = 256;
 /// The layers a stereo pair's multiview pass draws: left eye 0, right eye 1.
 const STEREO_VIEWS: NonZeroU32 = NonZeroU32::new(0b11).expect("non-zero");
 
@@ -756,13 +758,13 @@ impl Renderer {
         only: Option<&[u32]>,
     ) -> ViewGpu {
         let proj = view.projection();
-        let parts = scene.parts().len();
+        let part_count = scene.parts().len();
         let clip = section_in_eyes(&view.section, eye_views);
         let mut g = view
             .gpu
             .take()
-            .unwrap_or_else(|| self.make_view_gpu(parts.max(1) * eye_views.len()));
-        self.ensure_capacity(&mut g, parts * eye_views.len(), 0);
+            .unwrap_or_else(|| self.make_view_gpu(part_count.max(1) * eye_views.len()));
+        self.ensure_capacity(&mut g, part_count * eye_views.len(), 0);
         g.sectioned = !view.section.is_empty();
         for eye in 0..eye_views.len() {
             let uniform = ViewUniform {
@@ -771,7 +773,7 @@ impl Renderer {
                 clash: self.options.clash_highlight,
                 hover: self.options.hover_highlight,
                 section_cap: self.options.section_cap,
-                eye_stride: parts as u32,
+                eye_stride: part_count as u32,
                 eye: eye as u32,
                 _pad: [0; 3],
                 clip,
@@ -801,13 +803,20 @@ impl Renderer {
             }
         };
         match only {
-            // Only the parts the frame may draw (a single view): the others'
-            // model-views stay as they were, never read.
-            // Written in runs of nearby ids: the parts of a cull box may be
-            // spread over the whole id range.
+            // Only the parts the frame may draw (a single view: a near
+            // field's, or the draws of a frame without occlusion culling):
+            // the others' model-views are not read this frame. Written in
+            // runs of nearby ids (the parts of a view may be spread over the
+            // whole id range); parts in a run's gaps get zeros.
             Some(parts) if eye_views.len() == 1 => {
                 let mut next = parts.iter().copied().peekable();
-                for (first, last) in id_runs(parts, MODEL_VIEW_RUN_GAP) {
+                // Each run is a staging allocation of its own: a frame
+                // writes at most `MAX_MODEL_VIEW_RUNS`, joined over wider gaps.
+                let mut gap = MODEL_VIEW_RUN_GAP;
+                while id_runs(parts, gap).nth(MAX_MODEL_VIEW_RUNS).is_some() {
+                    gap = gap.saturating_mul(4);
+                }
+                for (first, last) in id_runs(parts, gap) {
                     self.write_model_views(&g.model_views, first as usize, last - first + 1, |p| {
                         // Parts in the gaps of a run are not drawn: zeros.
                         while next.next_if(|&q| (q as usize) < p).is_some() {}
@@ -819,8 +828,12 @@ impl Renderer {
                 }
             }
             _ => {
-                self.write_model_views(&g.model_views, 0, (parts * eye_views.len()) as u32, |k| {
-                    model_view(eye_views[k / parts], PartId::from_index(k % parts))
+                let count = part_count * eye_views.len();
+                self.write_model_views(&g.model_views, 0, count as u32, |k| {
+                    model_view(
+                        eye_views[k / part_count],
+                        PartId::from_index(k % part_count),
+                    )
                 });
             }
         }
@@ -828,8 +841,9 @@ impl Renderer {
     }
 
     /// Writes `count` model-views into `buffer` from index `first`, the
-    /// `k`-th as `at(first + k)`, straight into the queue's staging memory in
-    /// pieces (no model-sized copy on the CPU).
+    /// `k`-th as `at(first + k)` (called once per index, in ascending
+    /// order), straight into the queue's staging memory in pieces (no
+    /// model-sized copy on the CPU).
     fn write_model_views(
         &self,
         buffer: &wgpu::Buffer,
@@ -1042,7 +1056,7 @@ impl Renderer {
             resident.push(slot.is_some());
             match slot {
                 Some(slot) => {
-                    self.slots.push((d.entry, slot.draw()));
+                    self.slots.push((d.entry, slot.draw_range()));
                     queried.push(d.query);
                     result.chunks += 1;
                     result.triangles += u64::from(slot.index_count / 3);
