@@ -1248,9 +1248,6 @@ impl App {
             let not_resident = stats.iter().map(|s| s.not_resident).sum();
             let streaming = self.streaming.as_mut().expect("checked above");
             streaming.end_frame(tree, stood_in, &drawn, not_resident);
-            if !streaming.is_sized() {
-                streaming.size(tree, dmu_app::progress::rss_bytes().unwrap_or(0))?;
-            }
         } else {
             for (i, pane) in self.panes.iter_mut().enumerate() {
                 stats.push(renderer.render(

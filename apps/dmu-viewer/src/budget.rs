@@ -24,9 +24,13 @@ use serde_json::{Value, json};
 /// otherwise, pixels (box diagonal).
 pub const MIN_PIXELS: f64 = 2.0;
 
-/// Bytes kept for a frame's transient memory (the window's surfaces, egui,
-/// command buffers) besides what is measured after the first frame.
-pub const FRAME_RESERVE_BYTES: u64 = 96 << 20;
+/// Bytes kept for what the process takes beyond the first frame's peak
+/// and the geometry: later frames' transient memory (the window, egui,
+/// command buffers, lavapipe's binning of close-up views), the GPU pool's
+/// simplified levels and its reuse of freed ranges. Measured on the 500M
+/// plant (walk, pick, drag; docs/measurements.md): 214 MB beyond the peak of
+/// the first frame and twice the resident geometry.
+pub const FRAME_RESERVE_BYTES: u64 = 224 << 20;
 
 /// The share of the budget the tools' meshes (picks, checks) may keep
 /// loaded: one sixteenth.
@@ -111,17 +115,14 @@ impl Streaming {
         )
     }
 
-    /// Whether the residency has its budget yet.
-    pub fn is_sized(&self) -> bool {
-        self.sized
-    }
-
-    /// Gives the residency its budget once the first frame is drawn:
-    /// `fixed_bytes` are in use now (the resident set: skeleton, tree, the
-    /// checker's index, renderer, window, a frame drawn), the tools' cap and a frame reserve
+    /// Gives the residency its budget once the first frame is drawn and
+    /// presented ([`Streaming::begin_frame`] of the second):
+    /// `fixed_bytes` is the most the process has held so far (the peak
+    /// resident set: skeleton, tree, the checker's index, renderer, window,
+    /// a frame drawn), the tools' cap and a frame reserve
     /// come off too, and the residency gets half of what is left. Fails when
     /// that is under 16 MB.
-    pub fn size(&mut self, tree: &Tree, fixed_bytes: u64) -> anyhow::Result<()> {
+    fn size(&mut self, tree: &Tree, fixed_bytes: u64) -> anyhow::Result<()> {
         let tool_bytes = tool_cap_bytes(self.budget_bytes);
         let taken = fixed_bytes + tool_bytes + FRAME_RESERVE_BYTES;
         let left = self.budget_bytes.saturating_sub(taken);
@@ -160,7 +161,8 @@ impl Streaming {
         self.streamer.residency()
     }
 
-    /// Before a frame: drops from the GPU pool what the residency evicted and
+    /// Before a frame: sizes the residency after the first
+    /// ([`Streaming::size`]), drops from the GPU pool what the residency evicted and
     /// the stand-ins of chunks now resident, then requests what `camera`
     /// wants (`dt` seconds after the last frame). Fails with the first load
     /// error (a store changed or truncated on disk).
@@ -172,6 +174,14 @@ impl Streaming {
         camera: &Camera,
         dt: f64,
     ) -> anyhow::Result<()> {
+        // The first frame was drawn, painted and presented with stand-ins
+        // only: the most the process has held so far is what the budget does
+        // not share out. (The resident set at one moment misses a frame's
+        // transient memory: at 500M, sampled before the paint it was 90 MB
+        // short, after it up to 110 MB.)
+        if !self.sized && self.frames > 0 {
+            self.size(tree, dmu_app::progress::peak_rss_bytes().unwrap_or(0))?;
+        }
         let residency = self.streamer.residency();
         if let Some(e) = residency.first_error() {
             anyhow::bail!("{e}");
