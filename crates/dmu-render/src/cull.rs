@@ -215,13 +215,15 @@ fn near_draws(
 /// distance, then by cell and entry. Modes that draw the same visible set draw it in
 /// the same order, so depth ties resolve alike and their images are equal.
 fn sort_draws(h: &Hierarchy, cell_distance: &[f64], draws: &mut [Draw]) {
+    // Cells are tree nodes: mirror nodes from the entry count on.
+    let first = h.entry_cell.len();
     draws.sort_unstable_by(|a, b| {
         let (ca, cb) = (
             h.entry_cell[a.entry as usize],
             h.entry_cell[b.entry as usize],
         );
-        cell_distance[ca as usize]
-            .total_cmp(&cell_distance[cb as usize])
+        cell_distance[ca as usize - first]
+            .total_cmp(&cell_distance[cb as usize - first])
             .then(ca.cmp(&cb))
             .then(a.entry.cmp(&b.entry))
     });
@@ -454,10 +456,11 @@ impl Renderer {
         capture.read_ids(&self.device, &self.queue)
     }
 
-    /// Squared eye distance of every cell node's box (0 inside); other nodes 0.
+    /// Squared eye distance of every cell node's box (0 inside) by tree node
+    /// slot (mirror node less the entry count); other nodes 0.
     fn cell_distances(&self, tree: &Tree, eye: DVec3) -> Vec<f64> {
         let h = &self.hierarchy;
-        (0..h.len() as u32)
+        (h.entry_cell.len() as u32..h.len() as u32)
             .map(|n| match h.kind(n) {
                 NodeKind::Cell(_) => box_distance_sq(h.bounds(tree, n), eye),
                 _ => 0.0,
