@@ -54,7 +54,7 @@ const NEAR_M: f64 = 0.05;
 const RIG_TOLERANCE: f64 = 1e-6;
 /// The grid of image points whose world hits are reported with their
 /// analytic disparity (columns, rows).
-const KNOWN_POINT_GRID: (u32, u32) = (16, 12);
+const KNOWN_POINT_GRID: (u32, u32) = (32, 24);
 /// Half the side of the square around each known point whose disparity range
 /// is reported (a patch an image comparison can match), pixels.
 const KNOWN_POINT_PATCH_PX: f64 = 5.0;
