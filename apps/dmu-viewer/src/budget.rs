@@ -11,6 +11,7 @@
 
 use std::sync::Arc;
 
+use dmu_app::resident::StandIns;
 use dmu_render::{Camera, GeometryPool};
 use dmu_scene::{ChunkId, Scene};
 use dmu_store::{
@@ -46,9 +47,8 @@ pub struct Streaming {
     viewport: Viewport,
     min_pixels: f64,
     stand_ins: bool,
-    /// Per chunk: the GPU pool holds its stand-in, not its geometry.
-    standing: Vec<bool>,
-    standing_list: Vec<ChunkId>,
+    /// The chunks whose stand-ins the GPU pool holds.
+    standing: StandIns,
     budget_bytes: u64,
     residency_budget_bytes: u64,
     fixed_bytes: u64,
@@ -80,8 +80,7 @@ impl Streaming {
             viewport,
             min_pixels,
             stand_ins,
-            standing: vec![false; chunks],
-            standing_list: Vec::new(),
+            standing: StandIns::new(chunks),
             budget_bytes,
             residency_budget_bytes: 0,
             fixed_bytes: 0,
@@ -189,15 +188,7 @@ impl Streaming {
         for c in residency.take_evicted() {
             pool.evict(c);
         }
-        let standing = &mut self.standing;
-        self.standing_list.retain(|&c| {
-            let resident = residency.is_resident(c);
-            if resident {
-                pool.evict(c);
-                standing[c.index()] = false;
-            }
-            !resident
-        });
+        self.standing.release(residency, pool);
         let frame = CameraFrame {
             eye: camera.eye,
             target: camera.target,
@@ -220,17 +211,12 @@ impl Streaming {
         drawn: &[Vec<EntryId>],
         not_resident: u64,
     ) {
-        for c in stood_in {
-            if !self.standing[c.index()] {
-                self.standing[c.index()] = true;
-                self.standing_list.push(c);
-            }
-        }
+        self.standing.note(stood_in);
         let chunk = |e: &EntryId| tree.entries()[e.0 as usize].chunk;
         let stand_ins = drawn
             .iter()
             .flatten()
-            .filter(|e| self.standing[chunk(e).index()])
+            .filter(|e| self.standing.is_standing(chunk(e)))
             .count() as u64;
         self.frames += 1;
         self.holes += not_resident;

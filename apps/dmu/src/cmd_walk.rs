@@ -96,6 +96,22 @@ pub struct Args {
     /// stats at --width x --height.
     #[arg(long)]
     render: bool,
+    /// With --render (not --compare): a chunk wanted but not resident is
+    /// drawn as its box (`box`, the default) or left out, a hole (`none`).
+    #[arg(long, default_value = "box", value_parser = ["box", "none"], conflicts_with = "compare")]
+    stand_ins: String,
+    /// With --render (not --compare): each frame also draws the view from
+    /// where the eye will be this many ms ahead (extrapolated from its last
+    /// two frames, turning as it turns) with the same occlusion culling, and
+    /// requests what that view draws as visible, so that what comes into
+    /// view is loaded before it does. 0 turns it off.
+    #[arg(long, default_value_t = 100.0, value_parser = number_in(0.0, 10_000.0), conflicts_with = "compare")]
+    predict_ms: f64,
+    /// The predicted view's resolution as a share of --width and --height
+    /// (0.5: a quarter of the pixels, a cheaper view that misses what shows
+    /// through gaps under two pixels wide).
+    #[arg(long, default_value_t = 1.0, value_parser = number_in(0.05, 1.0), conflicts_with = "compare")]
+    predict_resolution: f64,
     /// With --render: culling of the rendered frames.
     #[arg(long, default_value = "chc", value_parser = ["none", "frustum", "chc", "hzb", "auto"])]
     culling: String,
@@ -275,8 +291,14 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 &tree,
                 &path,
                 &options(order),
-                culling,
-                culling_options,
+                crate::walk_render::Resident {
+                    culling,
+                    culling_options,
+                    stand_ins: args.stand_ins == "box",
+                    predict_s: args.predict_ms * 1e-3,
+                    predict_scale: args.predict_resolution,
+                    progress: true,
+                },
             )?
         };
         print_render(args, &report)?;
@@ -410,6 +432,16 @@ fn print_render(args: &Args, report: &serde_json::Value) -> anyhow::Result<()> {
             mb(&walk["loaded_bytes"]),
             mb(&walk["peak_resident_bytes"]),
             mb(&walk["budget_bytes"]),
+        );
+        let r = &report["render"];
+        println!(
+            "  drawn: {} frames with a hole, {} with a stand-in ({} of {} warm; stand-ins: {}); predicted view {} ms ahead",
+            r["frames_with_hole"],
+            r["frames_with_standin"],
+            r["warm_frames_with_standin"],
+            r["warm_frames"],
+            r["stand_ins"].as_str().unwrap_or("?"),
+            r["prediction"]["ahead_ms"],
         );
     }
     if let Some(modes) = report["far_field"]["modes"].as_array() {

@@ -7,21 +7,22 @@
 
 use std::collections::BTreeSet;
 use std::sync::Arc;
+use std::time::Instant;
 
 use anyhow::Context as _;
 pub use dmu_app::far_fields::FarUse;
 use dmu_app::far_fields::{FarAuto, FarFieldSet};
 use dmu_render::{
-    Camera, Capture, Culling, CullingOptions, FrameStats, Renderer, RendererOptions, View,
-    headless_device,
+    Camera, Capture, Culling, CullingOptions, FrameStats, GeometrySource, Renderer,
+    RendererOptions, View, headless_device,
 };
-use dmu_scene::Scene;
+use dmu_scene::{ChunkId, Scene};
 use dmu_store::{CameraFrame, Drawn, Store, WalkOptions};
 use dmu_tree::{EntryId, Tree};
 use serde::Serialize;
 
 use crate::cmd_bench::percentile;
-use crate::resident::ResidentSource;
+use crate::resident::{ResidentSource, StandInSource, StandIns};
 
 /// One mode's frame.
 #[derive(Debug, Serialize)]
@@ -530,58 +531,160 @@ fn far_report(
     })
 }
 
+/// How [`run_resident`] draws: the culling and its options, stand-ins for
+/// chunks not resident, and how far ahead it looks for what comes into view.
+#[derive(Clone, Copy, Debug)]
+pub struct Resident {
+    pub culling: Culling,
+    pub culling_options: CullingOptions,
+    /// A chunk wanted but not resident is drawn as its box, not left out.
+    pub stand_ins: bool,
+    /// Seconds ahead of the eye that the predicted view looks from (0: none).
+    pub predict_s: f64,
+    /// The predicted view's resolution, as a share of the frame's per axis.
+    pub predict_scale: f64,
+    /// Show a progress bar.
+    pub progress: bool,
+}
+
 /// Renders `path` from `store` through a residency manager within
 /// `options.budget_bytes`: the renderer draws what is resident (its GPU copies
-/// of evicted chunks are dropped with them), and what it drew is requested as
-/// visible next frame. A chunk instance the renderer wanted but could not draw
-/// is a miss. Returns the walk's report and the renderer's per-frame stats.
+/// of evicted chunks are dropped with them) and, with stand-ins, the boxes of
+/// what is not; what it drew is requested as visible next frame. With a
+/// prediction, each frame also draws the view from where the eye will be
+/// `predict_s` ahead (extrapolated from the last two frames) at
+/// `predict_scale` of the resolution, and requests what that view drew as
+/// visible too. A chunk instance the renderer wanted but could not draw (a
+/// hole) or drew as its box is a miss. Returns the walk's report and the
+/// renderer's per-frame stats.
 pub fn run_resident(
     store: &Arc<Store>,
     tree: &Tree,
     path: &[CameraFrame],
     options: &WalkOptions,
-    culling: Culling,
-    culling_options: CullingOptions,
+    how: Resident,
 ) -> anyhow::Result<serde_json::Value> {
     let scene = store.skeleton();
     let size = (options.viewport.width, options.viewport.height);
+    let scaled = |n: u32| ((f64::from(n) * how.predict_scale).round() as u32).max(1);
+    let ahead_size = (scaled(size.0), scaled(size.1));
     let (device, queue, adapter) = headless_device().context("opening a GPU device")?;
-    let mut renderer = Renderer::new(&device, &queue, scene, tree, lod_options(&culling_options));
+    let mut renderer = Renderer::new(
+        &device,
+        &queue,
+        scene,
+        tree,
+        lod_options(&how.culling_options),
+    );
     let capture = Capture::new(&device, size);
+    let ahead_capture = (how.predict_s > 0.0).then(|| Capture::new(&device, ahead_size));
     let camera = |f: &CameraFrame| camera(f, tree);
-    let mut view = View::new(camera(&path[0]), size, culling);
-    view.options = culling_options;
+    let mut view = View::new(camera(&path[0]), size, how.culling);
+    view.options = how.culling_options;
+    let mut ahead = View::new(camera(&path[0]), ahead_size, how.culling);
+    ahead.options = how.culling_options;
+    let steps_ahead = how.predict_s * options.frame_rate_hz;
+    let mut stand_ins = StandIns::new(scene.chunks().len());
     let mut rendered = Vec::with_capacity(path.len());
     let mut stats_all = Vec::with_capacity(path.len());
-    let progress = indicatif::ProgressBar::new(path.len() as u64);
+    let mut frames = Vec::with_capacity(path.len());
+    let progress = if how.progress {
+        indicatif::ProgressBar::new(path.len() as u64)
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
     let report = dmu_store::walk_with(store, tree, path, options, &mut |i, _, residency| {
         for c in residency.take_evicted() {
             renderer.geometry_pool().evict(c);
         }
+        stand_ins.release(residency, renderer.geometry_pool());
         view.camera = camera(&path[i]);
-        let source = ResidentSource::new(residency, scene.chunks().len());
-        let stats = renderer.render(&mut view, scene, tree, &source, capture.frame_target())?;
+        let resident = ResidentSource::new(residency, scene.chunks().len());
+        let boxed = how.stand_ins.then(|| StandInSource::new(residency, scene));
+        let source: &dyn GeometrySource = match &boxed {
+            Some(s) => s,
+            None => &resident,
+        };
+        let stats = renderer.render(&mut view, scene, tree, source, capture.frame_target())?;
+        let mut visible: Vec<ChunkId> = view
+            .drawn_entries()
+            .map(|e| tree.entries()[e.0 as usize].chunk)
+            .collect();
+        let drawn = visible.len();
+        let mut ahead_ms = None;
+        if let (Some(target), Some(before)) = (&ahead_capture, i.checked_sub(1)) {
+            let start = Instant::now();
+            ahead.camera = view
+                .camera
+                .extrapolated(&camera(&path[before]), steps_ahead);
+            renderer.render(&mut ahead, scene, tree, source, target.frame_target())?;
+            visible.extend(
+                ahead
+                    .drawn_entries()
+                    .map(|e| tree.entries()[e.0 as usize].chunk),
+            );
+            ahead_ms = Some(start.elapsed().as_secs_f64() * 1e3);
+        }
+        if let Some(boxed) = boxed {
+            stand_ins.note(boxed.stood_in());
+        }
+        let boxes = visible[..drawn]
+            .iter()
+            .filter(|&&c| stand_ins.is_standing(c))
+            .count() as u64;
         rendered.push(mode_frame(&stats, None));
+        frames.push(ResidentFrame {
+            holes: stats.not_resident,
+            stand_ins: boxes,
+            ahead_ms,
+        });
         stats_all.push(stats);
         progress.inc(1);
         Ok(Drawn {
-            missing_chunks: stats.not_resident,
-            visible: view
-                .drawn_entries()
-                .map(|e| tree.entries()[e.0 as usize].chunk)
-                .collect(),
+            missing_chunks: stats.not_resident + boxes,
+            visible,
             pins: Vec::new(),
         })
     })?;
     progress.finish_and_clear();
+    let warm = &frames[options.warmup_frames.min(frames.len())..];
+    let count = |frames: &[ResidentFrame], f: fn(&ResidentFrame) -> bool| {
+        frames.iter().filter(|&x| f(x)).count() as u64
+    };
+    let mut ahead_ms: Vec<f64> = frames.iter().filter_map(|f| f.ahead_ms).collect();
     Ok(serde_json::json!({
         "adapter": adapter.name,
         "walk": report,
         "render": {
-            "totals": mode_totals(culling.name().into(), culling_options.target_ms, rendered.iter()),
+            "totals": mode_totals(how.culling.name().into(), how.culling_options.target_ms, rendered.iter()),
             "gpu_pool_bytes": renderer.geometry_pool().resident_bytes(),
+            "stand_ins": if how.stand_ins { "box" } else { "none" },
+            "frames_with_hole": count(&frames, |f| f.holes > 0),
+            "frames_with_standin": count(&frames, |f| f.stand_ins > 0),
+            "warm_frames": warm.len(),
+            "warm_frames_with_hole": count(warm, |f| f.holes > 0),
+            "warm_frames_with_standin": count(warm, |f| f.stand_ins > 0),
+            "holes": frames.iter().map(|f| f.holes).sum::<u64>(),
+            "stand_ins_drawn": frames.iter().map(|f| f.stand_ins).sum::<u64>(),
+            "prediction": {
+                "ahead_ms": how.predict_s * 1e3,
+                "resolution": (how.predict_s > 0.0).then_some(ahead_size),
+                "median_frame_ms": (!ahead_ms.is_empty()).then(|| percentile(&mut ahead_ms, 0.5)),
+            },
             "per_frame": rendered,
+            "per_frame_residency": frames,
         },
-        "explain": explain(culling, culling_options.target_ms, &stats_all),
+        "explain": explain(how.culling, how.culling_options.target_ms, &stats_all),
     }))
+}
+
+/// What a frame drawn from the residency lacked, and what its prediction cost.
+#[derive(Debug, Serialize)]
+struct ResidentFrame {
+    /// Chunk instances not drawn for want of geometry.
+    holes: u64,
+    /// Chunk instances drawn as their boxes.
+    stand_ins: u64,
+    /// Time of the predicted view, ms.
+    ahead_ms: Option<f64>,
 }

@@ -104,6 +104,7 @@ fn tradeoffs_quick_writes_plots_and_every_reference_setting_is_exact() {
             "rendering: far field resolution",
             "rendering: far field mesh error",
             "rendering: far field skins",
+            "loading: predicted view",
         ]);
     }
     for w in &wanted {

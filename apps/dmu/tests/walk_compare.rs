@@ -1,6 +1,7 @@
 //! `dmu walk --render --compare`: every culling mode over the same frames,
 //! each image against the unculled one, the occlusion modes' chunks against
-//! the exactly visible ones. Included from `tests.rs`.
+//! the exactly visible ones; and `dmu walk --render` within a memory budget.
+//! Included from `tests.rs`.
 
 use serde_json::Value;
 
@@ -56,5 +57,88 @@ fn walk_compare_reports_hzb_beside_the_other_modes_exact_at_every_frame() {
     for (i, f) in v["per_frame"].as_array().unwrap().iter().enumerate() {
         assert_eq!(f["hzb_missing_chunks"], 0, "frame {i}");
         assert_eq!(f["modes"][3]["culling"], "hzb", "frame {i}");
+    }
+}
+
+/// `dmu walk --render` within a memory budget on the 100k plant: from a cold
+/// start the first frames want chunks that are not resident. Without
+/// stand-ins they are holes; with them (the default) no frame has a hole and
+/// the cold frames draw boxes instead, while the residency keeps to its
+/// budget. The prediction (on by default) draws a second view every frame
+/// but the first.
+#[test]
+fn walk_within_a_budget_draws_stand_ins_not_holes() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = path(dir.path(), "p.dmu");
+    let out = dmu(&["generate", "plant", "--triangles", "100k", "-o", &store]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let run = |extra: &[&str]| -> Option<Value> {
+        let mut args = vec![
+            store.as_str(),
+            "--render",
+            "--memory-budget",
+            "20%",
+            "--range",
+            "300..330",
+            "--warmup-frames",
+            "0",
+            "--width",
+            "320",
+            "--height",
+            "180",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        let out = on_gpu("walk_within_a_budget_draws_stand_ins", "walk", &args)?;
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        Some(serde_json::from_slice(&out.stdout).unwrap())
+    };
+    let Some(holes) = run(&["--stand-ins", "none", "--predict-ms", "0"]) else {
+        return;
+    };
+    let Some(boxes) = run(&[]) else {
+        return;
+    };
+    let (h, b) = (&holes["render"], &boxes["render"]);
+    // Without stand-ins the cold start shows holes, and nothing stands in.
+    assert!(h["frames_with_hole"].as_u64().unwrap() > 0, "{h:#}");
+    assert_eq!(h["frames_with_standin"], 0);
+    assert_eq!(h["prediction"]["median_frame_ms"], Value::Null);
+    // With them, no hole in any frame; the first frame (nothing resident)
+    // draws boxes only.
+    assert_eq!(b["frames_with_hole"], 0, "{b:#}");
+    assert_eq!(b["holes"], 0);
+    let frames = b["per_frame_residency"].as_array().unwrap();
+    assert_eq!(frames.len(), 30);
+    assert!(frames.iter().all(|f| f["holes"] == 0));
+    let first_drawn = b["per_frame"][0]["chunks_drawn"].as_u64().unwrap();
+    assert!(first_drawn > 0);
+    assert_eq!(frames[0]["stand_ins"].as_u64(), Some(first_drawn));
+    assert!(b["frames_with_standin"].as_u64().unwrap() >= 1);
+    // A miss is a hole or a stand-in: the walk counts either.
+    let missing: u64 = boxes["walk"]["frames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["missing_chunks"].as_u64().unwrap())
+        .sum();
+    assert_eq!(missing, b["stand_ins_drawn"].as_u64().unwrap());
+    // The prediction ran on every frame after the first.
+    assert_eq!(frames[0]["ahead_ms"], Value::Null);
+    assert!(
+        frames[1..]
+            .iter()
+            .all(|f| f["ahead_ms"].as_f64().unwrap() > 0.0)
+    );
+    for walk in [&holes["walk"]["total"], &boxes["walk"]["total"]] {
+        assert!(walk["peak_resident_bytes"].as_u64() <= walk["budget_bytes"].as_u64());
     }
 }

@@ -4,7 +4,7 @@
 use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 
 use dmu_geom::Aabb3f;
-use dmu_render::GeometrySource;
+use dmu_render::{GeometryPool, GeometrySource};
 use dmu_scene::{ChunkGeometry, ChunkId, Scene};
 use dmu_store::Residency;
 use glam::Vec3;
@@ -158,6 +158,58 @@ impl GeometrySource for StandInSource<'_> {
 
     fn has(&self, chunk: ChunkId) -> bool {
         chunk.index() < self.boxes.len()
+    }
+}
+
+/// Which chunks the GPU pool holds as stand-ins (their boxes, uploaded through
+/// a [`StandInSource`]) rather than as their geometry, across frames: once such
+/// a chunk is resident its box is dropped from the pool, for the geometry to
+/// be uploaded in its place; and which drawn chunk instances were stand-ins.
+#[derive(Debug)]
+pub struct StandIns {
+    /// Per chunk: the GPU pool holds its stand-in.
+    standing: Vec<bool>,
+    /// The chunks set in `standing`.
+    list: Vec<ChunkId>,
+}
+
+impl StandIns {
+    /// None yet, for a scene of `chunks` chunks.
+    pub fn new(chunks: usize) -> Self {
+        Self {
+            standing: vec![false; chunks],
+            list: Vec::new(),
+        }
+    }
+
+    /// Before a frame: drops from `pool` the stand-ins of chunks `residency`
+    /// now holds.
+    pub fn release(&mut self, residency: &Residency, pool: &mut GeometryPool) {
+        let standing = &mut self.standing;
+        self.list.retain(|&c| {
+            let resident = residency.is_resident(c);
+            if resident {
+                pool.evict(c);
+                standing[c.index()] = false;
+            }
+            !resident
+        });
+    }
+
+    /// After a frame: `stood_in` got stand-ins in the pool
+    /// ([`StandInSource::stood_in`]).
+    pub fn note(&mut self, stood_in: Vec<ChunkId>) {
+        for c in stood_in {
+            if !self.standing[c.index()] {
+                self.standing[c.index()] = true;
+                self.list.push(c);
+            }
+        }
+    }
+
+    /// Whether the pool holds `chunk`'s stand-in.
+    pub fn is_standing(&self, chunk: ChunkId) -> bool {
+        self.standing.get(chunk.index()).copied().unwrap_or(false)
     }
 }
 

@@ -58,6 +58,44 @@ impl Camera {
         }
     }
 
+    /// Where this camera will be `steps` steps on when each step moves and
+    /// turns it as the last did (from `previous` to this one): the eye on
+    /// along the same displacement; the view direction's heading about `up`
+    /// and its elevation over the horizon each on by `steps` times the same
+    /// change (the heading at most a quarter turn on, the elevation within
+    /// 89 degrees of the horizon); the rest as this camera's. This camera
+    /// itself where `steps` is not a finite, non-negative number or the
+    /// result would not be valid.
+    pub fn extrapolated(&self, previous: &Camera, steps: f64) -> Camera {
+        use std::f64::consts::{FRAC_PI_2, PI, TAU};
+        if !(steps.is_finite() && steps >= 0.0) {
+            return *self;
+        }
+        let up = self.up.normalize_or_zero();
+        let (a, b) = up.any_orthonormal_pair();
+        let angles = |d: DVec3| {
+            let d = d.normalize_or_zero();
+            (d.dot(b).atan2(d.dot(a)), d.dot(up).clamp(-1.0, 1.0).asin())
+        };
+        let now = self.target - self.eye;
+        let (h0, e0) = angles(previous.target - previous.eye);
+        let (h1, e1) = angles(now);
+        // The heading's change the short way round.
+        let turn = (h1 - h0 + PI).rem_euclid(TAU) - PI;
+        let heading = h1 + (turn * steps).clamp(-FRAC_PI_2, FRAC_PI_2);
+        let limit = 89f64.to_radians();
+        let elevation = (e1 + (e1 - e0) * steps).clamp(-limit, limit);
+        let forward =
+            (a * heading.cos() + b * heading.sin()) * elevation.cos() + up * elevation.sin();
+        let eye = self.eye + (self.eye - previous.eye) * steps;
+        let moved = Camera {
+            eye,
+            target: eye + forward * now.length(),
+            ..*self
+        };
+        if moved.is_valid() { moved } else { *self }
+    }
+
     /// World to view (right-handed, looking down -Z).
     pub fn view_matrix(&self) -> DMat4 {
         look_at(self.eye, self.target, self.up)

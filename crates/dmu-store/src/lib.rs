@@ -88,7 +88,7 @@ pub use priority::{Class, LoadOrder, Request};
 pub use read::{Store, StoreInfo};
 pub use residency::{Pacing, Residency, ResidencyOptions, ResidencyStats};
 pub use save::{SavedFormat, prepare_save, save_edits, save_scene, write_far_fields};
-pub use streamer::Streamer;
+pub use streamer::{KEEP_VISIBLE_FRAMES, Streamer};
 pub use view::{CameraFrame, View, Viewport, Wanted, wanted};
 pub use walk::{
     DrawError, Drawn, FrameReport, WalkOptions, WalkReport, WalkTotals, walk, walk_with,

@@ -7,6 +7,11 @@ use dmu_scene::ChunkId;
 pub enum Class {
     /// Drawn last frame and wanted again: a miss would make something vanish.
     Visible,
+    /// Drawn lately, not last frame
+    /// ([`crate::KEEP_VISIBLE_FRAMES`]): seen a moment ago, the
+    /// likeliest to be seen again as gaps open and close with the eye's
+    /// motion.
+    Recent,
     /// In the view frustum but occluded or not yet tested (without a GPU: newly
     /// in view).
     InFrustum,
@@ -46,7 +51,7 @@ impl LoadOrder {
         // Non-negative floats order as their bits.
         let area = u64::from(request.area_px.max(0.0).to_bits());
         match self {
-            LoadOrder::Visibility => ((3 - request.class as u64) << 32) | area,
+            LoadOrder::Visibility => ((4 - request.class as u64) << 32) | area,
             LoadOrder::Area => area,
             LoadOrder::Fifo => u64::MAX - arrival,
         }

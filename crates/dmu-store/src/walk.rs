@@ -219,6 +219,10 @@ pub fn walk_with(
             .iter()
             .map(|&(chunk, _)| store.chunk_resident_bytes(chunk))
             .sum();
+        let wanted_chunks = set.drawn.len() as u64;
+        // What the frame found visible is queued first, then loaded.
+        streamer.drawn(&drawn.visible);
+        let residency = streamer.residency();
         match options.disk_bytes_per_frame {
             Some(bytes) => residency.load_granted(bytes),
             None => {
@@ -226,11 +230,8 @@ pub fn walk_with(
                 std::thread::sleep(frame_time.saturating_sub(frame_start.elapsed()));
             }
         }
-        let wanted_chunks = set.drawn.len() as u64;
-        streamer.drawn(&drawn.visible);
         let missing = drawn.missing_chunks;
         drop(drawn);
-        let residency = streamer.residency();
         let stats = residency.stats();
         frames.push(FrameReport {
             wanted_chunks,

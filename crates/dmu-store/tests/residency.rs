@@ -32,8 +32,9 @@ fn residency(store: &Arc<Store>, budget: u64, order: LoadOrder) -> Residency {
     )
 }
 
-const CLASSES: [Class; 4] = [
+const CLASSES: [Class; 5] = [
     Class::Visible,
+    Class::Recent,
     Class::InFrustum,
     Class::OutsideFrustum,
     Class::Subpixel,
@@ -49,7 +50,7 @@ proptest! {
     fn budget_and_pins_hold_over_random_frames(
         budget_percent in 1u64..40,
         frames in prop::collection::vec(
-            (prop::collection::vec((0usize..10_000, 0usize..4, 0f32..1e5), 0..60), 0u64..400_000),
+            (prop::collection::vec((0usize..10_000, 0usize..5, 0f32..1e5), 0..60), 0u64..400_000),
             1..25,
         ),
     ) {
@@ -91,22 +92,22 @@ proptest! {
 #[test]
 fn loads_follow_the_priority_order() {
     let (_dir, store) = plant_store();
-    let chunks: Vec<ChunkId> = (0..8).map(ChunkId::from_index).collect();
-    // Chunk i: class i % 4, area growing with i.
+    let chunks: Vec<ChunkId> = (0..10).map(ChunkId::from_index).collect();
+    // Chunk i: class i % 5, area growing with i.
     let requests: Vec<Request> = chunks
         .iter()
         .enumerate()
         .map(|(i, &chunk)| Request {
             chunk,
-            class: CLASSES[i % 4],
+            class: CLASSES[i % 5],
             area_px: i as f32 * 10.0,
         })
         .collect();
     let expected = |order: LoadOrder| -> Vec<usize> {
         match order {
-            LoadOrder::Visibility => vec![4, 0, 5, 1, 6, 2, 7, 3],
-            LoadOrder::Area => vec![7, 6, 5, 4, 3, 2, 1, 0],
-            LoadOrder::Fifo => (0..8).collect(),
+            LoadOrder::Visibility => vec![5, 0, 6, 1, 7, 2, 8, 3, 9, 4],
+            LoadOrder::Area => (0..10).rev().collect(),
+            LoadOrder::Fifo => (0..10).collect(),
         }
     };
     for order in [LoadOrder::Visibility, LoadOrder::Area, LoadOrder::Fifo] {
@@ -121,13 +122,13 @@ fn loads_follow_the_priority_order() {
         );
         r.request(&requests);
         let mut loaded = Vec::new();
-        for _ in 0..8 {
+        for _ in 0..10 {
             // One byte more than the last load overdrew lets exactly one start.
             let debt = loaded
                 .last()
                 .map_or(0, |&i| store.chunk_file_bytes(chunks[i]) - 1);
             r.load_granted(debt + 1);
-            let now: Vec<usize> = (0..8)
+            let now: Vec<usize> = (0..10)
                 .filter(|&i| r.is_resident(chunks[i]) && !loaded.contains(&i))
                 .collect();
             assert_eq!(now.len(), 1, "{order:?}: one load per grant, got {now:?}");
@@ -257,4 +258,62 @@ fn a_walk_with_room_for_everything_misses_only_new_chunks() {
     assert!(report.frames[1..].iter().all(|f| f.missing_chunks == 0));
     let moving = walk(&store, &tree, &path(&store), &o).unwrap();
     assert!(moving.total.evictions == 0);
+}
+
+/// A renderer's occlusion culling (here: a fixed set, the three wanted
+/// chunks of least area, which the frustum's priorities load last) decides
+/// what is visible, under a budget of that set and a little more, while the
+/// frustum wants more: what the first frame found visible is loaded before the second
+/// (queued as soon as the frame reports it), and a chunk hidden for ten
+/// frames, though culling keeps wanting bigger ones, is still resident when
+/// it shows again (requested as recent, above what culling merely wants).
+#[test]
+fn found_visible_loads_at_once_and_stays_while_recent() {
+    let (_dir, store) = plant_store();
+    let tree = dmu_tree::Tree::build(store.skeleton(), Default::default());
+    let still = vec![path(&store)[100]; 12];
+    let mut o = options(u64::MAX, LoadOrder::Visibility);
+    o.disk_bytes_per_frame = Some(u64::MAX / 4);
+    // The wanted chunks, smallest on screen first.
+    let mut wanted: Vec<(ChunkId, f32)> = Vec::new();
+    dmu_store::walk_with(&store, &tree, &still[..1], &o, &mut |_, set, _| {
+        wanted = set.drawn.clone();
+        Ok(dmu_store::Drawn::default())
+    })
+    .unwrap();
+    wanted.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let visible: Vec<ChunkId> = wanted.iter().take(3).map(|w| w.0).collect();
+    let bytes = |cs: &mut dyn Iterator<Item = ChunkId>| -> u64 {
+        cs.map(|c| store.chunk_resident_bytes(c)).sum()
+    };
+    // The hidden one: the least on screen. The budget leaves room for the
+    // largest on screen (the head of culling's queue) only in its place.
+    let hidden = visible[0];
+    let head = wanted.last().unwrap().0;
+    let size = |c: ChunkId| store.chunk_resident_bytes(c);
+    o.budget_bytes = bytes(&mut visible.iter().copied()) + size(head).saturating_sub(size(hidden));
+    let mut missing = Vec::new();
+    dmu_store::walk_with(&store, &tree, &still, &o, &mut |i, _, residency| {
+        let shown: Vec<ChunkId> = visible
+            .iter()
+            .copied()
+            .filter(|&c| c != hidden || !(2..11).contains(&i))
+            .collect();
+        let absent: Vec<ChunkId> = shown
+            .iter()
+            .copied()
+            .filter(|&c| !residency.is_resident(c))
+            .collect();
+        missing.push(absent);
+        Ok(dmu_store::Drawn {
+            missing_chunks: 0,
+            visible: shown,
+            pins: Vec::new(),
+        })
+    })
+    .unwrap();
+    assert_eq!(missing[0].len(), visible.len(), "nothing resident at first");
+    for (i, m) in missing.iter().enumerate().skip(1) {
+        assert!(m.is_empty(), "frame {i}: {m:?} not resident");
+    }
 }

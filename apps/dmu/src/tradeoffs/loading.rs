@@ -21,16 +21,25 @@ const ORDERS: &[(LoadOrder, &str)] = &[
 /// The budget the load orders are compared at, percent of the geometry.
 const ORDER_BUDGET: f64 = 10.0;
 
+/// How far ahead the rendered walk's predicted view looks, ms (0: none).
+const PREDICT_MS: &[f64] = &[0.0, 50.0, 100.0, 200.0];
+/// Frames of the rendered walk (the path's first, from a cold start).
+const RENDERED_FRAMES: usize = 120;
+
 pub fn steps(quick: bool) -> u64 {
-    (if quick { BUDGETS_QUICK } else { BUDGETS_FULL }).len() as u64 + ORDERS.len() as u64
+    (if quick { BUDGETS_QUICK } else { BUDGETS_FULL }).len() as u64
+        + ORDERS.len() as u64
+        + PREDICT_MS.len() as u64
 }
 
-pub fn run(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
+/// The model as a store, its tree and the rendering section's path.
+fn walked(bench: &Bench<'_>) -> anyhow::Result<(Arc<Store>, Tree, Vec<CameraFrame>)> {
     let file = bench.scratch.join("loading.dmu");
-    dmu_store::write_scene(bench.scene, &file, WriteOptions::default())
-        .with_context(|| format!("writing {}", file.display()))?;
+    if !file.exists() {
+        dmu_store::write_scene(bench.scene, &file, WriteOptions::default())
+            .with_context(|| format!("writing {}", file.display()))?;
+    }
     let store = Arc::new(Store::open(&file)?);
-    let geometry = store.info().geometry_resident_bytes;
     let tree = Tree::build(store.skeleton(), TreeOptions::default());
     let path: Vec<CameraFrame> = super::render::path(&tree, bench.scale.walk_frames)
         .into_iter()
@@ -41,8 +50,19 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
             fov_y_deg: c.fov_y_rad.to_degrees(),
         })
         .collect();
+    Ok((store, tree, path))
+}
+
+/// The walk's options at `percent` of the geometry.
+fn walk_options(
+    bench: &Bench<'_>,
+    geometry: u64,
+    frames: usize,
+    order: LoadOrder,
+    percent: f64,
+) -> WalkOptions {
     let (width, height) = bench.scale.render_size;
-    let options = |order: LoadOrder, percent: f64| WalkOptions {
+    WalkOptions {
         order,
         budget_bytes: (geometry as f64 * percent / 100.0) as u64,
         loader_threads: 2,
@@ -51,8 +71,92 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
         viewport: Viewport { width, height },
         min_pixels: 1.0,
         prefetch: None,
-        warmup_frames: path.len() / 10,
-    };
+        warmup_frames: frames / 10,
+    }
+}
+
+/// The predicted view of `dmu walk --render` within a budget: the renderer
+/// (chc, stand-ins for chunks not resident) walks the path's first frames
+/// at a 10 % budget, drawing each frame a second view from where the eye
+/// will be; what that view draws is loaded before it shows. Needs a GPU
+/// (lavapipe will do).
+pub fn run_predicted(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
+    let (store, tree, path) = walked(bench)?;
+    let path = &path[..RENDERED_FRAMES.min(path.len())];
+    let o = walk_options(
+        bench,
+        store.info().geometry_resident_bytes,
+        path.len(),
+        LoadOrder::Visibility,
+        ORDER_BUDGET,
+    );
+    let points = PREDICT_MS
+        .iter()
+        .map(|&ms| {
+            let report = crate::walk_render::run_resident(
+                &store,
+                &tree,
+                path,
+                &o,
+                crate::walk_render::Resident {
+                    culling: dmu_render::Culling::Occlusion,
+                    culling_options: dmu_render::CullingOptions::default(),
+                    stand_ins: true,
+                    predict_s: ms * 1e-3,
+                    predict_scale: 1.0,
+                    progress: false,
+                },
+            )?;
+            let r = &report["render"];
+            let frames = r["per_frame_residency"]
+                .as_array()
+                .map_or(&[][..], Vec::as_slice);
+            let ahead: f64 = frames.iter().filter_map(|f| f["ahead_ms"].as_f64()).sum();
+            let main = r["totals"]["mean_frame_ms"].as_f64().unwrap_or(f64::NAN);
+            bench.progress.inc(1);
+            Ok(Point::new(
+                ms,
+                main + ahead / frames.len().max(1) as f64,
+                r["warm_frames_with_standin"].as_f64().unwrap_or(f64::NAN),
+                "warm frames drawing a stand-in",
+            )
+            .extra(
+                "stand-ins drawn",
+                r["stand_ins_drawn"].as_f64().unwrap_or(f64::NAN),
+            )
+            .extra(
+                "MB loaded",
+                report["walk"]["total"]["loaded_bytes"]
+                    .as_f64()
+                    .unwrap_or(f64::NAN)
+                    / 1e6,
+            ))
+        })
+        .collect::<anyhow::Result<_>>()?;
+    Ok(vec![Knob {
+        section: "loading",
+        name: "predicted view".to_owned(),
+        unit: "ms".to_owned(),
+        note: format!(
+            "how far ahead of the eye `dmu walk --render` draws a second view to load what it sees (0: none); chc, box stand-ins, a {ORDER_BUDGET}% budget, the path's first {} frames at 60 Hz",
+            path.len()
+        ),
+        reference: "every chunk the renderer draws resident when its frame is drawn (no stand-in)"
+            .to_owned(),
+        time: "frame time, the predicted view's included".to_owned(),
+        error_unit: "warm frames drawing a stand-in".to_owned(),
+        exact_setting: None,
+        log_x: false,
+        log_error: false,
+        points,
+    }])
+}
+
+pub fn run(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
+    let (store, tree, path) = walked(bench)?;
+    let geometry = store.info().geometry_resident_bytes;
+    let options =
+        |order: LoadOrder, percent: f64| walk_options(bench, geometry, path.len(), order, percent);
     // Each walk three times: the counts are the same every time (the loaders
     // read a fixed amount a frame), the time is the median.
     let measure = |setting: f64, o: &WalkOptions| -> anyhow::Result<Point> {

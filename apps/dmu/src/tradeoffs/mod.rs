@@ -238,6 +238,8 @@ pub fn run_sections(bench: &Bench<'_>) -> (Vec<Knob>, Vec<(String, String)>, Opt
     keep("far fields", far_field::run(bench));
     bench.progress.set_message("loading");
     keep("loading", loading::run(bench));
+    bench.progress.set_message("loading, rendered");
+    keep("loading, rendered", loading::run_predicted(bench));
     bench.progress.set_message("tree");
     keep("tree", tree::run(bench));
     bench.progress.set_message("collision");
