@@ -4,7 +4,7 @@
 
 use serde_json::Value;
 
-use super::{dmu, on_gpu, path};
+use super::{generated_plant, on_gpu};
 
 /// Far fields built along a stretch of the built-in walk are stored (the
 /// store still opens, with its far fields counted), a walk over that
@@ -15,13 +15,7 @@ use super::{dmu, on_gpu, path};
 #[test]
 fn far_fields_are_built_into_the_store_and_drawn_by_a_walk() {
     let dir = tempfile::tempdir().unwrap();
-    let store = path(dir.path(), "p.dmu");
-    let out = dmu(&["generate", "plant", "--triangles", "200k", "-o", &store]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let store = generated_plant(dir.path(), "200k");
     let walk = [
         store.as_str(),
         "--render",

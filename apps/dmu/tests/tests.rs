@@ -36,6 +36,19 @@ fn path(dir: &Path, name: &str) -> String {
     dir.join(name).to_string_lossy().into_owned()
 }
 
+/// The built-in plant of `triangles` (e.g. "100k") as the store `p.dmu` in
+/// `dir`, by `dmu generate`; its path.
+fn generated_plant(dir: &Path, triangles: &str) -> String {
+    let store = path(dir, "p.dmu");
+    let out = dmu(&["generate", "plant", "--triangles", triangles, "-o", &store]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    store
+}
+
 /// `dmu render ARGS` as on a user's machine (without the `NODEVICE_SELECT` that
 /// the test script sets for in-process GPU tests), or `None` after printing
 /// SKIPPED when there is no Vulkan adapter outside CI (under `CI=true` that fails).

@@ -5,20 +5,14 @@
 
 use serde_json::Value;
 
-use super::{dmu, on_gpu, path};
+use super::{generated_plant, on_gpu};
 
 /// With LODs off, `hzb` draws the unculled image at every frame of the walk,
 /// misses no exactly visible chunk, and the report carries its ratios.
 #[test]
 fn walk_compare_reports_hzb_beside_the_other_modes_exact_at_every_frame() {
     let dir = tempfile::tempdir().unwrap();
-    let store = path(dir.path(), "p.dmu");
-    let out = dmu(&["generate", "plant", "--triangles", "100k", "-o", &store]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let store = generated_plant(dir.path(), "100k");
     let args = [
         store.as_str(),
         "--render",
@@ -69,13 +63,7 @@ fn walk_compare_reports_hzb_beside_the_other_modes_exact_at_every_frame() {
 #[test]
 fn walk_within_a_budget_draws_stand_ins_not_holes() {
     let dir = tempfile::tempdir().unwrap();
-    let store = path(dir.path(), "p.dmu");
-    let out = dmu(&["generate", "plant", "--triangles", "100k", "-o", &store]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let store = generated_plant(dir.path(), "100k");
     let run = |extra: &[&str]| -> Option<Value> {
         let mut args = vec![
             store.as_str(),
