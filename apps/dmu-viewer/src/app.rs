@@ -1224,10 +1224,14 @@ impl App {
             let stand_ins = streaming
                 .stand_ins()
                 .then(|| StandInSource::new(streaming.residency(), scene));
-            let resident = ResidentSource::new(streaming.residency(), scene.chunks().len());
+            // Without stand-ins only: a table per chunk, made per frame.
+            let mut resident = None;
             let source: &dyn dmu_render::GeometrySource = match &stand_ins {
                 Some(s) => s,
-                None => &resident,
+                None => &*resident.insert(ResidentSource::new(
+                    streaming.residency(),
+                    scene.chunks().len(),
+                )),
             };
             for (i, pane) in self.panes.iter_mut().enumerate() {
                 stats.push(renderer.render(

@@ -599,11 +599,14 @@ pub fn run_resident(
         }
         stand_ins.release(residency, renderer.geometry_pool());
         view.camera = camera(&path[i]);
-        let resident = ResidentSource::new(residency, scene.chunks().len());
         let boxed = how.stand_ins.then(|| StandInSource::new(residency, scene));
+        let resident;
         let source: &dyn GeometrySource = match &boxed {
             Some(s) => s,
-            None => &resident,
+            None => {
+                resident = ResidentSource::new(residency, scene.chunks().len());
+                &resident
+            }
         };
         let stats = renderer.render(&mut view, scene, tree, source, capture.frame_target())?;
         let mut visible: Vec<ChunkId> = view

@@ -127,6 +127,8 @@ fn walk_within_a_budget_draws_stand_ins_not_holes() {
             .all(|f| f["ahead_ms"].as_f64().unwrap() > 0.0)
     );
     for walk in [&holes["walk"]["total"], &boxes["walk"]["total"]] {
-        assert!(walk["peak_resident_bytes"].as_u64() <= walk["budget_bytes"].as_u64());
+        assert!(
+            walk["peak_resident_bytes"].as_u64().unwrap() <= walk["budget_bytes"].as_u64().unwrap()
+        );
     }
 }

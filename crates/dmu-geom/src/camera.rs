@@ -64,11 +64,11 @@ impl Camera {
     /// and its elevation over the horizon each on by `steps` times the same
     /// change (the heading at most a quarter turn on, the elevation within
     /// 89 degrees of the horizon); the rest as this camera's. This camera
-    /// itself where `steps` is not a finite, non-negative number or the
-    /// result would not be valid.
+    /// itself where `steps` is not a finite, positive number or the result
+    /// would not be valid.
     pub fn extrapolated(&self, previous: &Camera, steps: f64) -> Camera {
         use std::f64::consts::{FRAC_PI_2, PI, TAU};
-        if !(steps.is_finite() && steps >= 0.0) {
+        if !(steps.is_finite() && steps > 0.0) {
             return *self;
         }
         let up = self.up.normalize_or_zero();

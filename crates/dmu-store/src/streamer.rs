@@ -23,22 +23,25 @@ pub struct Streamer {
     min_pixels: f64,
     set: Wanted,
     /// Frames ended ([`Streamer::drawn`] calls).
-    frame: u64,
+    frame: u32,
     /// Per chunk: the frame that last drew it (0: none).
-    drawn_at: Vec<u64>,
+    drawn_at: Vec<u32>,
+    /// A [`Streamer::request`] opened the frame [`Streamer::drawn`] ends.
+    requested: bool,
     /// The chunks drawn in the last [`KEEP_VISIBLE_FRAMES`] frames.
     recent: Vec<ChunkId>,
     requests: Vec<Request>,
 }
 
 /// For how many frames after it was last drawn a chunk is still requested
-/// as [`Class::Recent`]: what was seen a moment ago is the likeliest to be
+/// ahead of what culling merely wants (the first as [`Class::Visible`], the
+/// rest as [`Class::Recent`]): what was seen a moment ago is the likeliest to be
 /// seen again (through the gaps that open and close as the eye moves), and
 /// should not be evicted for what culling merely wants. Measured on the 100M
 /// plant's walk within 10 % (docs/measurements.md): 30 halves the frames
 /// drawing a stand-in; 120 as a class of its own with `Visible` overflowed
 /// the budget.
-pub const KEEP_VISIBLE_FRAMES: u64 = 30;
+pub const KEEP_VISIBLE_FRAMES: u32 = 30;
 
 impl Streamer {
     /// A residency manager over `store` with `options`, prefetching along the
@@ -60,6 +63,7 @@ impl Streamer {
             set: Wanted::default(),
             frame: 0,
             drawn_at: vec![0; chunks],
+            requested: false,
             recent: Vec::new(),
             requests: Vec::new(),
         }
@@ -82,7 +86,7 @@ impl Streamer {
 
     /// Starts a frame seen from `view`, `dt` seconds after the last: the
     /// chunks frustum and coverage culling want (drawn last frame:
-    /// [`Class::Visible`], in the [`KEEP_VISIBLE_FRAMES`] before:
+    /// [`Class::Visible`], in the [`KEEP_VISIBLE_FRAMES`] less one before:
     /// [`Class::Recent`], else [`Class::InFrustum`]; under the threshold:
     /// [`Class::Subpixel`]), the chunks drawn lately that culling no longer
     /// wants, and the prefetcher's, replace the load queue. Returns whether
@@ -126,12 +130,14 @@ impl Streamer {
             None => false,
         };
         self.residency.request(&self.requests);
+        self.requested = true;
         rebuilt
     }
 
     /// Ends a frame: `visible` (the chunks it drew, duplicates allowed) are
     /// requested as [`Class::Visible`] next frame and as [`Class::Recent`]
-    /// for the [`KEEP_VISIBLE_FRAMES`] after, and from now on: the chunks
+    /// for the [`KEEP_VISIBLE_FRAMES`] less one after, and, when a
+    /// [`Streamer::request`] opened this frame, from now on: the chunks
     /// among them not drawn last frame go to the head of the load queue at
     /// once (ahead of those culling merely wants), so that loads made before
     /// the next frame bring what this frame found visible.
@@ -151,7 +157,7 @@ impl Streamer {
             self.drawn_at[c.index()] = self.frame;
         }
         let (drawn_at, frame) = (&self.drawn_at, self.frame);
-        if !found {
+        if !(std::mem::take(&mut self.requested) && found) {
             return;
         }
         for r in &mut self.requests {
@@ -172,7 +178,7 @@ impl Streamer {
 
 /// Whether `chunk` was drawn in the last [`KEEP_VISIBLE_FRAMES`] frames before
 /// the end of `frame` (`drawn_at` as [`Streamer`] keeps it).
-fn is_recent(drawn_at: &[u64], frame: u64, chunk: ChunkId) -> bool {
+fn is_recent(drawn_at: &[u32], frame: u32, chunk: ChunkId) -> bool {
     let at = drawn_at[chunk.index()];
     at > 0 && frame - at < KEEP_VISIBLE_FRAMES
 }

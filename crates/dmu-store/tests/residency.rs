@@ -264,7 +264,7 @@ fn a_walk_with_room_for_everything_misses_only_new_chunks() {
 /// chunks of least area, which the frustum's priorities load last) decides
 /// what is visible, under a budget of that set and a little more, while the
 /// frustum wants more: what the first frame found visible is loaded before the second
-/// (queued as soon as the frame reports it), and a chunk hidden for ten
+/// (queued as soon as the frame reports it), and a chunk hidden for nine
 /// frames, though culling keeps wanting bigger ones, is still resident when
 /// it shows again (requested as recent, above what culling merely wants).
 #[test]

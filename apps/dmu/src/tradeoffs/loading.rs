@@ -111,12 +111,15 @@ pub fn run_predicted(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
             let frames = r["per_frame_residency"]
                 .as_array()
                 .map_or(&[][..], Vec::as_slice);
-            let ahead: f64 = frames.iter().filter_map(|f| f["ahead_ms"].as_f64()).sum();
+            let ahead: Vec<f64> = frames
+                .iter()
+                .filter_map(|f| f["ahead_ms"].as_f64())
+                .collect();
             let main = r["totals"]["mean_frame_ms"].as_f64().unwrap_or(f64::NAN);
             bench.progress.inc(1);
             Ok(Point::new(
                 ms,
-                main + ahead / frames.len().max(1) as f64,
+                main + ahead.iter().sum::<f64>() / ahead.len().max(1) as f64,
                 r["warm_frames_with_standin"].as_f64().unwrap_or(f64::NAN),
                 "warm frames drawing a stand-in",
             )
