@@ -88,6 +88,15 @@ pub struct Args {
     /// Frames before the walk counts as warm.
     #[arg(long, default_value_t = 60, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=1_000_000))]
     warmup_frames: usize,
+    /// Frames drawn at the path's first camera before the walk, each followed
+    /// by its loads, until one misses nothing, or three in a row miss no fewer
+    /// than the fewest before them while the budget stalls the loads (the view
+    /// does not fit), at most this many (0: none):
+    /// the walk starts from a loaded view, as a viewer opening on one shows it
+    /// once loaded. Not counted among the walk's frames (the report's
+    /// `opening` says what they loaded and took).
+    #[arg(long, default_value_t = 30, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=10_000))]
+    opening_frames: usize,
     /// Print every frame (text mode).
     #[arg(long)]
     frames: bool,
@@ -231,6 +240,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         min_pixels: args.min_pixels,
         prefetch,
         warmup_frames: args.warmup_frames,
+        opening_frames: args.opening_frames,
     };
     if args.render {
         let culling: Culling = args.culling.parse().map_err(anyhow::Error::msg)?;
@@ -433,6 +443,9 @@ fn print_render(args: &Args, report: &serde_json::Value) -> anyhow::Result<()> {
             mb(&walk["peak_resident_bytes"]),
             mb(&walk["budget_bytes"]),
         );
+        if let Ok(opening) = serde_json::from_value(report["walk"]["opening"].clone()) {
+            print_opening(&opening);
+        }
         let r = &report["render"];
         println!(
             "  drawn: {} frames with a hole, {} with a stand-in ({} of {} warm; stand-ins: {}); predicted view {} ms ahead",
@@ -489,6 +502,19 @@ fn print_render(args: &Args, report: &serde_json::Value) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The frames before the walk, when there were any.
+fn print_opening(o: &dmu_store::Opening) {
+    if o.frames > 0 {
+        println!(
+            "  opening: {} frames at the first view, {:.1} MB loaded in {:.1} s (counted in the totals below); {} chunk instances still missing",
+            o.frames,
+            o.loaded_bytes as f64 / 1e6,
+            o.wall_ms / 1e3,
+            o.missing_chunks
+        );
+    }
+}
+
 fn print_text(args: &Args, info: &dmu_store::StoreInfo, budget: u64, reports: &[WalkReport]) {
     let mb = |b: u64| b as f64 / 1e6;
     println!(
@@ -500,6 +526,7 @@ fn print_text(args: &Args, info: &dmu_store::StoreInfo, budget: u64, reports: &[
     );
     for r in reports {
         let t = &r.total;
+        print_opening(&r.opening);
         if args.frames {
             println!("  frame  wanted  wanted MB  missing  loaded MB  resident MB  queue");
             for (i, f) in r.frames.iter().enumerate() {

@@ -555,8 +555,10 @@ pub struct Resident {
 /// `predict_s` ahead (extrapolated from the last two frames) at
 /// `predict_scale` of the resolution, and requests what that view drew as
 /// visible too. A chunk instance the renderer wanted but could not draw (a
-/// hole) or drew as its box is a miss. Returns the walk's report and the
-/// renderer's per-frame stats.
+/// hole) or drew as its box is a miss. The opening frames
+/// (`options.opening_frames`) draw the first view, unrecorded and without a
+/// prediction, until one misses nothing or the view proves not to fit.
+/// Returns the walk's report and the renderer's per-frame stats.
 pub fn run_resident(
     store: &Arc<Store>,
     tree: &Tree,
@@ -593,11 +595,13 @@ pub fn run_resident(
     } else {
         indicatif::ProgressBar::hidden()
     };
-    let report = dmu_store::walk_with(store, tree, path, options, &mut |i, _, residency| {
+    let report = dmu_store::walk_with(store, tree, path, options, &mut |index, _, residency| {
         for c in residency.take_evicted() {
             renderer.geometry_pool().evict(c);
         }
         stand_ins.release(residency, renderer.geometry_pool());
+        // An opening frame (no index) draws the first view, unrecorded.
+        let i = index.unwrap_or(0);
         view.camera = camera(&path[i]);
         let boxed = how.stand_ins.then(|| StandInSource::new(residency, scene));
         let resident;
@@ -615,7 +619,10 @@ pub fn run_resident(
             .collect();
         let drawn = visible.len();
         let mut ahead_ms = None;
-        if let (Some(target), Some(before)) = (&ahead_capture, i.checked_sub(1)) {
+        // No prediction in an opening frame (the eye stands still) nor in
+        // the first (no motion known yet).
+        let before = index.and_then(|i| i.checked_sub(1));
+        if let (Some(target), Some(before)) = (&ahead_capture, before) {
             let start = Instant::now();
             ahead.camera = view
                 .camera
@@ -635,14 +642,16 @@ pub fn run_resident(
             .iter()
             .filter(|&&c| stand_ins.is_standing(c))
             .count() as u64;
-        rendered.push(mode_frame(&stats, None));
-        frames.push(ResidentFrame {
-            holes: stats.not_resident,
-            stand_ins: boxes,
-            ahead_ms,
-        });
-        stats_all.push(stats);
-        progress.inc(1);
+        if index.is_some() {
+            rendered.push(mode_frame(&stats, None));
+            frames.push(ResidentFrame {
+                holes: stats.not_resident,
+                stand_ins: boxes,
+                ahead_ms,
+            });
+            stats_all.push(stats);
+            progress.inc(1);
+        }
         Ok(Drawn {
             missing_chunks: stats.not_resident + boxes,
             visible,

@@ -55,21 +55,22 @@ fn walk_compare_reports_hzb_beside_the_other_modes_exact_at_every_frame() {
 }
 
 /// `dmu walk --render` within a memory budget on the 100k plant: from a cold
-/// start the first frames want chunks that are not resident. Without
-/// stand-ins they are holes; with them (the default) no frame has a hole and
-/// the cold frames draw boxes instead, while the residency keeps to its
-/// budget. The prediction (on by default) draws a second view every frame
-/// but the first.
+/// start (`--opening-frames 0`) the first frames want chunks that are not
+/// resident. Without stand-ins they are holes; with them (the default) no
+/// frame has a hole and the cold frames draw boxes instead, while the
+/// residency keeps to its budget. The prediction (on by default) draws a
+/// second view every frame but the first. With the opening frames (the
+/// default), the walk starts from a first view that misses nothing.
 #[test]
 fn walk_within_a_budget_draws_stand_ins_not_holes() {
     let dir = tempfile::tempdir().unwrap();
     let store = generated_plant(dir.path(), "100k");
-    let run = |extra: &[&str]| -> Option<Value> {
+    let run = |budget: &str, extra: &[&str]| -> Option<Value> {
         let mut args = vec![
             store.as_str(),
             "--render",
             "--memory-budget",
-            "20%",
+            budget,
             "--range",
             "300..330",
             "--warmup-frames",
@@ -89,10 +90,27 @@ fn walk_within_a_budget_draws_stand_ins_not_holes() {
         );
         Some(serde_json::from_slice(&out.stdout).unwrap())
     };
-    let Some(holes) = run(&["--stand-ins", "none", "--predict-ms", "0"]) else {
+    let Some(holes) = run(
+        "20%",
+        &[
+            "--stand-ins",
+            "none",
+            "--predict-ms",
+            "0",
+            "--opening-frames",
+            "0",
+        ],
+    ) else {
         return;
     };
-    let Some(boxes) = run(&[]) else {
+    let Some(boxes) = run("20%", &["--opening-frames", "0"]) else {
+        return;
+    };
+    // The first view fits in half the geometry, not in a fifth.
+    let Some(cold) = run("50%", &["--opening-frames", "0"]) else {
+        return;
+    };
+    let Some(opened) = run("50%", &[]) else {
         return;
     };
     let (h, b) = (&holes["render"], &boxes["render"]);
@@ -126,7 +144,32 @@ fn walk_within_a_budget_draws_stand_ins_not_holes() {
             .iter()
             .all(|f| f["ahead_ms"].as_f64().unwrap() > 0.0)
     );
-    for walk in [&holes["walk"]["total"], &boxes["walk"]["total"]] {
+    assert_eq!(boxes["walk"]["opening"]["frames"], 0);
+    // Opened: frames at the first view until one missed nothing, not counted
+    // among the walk's; its first frame, seen from there, misses nothing.
+    let opening = &opened["walk"]["opening"];
+    let n = opening["frames"].as_u64().unwrap();
+    assert!(n >= 1, "{opening:#}");
+    assert_eq!(opening["missing_chunks"], 0, "{opening:#}");
+    assert!(opening["loaded_bytes"].as_u64().unwrap() > 0);
+    let o = &opened["render"];
+    assert_eq!(o["per_frame_residency"].as_array().unwrap().len(), 30);
+    assert_eq!(o["per_frame_residency"][0]["stand_ins"], 0, "{o:#}");
+    assert_eq!(o["frames_with_hole"], 0);
+    let c = &cold["render"];
+    assert!(c["per_frame_residency"][0]["stand_ins"].as_u64().unwrap() > 0);
+    assert!(
+        o["frames_with_standin"].as_u64().unwrap() < c["frames_with_standin"].as_u64().unwrap(),
+        "opened {} against {}",
+        o["frames_with_standin"],
+        c["frames_with_standin"]
+    );
+    for walk in [
+        &holes["walk"]["total"],
+        &boxes["walk"]["total"],
+        &cold["walk"]["total"],
+        &opened["walk"]["total"],
+    ] {
         assert!(
             walk["peak_resident_bytes"].as_u64().unwrap() <= walk["budget_bytes"].as_u64().unwrap()
         );

@@ -164,10 +164,11 @@ pub enum WalkError {
         camera: String,
     },
     /// The caller's `draw` failed on a frame.
-    #[error("frame {frame}: {source}")]
+    #[error("{}: {source}", frame.map_or("an opening frame".to_string(), |i| format!("frame {i}")))]
     Draw {
-        /// The frame's index.
-        frame: usize,
+        /// The frame's index; none for an opening frame
+        /// ([`crate::WalkOptions::opening_frames`]).
+        frame: Option<usize>,
         /// What `draw` returned.
         #[source]
         source: crate::walk::DrawError,

@@ -91,6 +91,7 @@ pub use save::{SavedFormat, prepare_save, save_edits, save_scene, write_far_fiel
 pub use streamer::{KEEP_VISIBLE_FRAMES, Streamer};
 pub use view::{CameraFrame, View, Viewport, Wanted, wanted};
 pub use walk::{
-    DrawError, Drawn, FrameReport, WalkOptions, WalkReport, WalkTotals, walk, walk_with,
+    DrawError, DrawFrame, Drawn, FrameReport, OPENING_STALL_FRAMES, Opening, WalkOptions,
+    WalkReport, WalkTotals, walk, walk_with,
 };
 pub use write::{PendingStore, StoreSummary, StoreWriter, WriteOptions, write_scene};

@@ -35,12 +35,15 @@ pub struct Streamer {
 
 /// For how many frames after it was last drawn a chunk is still requested
 /// ahead of what culling merely wants (the first as [`Class::Visible`], the
-/// rest as [`Class::Recent`]): what was seen a moment ago is the likeliest to be
-/// seen again (through the gaps that open and close as the eye moves), and
-/// should not be evicted for what culling merely wants. Measured on the 100M
-/// plant's walk within 10 % (docs/measurements.md): 30 halves the frames
-/// drawing a stand-in; 120 as a class of its own with `Visible` overflowed
-/// the budget.
+/// rest, while resident, as [`Class::Recent`]): what was seen a moment ago is
+/// the likeliest to be seen again (through the gaps that open and close as
+/// the eye moves), and should not be evicted for what culling merely wants.
+/// Measured on the 100M plant's walk within 10 % (docs/measurements.md): 30
+/// halves the frames drawing a stand-in; 120 as a class of its own with
+/// `Visible` overflowed the budget. A recent chunk that is not resident is
+/// not loaded for being recent: a cold first frame draws every chunk in view
+/// as its box, and loading all of them as recent would evict what the frames
+/// after it found visible.
 pub const KEEP_VISIBLE_FRAMES: u32 = 30;
 
 impl Streamer {
@@ -86,17 +89,18 @@ impl Streamer {
 
     /// Starts a frame seen from `view`, `dt` seconds after the last: the
     /// chunks frustum and coverage culling want (drawn last frame:
-    /// [`Class::Visible`], in the [`KEEP_VISIBLE_FRAMES`] less one before:
-    /// [`Class::Recent`], else [`Class::InFrustum`]; under the threshold:
+    /// [`Class::Visible`], in the [`KEEP_VISIBLE_FRAMES`] less one before and
+    /// resident: [`Class::Recent`], else [`Class::InFrustum`]; under the threshold:
     /// [`Class::Subpixel`]), the chunks drawn lately that culling no longer
-    /// wants, and the prefetcher's, replace the load queue. Returns whether
+    /// wants (drawn last frame, or still resident), and the prefetcher's,
+    /// replace the load queue. Returns whether
     /// the prefetch queue was rebuilt.
     pub fn request(&mut self, tree: &Tree, scene: &Scene, view: &View, dt: f64) -> bool {
         wanted(tree, scene, view, self.min_pixels, false, &mut self.set);
-        let (drawn_at, frame) = (&self.drawn_at, self.frame);
+        let (drawn_at, frame, residency) = (&self.drawn_at, self.frame, &self.residency);
         let class = |c: ChunkId| match drawn_at[c.index()] {
             at if at == frame && at > 0 => Class::Visible,
-            _ if is_recent(drawn_at, frame, c) => Class::Recent,
+            _ if is_recent(drawn_at, frame, c) && residency.is_resident(c) => Class::Recent,
             _ => Class::InFrustum,
         };
         self.requests.clear();
@@ -115,12 +119,16 @@ impl Streamer {
         // Drawn lately although culling no longer wants it (e.g. under the
         // coverage threshold now, or behind the eye): still the most likely
         // to be seen again (duplicates: the higher priority counts).
-        self.requests
-            .extend(self.recent.iter().map(|&chunk| Request {
-                chunk,
-                class: class(chunk),
-                area_px: 0.0,
-            }));
+        self.requests.extend(
+            self.recent
+                .iter()
+                .map(|&chunk| Request {
+                    chunk,
+                    class: class(chunk),
+                    area_px: 0.0,
+                })
+                .filter(|r| matches!(r.class, Class::Visible | Class::Recent)),
+        );
         let rebuilt = match &mut self.prefetcher {
             Some(p) => {
                 let rebuilt = p.update(tree, scene, view, dt);
@@ -135,8 +143,8 @@ impl Streamer {
     }
 
     /// Ends a frame: `visible` (the chunks it drew, duplicates allowed) are
-    /// requested as [`Class::Visible`] next frame and as [`Class::Recent`]
-    /// for the [`KEEP_VISIBLE_FRAMES`] less one after, and, when a
+    /// requested as [`Class::Visible`] next frame and, while resident, as
+    /// [`Class::Recent`] for the [`KEEP_VISIBLE_FRAMES`] less one after, and, when a
     /// [`Streamer::request`] opened this frame, from now on: the chunks
     /// among them not drawn last frame go to the head of the load queue at
     /// once (ahead of those culling merely wants), so that loads made before

@@ -8,7 +8,9 @@
 //! ([`WalkOptions::disk_bytes_per_frame`], deterministic), or one frame of wall
 //! time (real time). A chunk that comes into view can be drawn at the earliest
 //! the frame after it is requested, so only prefetching avoids misses when the
-//! view changes.
+//! view changes. Opening frames before the walk draw its first view until one
+//! misses nothing (or the view proves not to fit the budget), so that the walk
+//! does not start from nothing.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -46,8 +48,36 @@ pub struct WalkOptions {
     pub min_pixels: f64,
     /// Prefetching along the predicted path, or none.
     pub prefetch: Option<PrefetchOptions>,
-    /// Frames before the walk counts as warm (the first view loads from nothing).
+    /// Frames before the walk counts as warm (without an opening the first
+    /// view loads from nothing; with one, the frames after it catch up).
     pub warmup_frames: usize,
+    /// Frames drawn at the path's first camera before the walk, each followed
+    /// by its loads, until one misses nothing or [`OPENING_STALL_FRAMES`] in a
+    /// row miss no fewer than the fewest before them while the budget stalls
+    /// the loads (at most this many; 0: none), as
+    /// a viewer opening on a view shows it once it has loaded. Not counted
+    /// among the walk's frames; [`WalkReport::opening`] says what they took.
+    pub opening_frames: usize,
+}
+
+/// Opening frames in a row that miss no fewer chunks than the fewest before
+/// them, with loads stalled by the budget, end the opening: the first view
+/// does not fit (what one frame loads evicts what another needs), and more
+/// frames would only take time. Frames that gain nothing because loading is
+/// slow (a chunk larger than a frame's disk grant) do not count.
+pub const OPENING_STALL_FRAMES: u32 = 3;
+
+/// What the frames before a walk loaded ([`WalkOptions::opening_frames`]).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Opening {
+    /// Frames drawn at the first camera.
+    pub frames: u64,
+    /// Chunks the last of them missed (0 when the first view was complete).
+    pub missing_chunks: u64,
+    /// File bytes loaded.
+    pub loaded_bytes: u64,
+    /// Wall time, milliseconds.
+    pub wall_ms: f64,
 }
 
 /// One frame of a walk.
@@ -90,11 +120,11 @@ pub struct WalkTotals {
     pub wanted_chunks: u64,
     /// Most bytes wanted by one frame.
     pub max_wanted_bytes: u64,
-    /// File bytes loaded.
+    /// File bytes loaded, the opening's ([`WalkReport::opening`]) included.
     pub loaded_bytes: u64,
-    /// Chunks loaded.
+    /// Chunks loaded, the opening's included.
     pub loads: u64,
-    /// Chunks evicted.
+    /// Chunks evicted, the opening's included.
     pub evictions: u64,
     /// Highest resident plus in-flight bytes: never above `budget_bytes`.
     pub peak_resident_bytes: u64,
@@ -104,9 +134,9 @@ pub struct WalkTotals {
     pub mean_queue_len: f64,
     /// Prefetch queue rebuilds.
     pub prefetch_rebuilds: u64,
-    /// Chunk loads that failed (corrupt segments).
+    /// Chunk loads that failed (corrupt segments), the opening's included.
     pub failed_loads: u64,
-    /// Wall time of the walk, milliseconds.
+    /// Wall time of the walk, the opening's included, milliseconds.
     pub wall_ms: f64,
 }
 
@@ -115,6 +145,8 @@ pub struct WalkTotals {
 pub struct WalkReport {
     /// The options it ran with.
     pub options: WalkOptions,
+    /// The frames before the walk.
+    pub opening: Opening,
     /// Per frame.
     pub frames: Vec<FrameReport>,
     /// In total.
@@ -159,6 +191,20 @@ pub fn walk(
     })
 }
 
+/// How [`walk_with`] draws a frame: the frame's index (none for an opening
+/// frame), the chunks frustum and coverage culling want, and the residency.
+pub type DrawFrame<'a> =
+    dyn FnMut(Option<usize>, &Wanted, &Residency) -> Result<Drawn, DrawError> + 'a;
+
+/// What one frame of [`walk_with`] found and left.
+struct Stepped {
+    missing_chunks: u64,
+    wanted_chunks: u64,
+    wanted_bytes: u64,
+    rebuilt: bool,
+    stats: crate::residency::ResidencyStats,
+}
+
 /// Why a frame could not be drawn, as [`walk_with`]'s `draw` reports it
 /// (any error type converts with `?`).
 pub type DrawError = Box<dyn std::error::Error + Send + Sync>;
@@ -167,13 +213,14 @@ pub type DrawError = Box<dyn std::error::Error + Send + Sync>;
 /// occlusion culling decides what is drawn: `draw` gets the frame's index, the
 /// chunks frustum and coverage culling want, and the manager (whose
 /// [`Residency::get`] gives the resident geometry); the chunks it reports
-/// visible are requested first on the next frame.
+/// visible are requested first on the next frame. The opening frames
+/// ([`WalkOptions::opening_frames`]) come to `draw` with no index.
 pub fn walk_with(
     store: &Arc<Store>,
     tree: &Tree,
     path: &[CameraFrame],
     options: &WalkOptions,
-    draw: &mut dyn FnMut(usize, &Wanted, &Residency) -> Result<Drawn, DrawError>,
+    draw: &mut DrawFrame<'_>,
 ) -> Result<WalkReport, WalkError> {
     let start = Instant::now();
     let scene = store.skeleton();
@@ -194,11 +241,9 @@ pub fn walk_with(
         options.min_pixels,
     );
     let dt = 1.0 / options.frame_rate_hz;
-    let mut frames = Vec::with_capacity(path.len());
-    let mut loaded_before = 0;
-    for (i, frame) in path.iter().enumerate() {
-        let frame_start = Instant::now();
-        let view = View::new(frame, options.viewport).ok_or_else(|| WalkError::NotACamera {
+    let view_of = |i: usize| {
+        let frame = &path[i];
+        View::new(frame, options.viewport).ok_or_else(|| WalkError::NotACamera {
             frame: i,
             camera: format!(
                 "eye {:?}, target {:?}, up {:?}, fov {}°",
@@ -207,20 +252,24 @@ pub fn walk_with(
                 frame.up.to_array(),
                 frame.fov_y_deg
             ),
-        })?;
-        let rebuilt = streamer.request(tree, scene, &view, dt);
+        })
+    };
+    // One frame: its requests, its drawing with what is resident (pinned
+    // until it ends), what it found visible queued first, then its loads.
+    let mut step = |index: Option<usize>, view: &View| -> Result<Stepped, WalkError> {
+        let frame_start = Instant::now();
+        let rebuilt = streamer.request(tree, scene, view, dt);
         let (set, residency) = (streamer.wanted(), streamer.residency());
-
-        // Draw: what is resident is used (pinned) until the frame ends.
-        let drawn =
-            draw(i, set, residency).map_err(|source| WalkError::Draw { frame: i, source })?;
+        let drawn = draw(index, set, residency).map_err(|source| WalkError::Draw {
+            frame: index,
+            source,
+        })?;
         let wanted_bytes = set
             .drawn
             .iter()
             .map(|&(chunk, _)| store.chunk_resident_bytes(chunk))
             .sum();
         let wanted_chunks = set.drawn.len() as u64;
-        // What the frame found visible is queued first, then loaded.
         streamer.drawn(&drawn.visible);
         let residency = streamer.residency();
         match options.disk_bytes_per_frame {
@@ -230,21 +279,57 @@ pub fn walk_with(
                 std::thread::sleep(frame_time.saturating_sub(frame_start.elapsed()));
             }
         }
-        let missing = drawn.missing_chunks;
+        let missing_chunks = drawn.missing_chunks;
         drop(drawn);
-        let stats = residency.stats();
-        frames.push(FrameReport {
+        debug_assert_eq!(residency.validate(), Ok(()));
+        Ok(Stepped {
+            missing_chunks,
             wanted_chunks,
             wanted_bytes,
-            missing_chunks: missing,
-            loaded_bytes: stats.loaded_file_bytes - loaded_before,
-            resident_bytes: stats.resident_bytes,
-            peak_resident_bytes: stats.peak_bytes,
-            queue_len: stats.queue_len,
-            prefetch_rebuilt: rebuilt,
+            rebuilt,
+            stats: residency.stats(),
+        })
+    };
+    let mut opening = Opening::default();
+    let mut loaded_before = 0;
+    if options.opening_frames > 0 && !path.is_empty() {
+        let view = view_of(0)?;
+        let (mut fewest, mut stalled, mut budget_stalls) = (u64::MAX, 0, 0);
+        for _ in 0..options.opening_frames {
+            let s = step(None, &view)?;
+            opening.frames += 1;
+            opening.missing_chunks = s.missing_chunks;
+            loaded_before = s.stats.loaded_file_bytes;
+            let over_budget = s.stats.budget_stalls > budget_stalls;
+            budget_stalls = s.stats.budget_stalls;
+            if s.missing_chunks < fewest {
+                (fewest, stalled) = (s.missing_chunks, 0);
+            } else if over_budget {
+                stalled += 1;
+            } else {
+                stalled = 0;
+            }
+            if s.missing_chunks == 0 || stalled == OPENING_STALL_FRAMES {
+                break;
+            }
+        }
+        opening.loaded_bytes = loaded_before;
+        opening.wall_ms = start.elapsed().as_secs_f64() * 1e3;
+    }
+    let mut frames = Vec::with_capacity(path.len());
+    for i in 0..path.len() {
+        let s = step(Some(i), &view_of(i)?)?;
+        frames.push(FrameReport {
+            wanted_chunks: s.wanted_chunks,
+            wanted_bytes: s.wanted_bytes,
+            missing_chunks: s.missing_chunks,
+            loaded_bytes: s.stats.loaded_file_bytes - loaded_before,
+            resident_bytes: s.stats.resident_bytes,
+            peak_resident_bytes: s.stats.peak_bytes,
+            queue_len: s.stats.queue_len,
+            prefetch_rebuilt: s.rebuilt,
         });
-        loaded_before = stats.loaded_file_bytes;
-        debug_assert_eq!(residency.validate(), Ok(()));
+        loaded_before = s.stats.loaded_file_bytes;
     }
     let residency = streamer.residency();
     residency.validate()?;
@@ -273,6 +358,7 @@ pub fn walk_with(
     };
     Ok(WalkReport {
         options: *options,
+        opening,
         frames,
         total,
         first_error: residency.first_error(),

@@ -7,8 +7,8 @@ use std::sync::Arc;
 
 use dmu_scene::ChunkId;
 use dmu_store::{
-    CameraFrame, Class, LoadOrder, Pacing, Request, Residency, ResidencyOptions, Store, Viewport,
-    WalkOptions, WriteOptions, walk,
+    CameraFrame, Class, LoadOrder, Opening, Pacing, Request, Residency, ResidencyOptions, Store,
+    Viewport, WalkOptions, WriteOptions, walk,
 };
 use glam::DVec3;
 use proptest::prelude::*;
@@ -216,6 +216,7 @@ fn options(budget: u64, order: LoadOrder) -> WalkOptions {
         min_pixels: 1.0,
         prefetch: None,
         warmup_frames: 10,
+        opening_frames: 0,
     }
 }
 
@@ -260,6 +261,35 @@ fn a_walk_with_room_for_everything_misses_only_new_chunks() {
     assert!(moving.total.evictions == 0);
 }
 
+/// Twelve frames at one camera of the plant, with room for everything and
+/// an unbounded disk, and the chunks that camera wants, least on screen first.
+struct Still(
+    tempfile::TempDir,
+    Arc<Store>,
+    dmu_tree::Tree,
+    Vec<CameraFrame>,
+    WalkOptions,
+    Vec<(ChunkId, f32)>,
+);
+
+impl Still {
+    fn new() -> Self {
+        let (dir, store) = plant_store();
+        let tree = dmu_tree::Tree::build(store.skeleton(), Default::default());
+        let still = vec![path(&store)[100]; 12];
+        let mut o = options(u64::MAX, LoadOrder::Visibility);
+        o.disk_bytes_per_frame = Some(u64::MAX / 4);
+        let mut wanted: Vec<(ChunkId, f32)> = Vec::new();
+        dmu_store::walk_with(&store, &tree, &still[..1], &o, &mut |_, set, _| {
+            wanted = set.drawn.clone();
+            Ok(dmu_store::Drawn::default())
+        })
+        .unwrap();
+        wanted.sort_by(|a, b| a.1.total_cmp(&b.1));
+        Self(dir, store, tree, still, o, wanted)
+    }
+}
+
 /// A renderer's occlusion culling (here: a fixed set, the three wanted
 /// chunks of least area, which the frustum's priorities load last) decides
 /// what is visible, under a budget of that set and a little more, while the
@@ -269,19 +299,7 @@ fn a_walk_with_room_for_everything_misses_only_new_chunks() {
 /// it shows again (requested as recent, above what culling merely wants).
 #[test]
 fn found_visible_loads_at_once_and_stays_while_recent() {
-    let (_dir, store) = plant_store();
-    let tree = dmu_tree::Tree::build(store.skeleton(), Default::default());
-    let still = vec![path(&store)[100]; 12];
-    let mut o = options(u64::MAX, LoadOrder::Visibility);
-    o.disk_bytes_per_frame = Some(u64::MAX / 4);
-    // The wanted chunks, smallest on screen first.
-    let mut wanted: Vec<(ChunkId, f32)> = Vec::new();
-    dmu_store::walk_with(&store, &tree, &still[..1], &o, &mut |_, set, _| {
-        wanted = set.drawn.clone();
-        Ok(dmu_store::Drawn::default())
-    })
-    .unwrap();
-    wanted.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let Still(_dir, store, tree, still, mut o, wanted) = Still::new();
     let visible: Vec<ChunkId> = wanted.iter().take(3).map(|w| w.0).collect();
     let bytes = |cs: &mut dyn Iterator<Item = ChunkId>| -> u64 {
         cs.map(|c| store.chunk_resident_bytes(c)).sum()
@@ -294,6 +312,7 @@ fn found_visible_loads_at_once_and_stays_while_recent() {
     o.budget_bytes = bytes(&mut visible.iter().copied()) + size(head).saturating_sub(size(hidden));
     let mut missing = Vec::new();
     dmu_store::walk_with(&store, &tree, &still, &o, &mut |i, _, residency| {
+        let i = i.expect("no opening frames");
         let shown: Vec<ChunkId> = visible
             .iter()
             .copied()
@@ -316,4 +335,104 @@ fn found_visible_loads_at_once_and_stays_while_recent() {
     for (i, m) in missing.iter().enumerate().skip(1) {
         assert!(m.is_empty(), "frame {i}: {m:?} not resident");
     }
+}
+
+/// A cold first frame draws everything in view as stand-ins (boxes). Those
+/// chunks are recent, but not resident: they are not loaded for being recent,
+/// or they would evict, as recent chunks with more on screen, a chunk the
+/// next frame found visible and loaded. Here the cold frame is followed by a
+/// frame drawing only one chunk little on screen, then by frames drawing
+/// nothing: that chunk stays resident while it is recent.
+#[test]
+fn a_cold_frame_of_stand_ins_does_not_evict_what_was_found_visible() {
+    let Still(_dir, store, tree, still, mut o, wanted) = Still::new();
+    let size = |c: ChunkId| store.chunk_resident_bytes(c);
+    // Found: the largest in bytes of the half least on screen, so that every
+    // chunk more on screen that does not fit would fit in its place.
+    let found = wanted[..wanted.len() / 2]
+        .iter()
+        .map(|w| w.0)
+        .max_by_key(|&c| size(c))
+        .unwrap();
+    let largest = wanted.iter().map(|w| size(w.0)).max().unwrap();
+    // Room for the found chunk and for the largest of the others.
+    o.budget_bytes = size(found) + largest;
+    assert!(wanted.len() > 3 && wanted.iter().map(|w| size(w.0)).sum::<u64>() > o.budget_bytes);
+    let mut resident = Vec::new();
+    dmu_store::walk_with(&store, &tree, &still, &o, &mut |i, _, residency| {
+        let i = i.expect("no opening frames");
+        resident.push(residency.is_resident(found));
+        let visible = match i {
+            0 => wanted.iter().map(|w| w.0).collect(),
+            1 => vec![found],
+            _ => Vec::new(),
+        };
+        Ok(dmu_store::Drawn {
+            missing_chunks: 0,
+            visible,
+            pins: Vec::new(),
+        })
+    })
+    .unwrap();
+    // Loaded before frame 3 (a Visible request after frame 2), then kept.
+    assert_eq!(
+        &resident[3..],
+        &[true; 9],
+        "resident per frame: {resident:?}"
+    );
+}
+
+/// The opening frames draw the path's first view until one misses nothing
+/// (the loads between them bring what it wants), are not counted among the
+/// walk's frames, and leave its first frame missing nothing; without them the
+/// first frame misses what it wants.
+#[test]
+fn opening_frames_load_the_first_view_before_the_walk() {
+    let (_dir, store) = plant_store();
+    let tree = dmu_tree::Tree::build(store.skeleton(), Default::default());
+    let frames = &path(&store)[100..110];
+    let mut o = options(u64::MAX, LoadOrder::Visibility);
+    let cold = walk(&store, &tree, frames, &o).unwrap();
+    assert_eq!(cold.opening, Opening::default());
+    assert!(cold.frames[0].missing_chunks > 0);
+    // A grant of a few kilobytes a frame: the opening takes several frames.
+    o.disk_bytes_per_frame = Some(16 << 10);
+    o.opening_frames = 1_000;
+    let mut opening_draws = 0;
+    let opened = dmu_store::walk_with(&store, &tree, frames, &o, &mut |index, set, residency| {
+        opening_draws += u32::from(index.is_none());
+        let missing = set
+            .drawn
+            .iter()
+            .filter(|&&(c, _)| !residency.is_resident(c))
+            .count();
+        Ok(dmu_store::Drawn {
+            missing_chunks: missing as u64,
+            visible: set.drawn.iter().map(|w| w.0).collect(),
+            pins: Vec::new(),
+        })
+    })
+    .unwrap();
+    assert_eq!(opened.frames.len(), frames.len());
+    assert_eq!(u64::from(opening_draws), opened.opening.frames);
+    assert!(opened.opening.frames > 2, "{:?}", opened.opening);
+    assert_eq!(opened.opening.missing_chunks, 0);
+    assert_eq!(opened.frames[0].missing_chunks, 0);
+    assert!(opened.opening.loaded_bytes > 0);
+    assert!(opened.total.loaded_bytes >= opened.opening.loaded_bytes);
+    // Capped: at most that many frames, and the walk goes on regardless.
+    o.opening_frames = 2;
+    let capped = walk(&store, &tree, frames, &o).unwrap();
+    assert_eq!(capped.opening.frames, 2);
+    assert!(capped.opening.missing_chunks > 0);
+    assert_eq!(capped.frames.len(), frames.len());
+    // A first view larger than the budget: the opening ends once it stops
+    // missing fewer chunks, not after a thousand frames.
+    o.opening_frames = 1_000;
+    o.disk_bytes_per_frame = Some(u64::MAX / 4);
+    o.budget_bytes = cold.frames[0].wanted_bytes / 2;
+    let stalled = walk(&store, &tree, frames, &o).unwrap();
+    assert!(stalled.opening.missing_chunks > 0, "{:?}", stalled.opening);
+    assert!(stalled.opening.frames < 20, "{:?}", stalled.opening);
+    assert!(stalled.opening.frames > u64::from(dmu_store::OPENING_STALL_FRAMES));
 }

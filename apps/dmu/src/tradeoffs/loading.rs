@@ -72,6 +72,8 @@ fn walk_options(
         min_pixels: 1.0,
         prefetch: None,
         warmup_frames: frames / 10,
+        // From a cold start: the warm frames are what the knobs are judged by.
+        opening_frames: 0,
     }
 }
 
