@@ -624,6 +624,11 @@ pub fn run_resident(
         let before = index.and_then(|i| i.checked_sub(1));
         if let (Some(target), Some(before)) = (&ahead_capture, before) {
             let start = Instant::now();
+            if before == 0 {
+                // Its first frame: from the main view's visibility, not from
+                // nothing (which would ask for every chunk in view at once).
+                ahead.inherit_visibility(&view);
+            }
             ahead.camera = view
                 .camera
                 .extrapolated(&camera(&path[before]), steps_ahead);

@@ -430,6 +430,17 @@ impl View {
         self.drawn.iter().map(|&e| dmu_tree::EntryId(e))
     }
 
+    /// Starts from `other`'s visibility (a view near this one: the same eye a
+    /// moment later, say): the next frame's occlusion culling begins from
+    /// what `other` last found visible, as if this view had drawn it, rather
+    /// than from nothing, where its first frames would draw every chunk
+    /// instance in view.
+    pub fn inherit_visibility(&mut self, other: &View) {
+        self.frame = other.frame;
+        self.entries.clone_from(&other.entries);
+        self.proxy_visible.clone_from(&other.proxy_visible);
+    }
+
     /// Forgets visibility (after a jump of the camera, say): the next frame
     /// starts occlusion culling from scratch.
     pub fn reset_visibility(&mut self) {

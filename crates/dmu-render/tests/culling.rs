@@ -181,6 +181,43 @@ fn occlusion_converges_to_the_unculled_image() {
     }
 }
 
+/// A view that inherits a converged view's visibility (the walk's predicted
+/// view does, on its first frame) starts where that one left off: at the same
+/// camera its first frame finds nothing newly visible, draws the same chunk
+/// instances and gives the unculled image, where a fresh view's first frame
+/// draws every chunk instance in view (nothing is known hidden yet).
+#[test]
+fn an_inherited_visibility_starts_where_the_other_view_left_off() {
+    let (scene, tree) = small_plant();
+    let size = (320, 180);
+    let Some(mut rig) = Rig::new(&scene, &tree, size) else {
+        return;
+    };
+    let cam = viewpoints()[0];
+    let none = rig.shot(cam, Culling::None, &scene, &tree);
+    let mut first = View::new(cam, size, Culling::Occlusion);
+    first.options.adaptive = false;
+    for _ in 0..6 {
+        rig.frame(&mut first, &scene, &tree);
+    }
+    let converged: BTreeSet<EntryId> = first.drawn_entries().collect();
+    let mut fresh = View::new(cam, size, Culling::Occlusion);
+    fresh.options.adaptive = false;
+    let fresh_first = rig.frame(&mut fresh, &scene, &tree);
+    assert!(
+        fresh_first.chunks_drawn > converged.len() as u64,
+        "{fresh_first:?}"
+    );
+    let mut heir = View::new(cam, size, Culling::Occlusion);
+    heir.options.adaptive = false;
+    heir.inherit_visibility(&first);
+    let stats = rig.frame(&mut heir, &scene, &tree);
+    assert_eq!(stats.newly_visible, 0, "{stats:?}");
+    assert_eq!(stats.chunks_drawn, converged.len() as u64, "{stats:?}");
+    assert_eq!(heir.drawn_entries().collect::<BTreeSet<_>>(), converged);
+    assert_eq!(differing(&none, &rig.image()).len(), 0);
+}
+
 /// Views keep their own visibility state over shared buffers: interleaving
 /// two views gives each the image it gets alone.
 #[test]
