@@ -613,10 +613,13 @@ pub fn run_resident(
             }
         };
         let stats = renderer.render(&mut view, scene, tree, source, capture.frame_target())?;
-        let mut visible: Vec<ChunkId> = view
-            .drawn_entries()
-            .map(|e| tree.entries()[e.0 as usize].chunk)
-            .collect();
+        // The chunks a view drew, one per chunk instance.
+        let drawn_chunks = |v: &View| -> Vec<ChunkId> {
+            v.drawn_entries()
+                .map(|e| tree.entries()[e.0 as usize].chunk)
+                .collect()
+        };
+        let mut visible = drawn_chunks(&view);
         let drawn = visible.len();
         let mut ahead_ms = None;
         // No prediction in an opening frame (the eye stands still) nor in
@@ -633,11 +636,7 @@ pub fn run_resident(
                 .camera
                 .extrapolated(&camera(&path[before]), steps_ahead);
             renderer.render(&mut ahead, scene, tree, source, target.frame_target())?;
-            visible.extend(
-                ahead
-                    .drawn_entries()
-                    .map(|e| tree.entries()[e.0 as usize].chunk),
-            );
+            visible.extend(drawn_chunks(&ahead));
             ahead_ms = Some(start.elapsed().as_secs_f64() * 1e3);
         }
         if let Some(boxed) = boxed {

@@ -48,6 +48,14 @@ pub fn viewpoints() -> Vec<Camera> {
     ]
 }
 
+/// An occlusion-culled view that keeps its queries on (no adaptive decision),
+/// so that every frame runs them.
+fn chc_view(cam: Camera, size: (u32, u32)) -> View {
+    let mut view = View::new(cam, size, Culling::Occlusion);
+    view.options.adaptive = false;
+    view
+}
+
 #[test]
 fn frustum_image_equals_unculled_image() {
     let (scene, tree) = small_plant();
@@ -146,8 +154,7 @@ fn occlusion_converges_to_the_unculled_image() {
         let none = rig.shot(cam, Culling::None, &scene, &tree);
         none.save(image_path(&format!("plant_none_{i}.png")))
             .unwrap();
-        let mut view = View::new(cam, size, Culling::Occlusion);
-        view.options.adaptive = false;
+        let mut view = chc_view(cam, size);
         let mut converged = None;
         for _ in 0..12 {
             let stats = rig.frame(&mut view, &scene, &tree);
@@ -195,21 +202,18 @@ fn an_inherited_visibility_starts_where_the_other_view_left_off() {
     };
     let cam = viewpoints()[0];
     let none = rig.shot(cam, Culling::None, &scene, &tree);
-    let mut first = View::new(cam, size, Culling::Occlusion);
-    first.options.adaptive = false;
+    let mut first = chc_view(cam, size);
     for _ in 0..6 {
         rig.frame(&mut first, &scene, &tree);
     }
     let converged: BTreeSet<EntryId> = first.drawn_entries().collect();
-    let mut fresh = View::new(cam, size, Culling::Occlusion);
-    fresh.options.adaptive = false;
+    let mut fresh = chc_view(cam, size);
     let fresh_first = rig.frame(&mut fresh, &scene, &tree);
     assert!(
         fresh_first.chunks_drawn > converged.len() as u64,
         "{fresh_first:?}"
     );
-    let mut heir = View::new(cam, size, Culling::Occlusion);
-    heir.options.adaptive = false;
+    let mut heir = chc_view(cam, size);
     heir.inherit_visibility(&first);
     let stats = rig.frame(&mut heir, &scene, &tree);
     assert_eq!(stats.newly_visible, 0, "{stats:?}");
@@ -232,13 +236,7 @@ fn views_are_independent() {
         .iter()
         .map(|&c| rig.shot(c, Culling::None, &scene, &tree))
         .collect();
-    let mut views: Vec<View> = cams[..2]
-        .iter()
-        .map(|&c| View::new(c, size, Culling::Occlusion))
-        .collect();
-    for v in &mut views {
-        v.options.adaptive = false;
-    }
+    let mut views: Vec<View> = cams[..2].iter().map(|&c| chc_view(c, size)).collect();
     let mut images = [None, None];
     for _ in 0..8 {
         for (k, v) in views.iter_mut().enumerate() {
@@ -269,8 +267,7 @@ fn occlusion_culling_survives_geometry_that_is_not_resident() {
     };
     let cam = viewpoints()[0];
     let none = rig.shot(cam, Culling::None, &scene, &tree);
-    let mut view = View::new(cam, size, Culling::Occlusion);
-    view.options.adaptive = false;
+    let mut view = chc_view(cam, size);
     view.options.requery_interval = 1;
     rig.evict_odd_chunks(&scene);
     let partial = EveryOther(&scene);
