@@ -22,6 +22,9 @@ struct ViewUniform {
     // The eye single-view entry points draw (0 but for a stereo pair drawn a
     // layer at a time).
     eye: u32,
+    // The headlight in eye k's view space at light[k] (the eye itself, or
+    // one lamp between a pair's eyes).
+    light: array<vec4<f32>, 2>,
     // Section planes (n, d) in eye k's view space at clip[k * 6 ..]: a point
     // p with dot(n, p) + d < 0 is cut away. Unused ones are (0, 0, 0, 1).
     clip: array<vec4<f32>, 12>,
@@ -169,10 +172,11 @@ fn fs_shade(in: MeshOut) -> @location(0) vec4<f32> {
         }
         base = vec4<f32>(mix(base.rgb, tint.rgb, tint.a), base.a);
     }
-    // Headlight: the light sits at the eye, so every visible face is lit and
-    // two-sided lighting hides inconsistent CAD windings.
+    // Headlight: the light sits at the eye (or between a pair's eyes), so
+    // every visible face is lit and two-sided lighting hides inconsistent CAD
+    // windings.
     let n = normalize(in.normal);
-    let l = normalize(-in.view_pos);
+    let l = normalize(view.light[in.eye].xyz - in.view_pos);
     let lambert = abs(dot(n, l));
     return vec4<f32>(base.rgb * (0.2 + 0.8 * lambert), 1.0);
 }

@@ -103,6 +103,15 @@ pub struct Args {
     /// (OUTPUT-shared-left.png, OUTPUT-shared-right.png).
     #[arg(long, requires = "stereo", value_parser = number_in(1e-3, 1e3))]
     shared_far_px: Option<f64>,
+    /// With --stereo: also draw the pair with its right eye reprojected from
+    /// the left eye's image by depth (the left eye drawn once, wide enough
+    /// for both windows; each pixel moved by its disparity to the nearest
+    /// pixel; the gaps along near silhouettes filled from the farther
+    /// neighbour), and report its frame time against one eye and against
+    /// the pair drawn in full, the gaps and the image difference
+    /// (OUTPUT-reprojected-left.png, OUTPUT-reprojected-right.png).
+    #[arg(long, requires = "stereo")]
+    reproject: bool,
     /// Print stats as JSON.
     #[arg(long)]
     json: bool,
@@ -375,37 +384,42 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     } else {
         None
     };
-    let shared_far = match args.shared_far_px {
-        Some(error_px) => {
-            let fovs = eye_fovs.unwrap_or_else(|| {
-                let aspect = f64::from(size.0) / f64::from(size.1);
-                [dmu_geom::Fov::symmetric(camera.fov_y_rad, aspect); 2]
-            });
-            let setup = crate::stereo_far::Setup {
-                center: camera,
-                ipd: args.ipd,
-                fovs,
-                size,
+    let variants = crate::stereo_far::Variants {
+        shared_far: args.shared_far_px.map(|error_px| {
+            (
                 error_px,
-                culling,
-                options: culling_options,
-                frames: args.frames,
-                scene,
-                tree: &tree,
-            };
-            let outputs = [
-                eye_path(&args.output, "shared-left"),
-                eye_path(&args.output, "shared-right"),
-            ];
-            Some(crate::stereo_far::compare(
-                &mut renderer,
-                &device,
-                &queue,
-                &setup,
-                &outputs,
-            )?)
-        }
-        None => None,
+                [
+                    eye_path(&args.output, "shared-left"),
+                    eye_path(&args.output, "shared-right"),
+                ],
+            )
+        }),
+        reprojected: args.reproject.then(|| {
+            [
+                eye_path(&args.output, "reprojected-left"),
+                eye_path(&args.output, "reprojected-right"),
+            ]
+        }),
+    };
+    let compared = if variants.shared_far.is_some() || variants.reprojected.is_some() {
+        let fovs = eye_fovs.unwrap_or_else(|| {
+            let aspect = f64::from(size.0) / f64::from(size.1);
+            [dmu_geom::Fov::symmetric(camera.fov_y_rad, aspect); 2]
+        });
+        let setup = crate::stereo_far::Setup {
+            center: camera,
+            ipd: args.ipd,
+            fovs,
+            size,
+            culling,
+            options: culling_options,
+            frames: args.frames,
+            scene,
+            tree: &tree,
+        };
+        crate::stereo_far::compare(&mut renderer, &device, &queue, &setup, &variants)?
+    } else {
+        json!({ "shared_far": null, "reprojected": null })
     };
     let stereo_json = stereo.as_ref().map(|(_, frames, outputs)| {
         let (stereo_ms, stereo_gpu_ms) = steady_ms(frames);
@@ -422,7 +436,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             "gpu_ratio": if one_eye_gpu_ms > 0.0 { json!(stereo_gpu_ms / one_eye_gpu_ms) } else { json!(null) },
             "one_eye_last": stats_json(single_frames.last().expect("at least one frame")),
             "one_eye_frames": single_frames.iter().map(stats_json).collect::<Vec<_>>(),
-            "shared_far": shared_far,
+            "shared_far": compared["shared_far"],
+            "reprojected": compared["reprojected"],
         })
     });
     if args.json {
@@ -463,7 +478,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             last.cpu_ms,
             last.gpu_ms
         );
-        if let Some(s) = stereo_json {
+        if let Some(s) = &stereo_json {
             println!(
                 "stereo ({}): {:.1} ms a frame against {:.1} ms for one eye: {:.2}x",
                 s["mode"].as_str().unwrap_or_default(),
@@ -496,6 +511,24 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                     f["draw_calls"]["one_eye"],
                 );
             }
+        }
+        if let Some(r) = stereo_json.as_ref().map(|s| &s["reprojected"])
+            && !r.is_null()
+        {
+            let f = |k: &str| r[k].as_f64().unwrap_or_default();
+            let diff = &r["image_difference"]["fraction_differing"];
+            println!(
+                "right eye reprojected from a {} px wide left eye: {:.1} ms a frame ({:.1} drawing, {:.1} reprojecting), {:.2}x one eye; the pair in full {:.2}x; gaps filled {:.3} %; pixels differing from the pair in full {:.3} % (left), {:.3} % (right)",
+                r["wide_width"],
+                f("frame_ms"),
+                f("wide_pass_ms"),
+                f("reproject_ms"),
+                f("ratio"),
+                f("true_stereo_ratio"),
+                100.0 * f("gap_fraction"),
+                100.0 * diff[0].as_f64().unwrap_or_default(),
+                100.0 * diff[1].as_f64().unwrap_or_default(),
+            );
         }
         if let Some(o) = oracle {
             println!("oracle: {o}");

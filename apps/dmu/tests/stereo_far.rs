@@ -1,17 +1,20 @@
-//! `dmu render --stereo --shared-far-px`: the pair with a shared far part
-//! against the same pair drawn in full, with asymmetric eye fields of view.
+//! `dmu render --stereo --shared-far-px` and `--reproject`: the cheaper
+//! pairs against the same pair drawn in full, with asymmetric eye fields of
+//! view.
 //! Included from `tests.rs`.
 
 use serde_json::Value;
 
 use super::{path, render};
 
-#[test]
-fn shared_far_pair_matches_the_full_pair_within_its_bound() {
+/// `dmu render --stereo` inside the 200k plant, looking down the pipe rack
+/// (millimetres, 320x320 headset-like eyes, two frames) with `variant`'s
+/// flags: the JSON report and the folder of its images, or `None` after a
+/// skip.
+fn pair(test: &str, variant: &[&str]) -> Option<(Value, tempfile::TempDir)> {
     let dir = tempfile::tempdir().unwrap();
     let png = path(dir.path(), "s.png");
-    // Inside the plant, looking down the pipe rack (millimetres).
-    let args = [
+    let mut args = vec![
         "--plant-triangles",
         "200k",
         "--eye",
@@ -24,23 +27,30 @@ fn shared_far_pair_matches_the_full_pair_within_its_bound() {
         "--ipd",
         "65",
         "--eye-fov=-52,43,-50,48",
-        "--shared-far-px",
-        "0.5",
         "--frames",
         "2",
         "--json",
         "-o",
         &png,
     ];
-    let Some(out) = render("shared_far_pair_matches_the_full_pair", &args) else {
-        return;
-    };
+    args.extend_from_slice(variant);
+    let out = render(test, &args)?;
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    Some((serde_json::from_slice(&out.stdout).unwrap(), dir))
+}
+
+#[test]
+fn shared_far_pair_matches_the_full_pair_within_its_bound() {
+    let Some((v, dir)) = pair(
+        "shared_far_pair_matches_the_full_pair",
+        &["--shared-far-px", "0.5"],
+    ) else {
+        return;
+    };
     let f = &v["stereo"]["shared_far"];
     assert!(
         f["disparity_error_bound_px"].as_f64().unwrap() <= 0.5 + 1e-9,
@@ -72,6 +82,36 @@ fn shared_far_pair_matches_the_full_pair_within_its_bound() {
     assert_eq!(f["eye_fov_deg"][1][0].as_f64().map(f64::round), Some(-43.0));
 }
 
+/// `--reproject`: the right eye moved from the wide left eye by depth, beside
+/// the pair in full (both lit from between the eyes): the left eye is the
+/// full pair's, the right differs along edges and gaps only, and the report
+/// gives the gaps, the parts' times and the ratios.
+#[test]
+fn reprojected_pair_matches_the_full_pair_but_along_edges_and_gaps() {
+    let Some((v, dir)) = pair("reprojected_pair_matches_the_full_pair", &["--reproject"]) else {
+        return;
+    };
+    assert!(v["stereo"]["shared_far"].is_null());
+    let r = &v["stereo"]["reprojected"];
+    // The left window, the right eye's (mirrored: 52 - 43 degrees further
+    // right) and the margin, on the left eye's pixel grid.
+    let fx = 320.0 / (52f64.to_radians().tan() + 43f64.to_radians().tan());
+    let union = (2.0 * 52f64.to_radians().tan() * fx).ceil();
+    assert_eq!(r["wide_width"].as_f64(), Some(union + 32.0), "{r:#}");
+    let gaps = r["gap_fraction"].as_f64().unwrap();
+    assert!(gaps > 0.0 && gaps < 0.1, "{r:#}");
+    let over = &r["image_difference"]["fraction_over_8_levels"];
+    assert!(over[0].as_f64().unwrap() < 0.001, "{r:#}");
+    assert!(over[1].as_f64().unwrap() < 0.1, "{r:#}");
+    for key in ["ratio", "true_stereo_ratio", "wide_pass_ms", "reproject_ms"] {
+        assert!(r[key].as_f64().unwrap() > 0.0, "{key}: {r:#}");
+    }
+    for name in ["s-reprojected-left.png", "s-reprojected-right.png"] {
+        let image = image::open(dir.path().join(name)).expect(name).to_rgba8();
+        assert_eq!(image.dimensions(), (320, 320));
+    }
+}
+
 #[test]
 fn malformed_eye_fields_of_view_are_refused() {
     for bad in ["-52,43,-50", "10,-10,-40,40", "-95,43,-50,48", "a,b,c,d"] {
@@ -93,5 +133,43 @@ fn malformed_eye_fields_of_view_are_refused() {
         assert_eq!(out.status.code(), Some(2), "{bad}");
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains("--eye-fov"), "{bad}: {err}");
+    }
+}
+
+/// A pair whose wide image would pass the device's largest texture side is
+/// refused with a message naming the flag, not a GPU validation panic
+/// (regression: both flags panicked at 16000 px eyes).
+#[test]
+fn a_pair_too_wide_for_the_device_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = path(dir.path(), "wide.png");
+    for flag in ["--reproject", "--shared-far-px=0.5"] {
+        let args = [
+            "--plant-triangles",
+            "10k",
+            "--eye",
+            "4509000,5349750,13700",
+            "--target",
+            "4572000,5351750,14000",
+            "--size",
+            "16000x16",
+            "--stereo",
+            "--eye-fov=-52,43,-50,48",
+            flag,
+            "-o",
+            &png,
+        ];
+        let Some(out) = render("a_pair_too_wide_for_the_device_is_refused", &args) else {
+            return;
+        };
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{flag}: {err}");
+        let flag_name = flag.split('=').next().unwrap();
+        assert!(
+            err.contains(flag_name)
+                && err.contains("make --size smaller")
+                && !err.contains("panicked"),
+            "{flag}: {err}"
+        );
     }
 }

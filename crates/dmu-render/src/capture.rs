@@ -14,6 +14,9 @@ use crate::device::map_read;
 pub const CAPTURE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 /// Depth format of every target (reverse-Z: cleared to 0, compared with Greater).
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// The view format the stereo reprojection reads captures' colour through:
+/// [`CAPTURE_FORMAT`] without the sRGB decoding, so it copies stored bytes.
+pub(crate) const REPROJECT_SOURCE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 /// Format of chunk-id targets: entry id + 1, 0 for the background.
 pub const ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
 
@@ -100,6 +103,11 @@ impl Capture {
     fn layer_target(&self, layer: usize) -> crate::FrameTarget<'_> {
         let (color, depth) = &self.layers[layer];
         crate::FrameTarget { color, depth }
+    }
+
+    /// The depth view of one layer.
+    pub(crate) fn depth_view(&self, layer: usize) -> &wgpu::TextureView {
+        &self.layers[layer].1
     }
 
     /// The views to render a stereo pair into.
@@ -315,7 +323,13 @@ pub(crate) fn attachment_texture(
             | wgpu::TextureUsages::COPY_DST
             // Depth is read by `hzb` culling's pyramid.
             | wgpu::TextureUsages::TEXTURE_BINDING,
-        view_formats: &[],
+        // Colour is also read as plain RGBA8 (its stored bytes) by the
+        // stereo reprojection.
+        view_formats: if format == CAPTURE_FORMAT {
+            &[REPROJECT_SOURCE_FORMAT]
+        } else {
+            &[]
+        },
     })
 }
 

@@ -34,12 +34,14 @@ pub(crate) struct ViewUniform {
     pub eye: u32,
     /// The array that follows starts at a multiple of 16 bytes.
     pub _pad: [u32; 3],
+    /// The headlight in each eye's view space (w unused).
+    pub light: [[f32; 4]; 2],
     /// Section planes `(n, d)` in each eye's view space, eye `k`'s at
     /// `k * MAX_SECTION_PLANES`; a point is cut away where `n·p + d < 0`.
     /// Unused slots are `(0, 0, 0, 1)`, which keep everything.
     pub clip: [[f32; 4]; 2 * crate::MAX_SECTION_PLANES],
 }
-const _: () = assert!(size_of::<ViewUniform>() == 144 + 16 * 2 * crate::MAX_SECTION_PLANES);
+const _: () = assert!(size_of::<ViewUniform>() == 176 + 16 * 2 * crate::MAX_SECTION_PLANES);
 
 /// `ModelView`: rows of a part's camera-relative affine model-view, formed in
 /// f64 and narrowed to f32 only once small.
@@ -80,6 +82,9 @@ const _: () = assert!(size_of::<QueryBox>() == 64);
 
 /// The WGSL source of the depth pyramid and box tests of `Culling::Hzb`.
 pub(crate) const HZB_SHADER: &str = include_str!("../../../shaders/hzb.wgsl");
+
+/// The WGSL source of the stereo reprojection (`crate::reproject`).
+pub(crate) const REPROJECT_SHADER: &str = include_str!("../../../shaders/reproject.wgsl");
 
 /// `Params` of `hzb.wgsl`: the projection, the target's size, pyramid levels
 /// and candidates.
@@ -162,6 +167,13 @@ mod tests {
     fn hzb_shader_validates_with_naga() {
         let entries = validate(super::HZB_SHADER, Capabilities::empty());
         assert_eq!(entries, ["reduce_depth", "reduce_level", "test_boxes"]);
+    }
+
+    /// The stereo reprojection shader validates, with its one pass.
+    #[test]
+    fn reproject_shader_validates_with_naga() {
+        let entries = validate(super::REPROJECT_SHADER, Capabilities::empty());
+        assert_eq!(entries, ["reproject_rows"]);
     }
 
     /// The stereo shader validates with multiview, and only with it.

@@ -95,6 +95,7 @@ mod hierarchy;
 mod hzb;
 mod proxy;
 mod renderer;
+mod reproject;
 mod stereo;
 mod view;
 
@@ -111,6 +112,7 @@ pub use geometry::{GeometryPool, GeometrySource};
 pub use hierarchy::Hierarchy;
 pub use proxy::{CALM_TICKS, Proxies, ProxyOptions, ProxyStats};
 pub use renderer::{FrameTarget, Renderer, RendererOptions};
+pub use reproject::{Reprojection, Reprojector};
 pub use stereo::{StereoCamera, StereoMode, StereoTarget, StereoView};
 pub use view::{
     AUTO_PROBE_EVERY, AutoChoice, Culling, CullingOptions, FrameStats, MAX_SECTION_PLANES,

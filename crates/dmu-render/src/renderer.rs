@@ -766,6 +766,12 @@ impl Renderer {
             .unwrap_or_else(|| self.make_view_gpu(part_count.max(1) * eye_views.len()));
         self.ensure_capacity(&mut g, part_count * eye_views.len(), 0);
         g.sectioned = !view.section.is_empty();
+        let mut light = [[0.0; 4]; 2];
+        if let Some(at) = view.light {
+            for (l, v) in light.iter_mut().zip(eye_views) {
+                *l = v.transform_point3(at).as_vec3().extend(0.0).to_array();
+            }
+        }
         for eye in 0..eye_views.len() {
             let uniform = ViewUniform {
                 proj: proj.as_mat4().to_cols_array_2d(),
@@ -776,6 +782,7 @@ impl Renderer {
                 eye_stride: part_count as u32,
                 eye: eye as u32,
                 _pad: [0; 3],
+                light,
                 clip,
             };
             self.queue.write_buffer(

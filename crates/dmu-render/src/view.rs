@@ -268,6 +268,11 @@ pub struct View {
     /// still) instead of clearing it to the background: a near part over a
     /// far part drawn before.
     pub keep_color: bool,
+    /// Where the headlight is, world space (`None`: at each eye). A stereo
+    /// pair lit from between the eyes, as one lamp on the head lights both,
+    /// shades each surface point alike in both eyes, which a reprojected eye
+    /// ([`crate::Reprojector`]) needs.
+    pub light: Option<glam::DVec3>,
     /// The far field of the viewpoint cell the eye is in
     /// ([`crate::FarField`]): where it serves the eye (and far fields are
     /// enabled on the renderer, the frame is a single view, and its culling
@@ -319,6 +324,7 @@ impl View {
             fov: None,
             far: None,
             keep_color: false,
+            light: None,
             far_field: None,
             far_only: None,
             section: Vec::new(),

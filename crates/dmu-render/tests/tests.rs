@@ -6,5 +6,6 @@ mod hierarchy;
 mod hzb;
 mod images;
 mod proxies;
+mod reproject;
 mod stereo;
 mod support;
