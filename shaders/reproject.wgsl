@@ -14,8 +14,11 @@
 // replaces what was there and no depth test is needed (McMillan's
 // occlusion-compatible order). Where consecutive pixels land more than one
 // pixel apart, the right eye sees between them what the left eye's view hid
-// behind the nearer (a gap along a near silhouette): the farther of the two
-// fills it, where nothing has landed, so the background extends into the gap.
+// behind the nearer (a gap along a near silhouette; a single column where a
+// slanted surface widens in the right eye): the farther of the two fills the
+// columns past the furthest reached so far (those before it are landed on or
+// filled already), so the background extends into the gap and a row costs
+// its width, whatever its depth changes.
 
 struct Params {
     source_size: vec2<u32>,
@@ -38,14 +41,11 @@ struct Params {
 // Per target pixel: its RGBA8 colour, as the target stores it.
 @group(0) @binding(4) var<storage, read_write> out: array<u32>;
 
-// Fills the target pixels of row `y` from `first` to before `end` where
-// nothing has landed with `color`.
+// Fills the target pixels of row `y` from `first` to before `end` with
+// `color` (columns past the furthest reached: nothing landed there yet).
 fn fill(y: u32, first: i32, end: i32, color: u32) {
-    let w = i32(params.target_size.x);
-    for (var u = max(first, 0); u < min(end, w); u++) {
-        if landed[y * params.target_size.x + u32(u)] == 0u {
-            out[y * params.out_stride + u32(u)] = color;
-        }
+    for (var u = max(first, 0); u < min(end, i32(params.target_size.x)); u++) {
+        out[y * params.out_stride + u32(u)] = color;
     }
 }
 
@@ -56,8 +56,9 @@ fn reproject_rows(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let w = i32(params.target_size.x);
-    // The previous pixel's landing column (-1 before the first), depth and colour.
-    var prev_u = -1;
+    // The furthest column landed on or filled (-1 before the first pixel),
+    // and the previous pixel's depth and colour.
+    var furthest = -1;
     var prev_d = 0.0;
     var prev_color = 0u;
     for (var x = 0u; x < params.source_size.x; x++) {
@@ -68,23 +69,23 @@ fn reproject_rows(@builtin(global_invocation_id) id: vec3<u32>) {
         // target_offset, in the pixel containing it (-1 and w: off the target).
         let landing = floor(f32(x) + 0.5 - d * params.disparity_at_near - params.target_offset);
         let u = i32(clamp(landing, -1.0, f32(w)));
-        if u > prev_u + 1 {
+        if u > furthest + 1 {
             // The farther of the two (depth is reverse-Z); the first pixel
             // alone where the row starts with a gap.
             var gap = color;
             if x > 0u && prev_d < d {
                 gap = prev_color;
             }
-            fill(y, prev_u + 1, u, gap);
+            fill(y, furthest + 1, u, gap);
         }
         if u >= 0 && u < w {
             out[y * params.out_stride + u32(u)] = color;
             landed[y * params.target_size.x + u32(u)] = 1u;
         }
-        prev_u = u;
+        furthest = max(furthest, u);
         prev_d = d;
         prev_color = color;
     }
     // Past the last landing: the right edge beyond what the left image holds.
-    fill(y, prev_u + 1, w, prev_color);
+    fill(y, furthest + 1, w, prev_color);
 }

@@ -192,13 +192,16 @@ pub fn shared_window(fovs: &[Fov; 2], size: (u32, u32), error_px: f64) -> Option
 }
 
 /// Columns the left eye's image for reprojection reaches beyond the right
-/// eye's window: the right eye's last columns show what lies that much
-/// further right from the left eye (a disparity of 32 px: 65 mm at about 1.2
-/// m for a 600 px-per-tangent headset eye); nearer content there is filled.
-pub const REPROJECT_MARGIN_PX: u32 = 32;
+/// eye's window, for eyes `width` pixels wide: a fortieth of it (32 at
+/// 1280). The right eye's last columns show what lies that much further
+/// right from the left eye: content nearer than `ipd * fx / margin` (65 mm
+/// at about 1.2 m for a 1280 px headset eye) is filled there instead.
+pub fn reproject_margin(width: u32) -> u32 {
+    width.div_ceil(40)
+}
 
 /// The left eye's image the right eye is reprojected from: the left eye's
-/// pixel grid over both eyes' windows and [`REPROJECT_MARGIN_PX`] more.
+/// pixel grid over both eyes' windows and [`reproject_margin`] more.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WideWindow {
     pub fov: Fov,
@@ -222,7 +225,8 @@ pub fn wide_window(fovs: &[Fov; 2], size: (u32, u32)) -> anyhow::Result<WideWind
         "--reproject needs eyes of one horizontal extent and one vertical field of view"
     );
     let grid = Grid::new(fovs, size);
-    let width = ((r0.max(r1) - grid.start) * grid.fx - 1e-9).ceil() as u32 + REPROJECT_MARGIN_PX;
+    let width =
+        ((r0.max(r1) - grid.start) * grid.fx - 1e-9).ceil() as u32 + reproject_margin(size.0);
     Ok(WideWindow {
         fov: Fov {
             left: grid.start.atan(),
@@ -251,19 +255,25 @@ fn waited(device: &wgpu::Device, start: Instant) -> anyhow::Result<f64> {
     Ok(start.elapsed().as_secs_f64() * 1e3)
 }
 
-/// An error unless an image of `size` pixels that `flag` draws fits this
-/// device (a texture side, and its pixels in one storage buffer).
-fn fits(device: &wgpu::Device, size: (u32, u32), flag: &str) -> anyhow::Result<()> {
-    let limits = device.limits();
-    let side = limits.max_texture_dimension_2d;
-    let bytes = u64::from(size.0.next_multiple_of(64)) * u64::from(size.1) * 4;
-    let buffer = limits
-        .max_storage_buffer_binding_size
-        .min(limits.max_buffer_size);
+/// An error unless both eyes' windows on one pixel grid, `margin` columns
+/// more, fit a texture of this device: the image `flag` draws (checked in
+/// f64, before any width is a `u32`).
+fn grid_fits(
+    device: &wgpu::Device,
+    fovs: &[Fov; 2],
+    size: (u32, u32),
+    margin: u32,
+    flag: &str,
+) -> anyhow::Result<()> {
+    let [l0, r0, _, _] = fovs[0].tangents();
+    let [l1, r1, _, _] = fovs[1].tangents();
+    let fx = f64::from(size.0) / (r0 - l0);
+    // Two columns for rounding each window onto the grid.
+    let width = (r0.max(r1) - l0.min(l1)) * fx + f64::from(margin) + 2.0;
+    let side = device.limits().max_texture_dimension_2d;
     anyhow::ensure!(
-        size.0 <= side && size.1 <= side && bytes <= buffer,
-        "{flag}: it would draw a {}x{} image, more than this device takes ({side} px a side, {buffer} bytes a buffer); make --size smaller",
-        size.0,
+        width <= f64::from(side) && size.1 <= side,
+        "{flag}: both eyes' windows on one pixel grid make a {width:.0}x{} image, more than this device's {side} px a side; make --size smaller or let the --eye-fov windows overlap more",
         size.1
     );
     Ok(())
@@ -446,14 +456,20 @@ struct SharedFar {
 impl SharedFar {
     fn new(c: &Ctx<'_, '_>, error_px: f64) -> anyhow::Result<Self> {
         let s = c.s;
+        grid_fits(c.device, &s.fovs, s.size, 0, "--shared-far-px")?;
         let window = shared_window(&s.fovs, s.size, error_px).with_context(|| {
             format!(
                 "--shared-far-px {error_px}: the eyes' windows lie too far off one pixel grid at this size; allow more"
             )
         })?;
-        fits(c.device, (window.width, s.size.1), "--shared-far-px")?;
         // Beyond this depth the eyes' disparity is below what may be shared.
         let split = s.ipd * window.fx / window.max_shared_disparity_px;
+        anyhow::ensure!(
+            split > s.center.near * (1.0 + 1e-9),
+            "--shared-far-px {error_px}: with --ipd {} the eyes' disparity is within it everywhere beyond the near plane ({}), so there is no near part to draw per eye; use a smaller --shared-far-px or a larger --ipd",
+            s.ipd,
+            s.center.near
+        );
         let eyes = c.eyes();
         let far_view = c.view(
             Camera {
@@ -551,10 +567,27 @@ struct Reprojected {
 impl Reprojected {
     fn new(c: &Ctx<'_, '_>) -> anyhow::Result<Self> {
         let s = c.s;
+        grid_fits(
+            c.device,
+            &s.fovs,
+            s.size,
+            reproject_margin(s.size.0),
+            "--reproject",
+        )?;
         let window = wide_window(&s.fovs, s.size)?;
         let left = c.eyes()[0];
         let wide_size = (window.width, s.size.1);
-        fits(c.device, wide_size, "--reproject")?;
+        let limits = c.device.limits();
+        let buffer = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        let bytes = u64::from(s.size.0.next_multiple_of(64)) * u64::from(s.size.1) * 4;
+        anyhow::ensure!(
+            bytes <= buffer,
+            "--reproject: a {}x{} eye needs {bytes} bytes in one buffer, more than this device's {buffer}; make --size smaller",
+            s.size.0,
+            s.size.1
+        );
         Ok(Self {
             window,
             wide_view: c.view(left, window.fov, wide_size),
@@ -583,10 +616,12 @@ impl Reprojected {
         Ok(json!({
             "pixels_per_tangent": self.window.fx,
             "wide_width": self.window.width,
-            "margin_px": REPROJECT_MARGIN_PX,
+            "margin_px": reproject_margin(c.s.size.0),
             "right_eye_offset": self.window.right_offset,
-            // Every reprojected pixel lands in the pixel holding where it
-            // belongs; the gaps are filled instead and show in the difference.
+            // Every pixel that lands lands in the pixel holding where it
+            // belongs; the gaps (along near silhouettes, and single columns
+            // where a slanted surface widens in the right eye) are filled
+            // from a neighbour instead and show in the difference.
             "disparity_error_bound_px": 0.5,
             "frame_ms": frame_ms,
             "wide_pass_ms": part(0),
@@ -744,5 +779,47 @@ mod tests {
         }
         assert!(shared >= 4, "{shared} widths shared");
         assert!(eye_fovs(&[10.0, -10.0, -40.0, 40.0]).is_err());
+    }
+
+    /// The wide image holds the left eye's window exactly and the right
+    /// eye's on the same grid, its offset the fraction the tangents give,
+    /// plus the margin, for mirrored eyes wider outside and wider inside;
+    /// eyes of different extents are refused.
+    #[test]
+    fn wide_window_holds_both_eyes_on_the_left_grid() {
+        for degrees in [[-52.0, 43.0, -50.0, 48.0], [-43.0, 52.0, -50.0, 48.0]] {
+            let fovs = eye_fovs(&degrees).unwrap();
+            for width in [320, 1280, 1279] {
+                let size = (width, 700);
+                let w = wide_window(&fovs, size).unwrap();
+                let [l0, r0, _, _] = fovs[0].tangents();
+                let [l1, r1, _, _] = fovs[1].tangents();
+                let fx = f64::from(width) / (r0 - l0);
+                assert!((w.fx - fx).abs() < 1e-9);
+                let px = |t: f64| (t - w.fov.left.tan()) * fx;
+                // The left window starts on a column, the right where its
+                // tangent falls; both end inside, the margin beyond.
+                assert!(
+                    (px(l0) - f64::from(w.left_offset)).abs() < 1e-6,
+                    "{degrees:?}"
+                );
+                assert!((px(l1) - w.right_offset).abs() < 1e-6, "{degrees:?}");
+                let end = px(r0.max(r1));
+                let margin = f64::from(reproject_margin(width));
+                assert!(
+                    end <= f64::from(w.width) - margin + 1e-6,
+                    "{degrees:?} {width}"
+                );
+                assert!(
+                    end > f64::from(w.width) - margin - 1.0,
+                    "{degrees:?} {width}"
+                );
+                assert!((px(r1) - w.right_offset - f64::from(width)).abs() < 1e-6);
+                assert_eq!(w.left_offset > 0, degrees[0] > -52.0, "{degrees:?}");
+            }
+        }
+        let mut uneven = eye_fovs(&[-52.0, 43.0, -50.0, 48.0]).unwrap();
+        uneven[1].right = 0.9;
+        assert!(wide_window(&uneven, (320, 200)).is_err());
     }
 }

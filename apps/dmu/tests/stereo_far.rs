@@ -97,7 +97,8 @@ fn reprojected_pair_matches_the_full_pair_but_along_edges_and_gaps() {
     // right) and the margin, on the left eye's pixel grid.
     let fx = 320.0 / (52f64.to_radians().tan() + 43f64.to_radians().tan());
     let union = (2.0 * 52f64.to_radians().tan() * fx).ceil();
-    assert_eq!(r["wide_width"].as_f64(), Some(union + 32.0), "{r:#}");
+    // The margin: a fortieth of the eye's width.
+    assert_eq!(r["wide_width"].as_f64(), Some(union + 8.0), "{r:#}");
     let gaps = r["gap_fraction"].as_f64().unwrap();
     assert!(gaps > 0.0 && gaps < 0.1, "{r:#}");
     let over = &r["image_difference"]["fraction_over_8_levels"];
@@ -136,40 +137,47 @@ fn malformed_eye_fields_of_view_are_refused() {
     }
 }
 
-/// A pair whose wide image would pass the device's largest texture side is
-/// refused with a message naming the flag, not a GPU validation panic
-/// (regression: both flags panicked at 16000 px eyes).
+/// Pairs that cannot be drawn are refused with a message naming the flag,
+/// not a panic (regressions: an image wider than the device's largest
+/// texture, an eye field of view so narrow that the grid's width overflowed,
+/// and an eye separation that leaves no near part to draw, all panicked).
 #[test]
-fn a_pair_too_wide_for_the_device_is_refused() {
+fn pairs_that_cannot_be_drawn_are_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let png = path(dir.path(), "wide.png");
-    for flag in ["--reproject", "--shared-far-px=0.5"] {
-        let args = [
+    let png = path(dir.path(), "refused.png");
+    let wide = ["--size", "16000x16", "--eye-fov=-52,43,-50,48"];
+    let narrow = ["--size", "64x64", "--eye-fov=10,10.0000000001,-40,40"];
+    let no_ipd = ["--size", "64x64", "--ipd", "0"];
+    let cases: [(&[&str], &str, &str); 5] = [
+        (&wide, "--reproject", "make --size smaller"),
+        (&wide, "--shared-far-px=0.5", "make --size smaller"),
+        (&narrow, "--reproject", "--eye-fov"),
+        (&narrow, "--shared-far-px=0.5", "--eye-fov"),
+        (&no_ipd, "--shared-far-px=0.5", "--ipd 0"),
+    ];
+    for (extra, flag, reason) in cases {
+        let mut args = vec![
             "--plant-triangles",
             "10k",
             "--eye",
             "4509000,5349750,13700",
             "--target",
             "4572000,5351750,14000",
-            "--size",
-            "16000x16",
             "--stereo",
-            "--eye-fov=-52,43,-50,48",
             flag,
             "-o",
             &png,
         ];
-        let Some(out) = render("a_pair_too_wide_for_the_device_is_refused", &args) else {
+        args.extend_from_slice(extra);
+        let Some(out) = render("pairs_that_cannot_be_drawn_are_refused", &args) else {
             return;
         };
         let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(2), "{flag}: {err}");
+        assert_eq!(out.status.code(), Some(2), "{flag} {extra:?}: {err}");
         let flag_name = flag.split('=').next().unwrap();
         assert!(
-            err.contains(flag_name)
-                && err.contains("make --size smaller")
-                && !err.contains("panicked"),
-            "{flag}: {err}"
+            err.contains(flag_name) && err.contains(reason) && !err.contains("panicked"),
+            "{flag} {extra:?}: {err}"
         );
     }
 }

@@ -321,7 +321,8 @@ pub(crate) fn attachment_texture(
         usage: wgpu::TextureUsages::RENDER_ATTACHMENT
             | wgpu::TextureUsages::COPY_SRC
             | wgpu::TextureUsages::COPY_DST
-            // Depth is read by `hzb` culling's pyramid.
+            // Depth is read by `hzb` culling's pyramid, colour and depth by
+            // the stereo reprojection.
             | wgpu::TextureUsages::TEXTURE_BINDING,
         // Colour is also read as plain RGBA8 (its stored bytes) by the
         // stereo reprojection.

@@ -27,13 +27,15 @@ use crate::gpu::REPROJECT_SHADER;
 pub struct Reprojection {
     /// The left eye's image, pixels.
     pub source_size: (u32, u32),
-    /// The right eye's image, pixels (its height at most the source's).
+    /// The right eye's image, pixels (the source's height: rows correspond).
     pub target_size: (u32, u32),
     /// The right eye's window's first column on the left image's pixel grid
     /// (generally fractional).
     pub target_offset: f64,
     /// Disparity in pixels at the near plane, `ipd * fx / near` (`fx` pixels
     /// per unit tangent): a depth value `d` moves `d` times this to the left.
+    /// Not negative: the right eye is made from the left (the scan's order
+    /// resolves occlusion only for that direction).
     pub disparity_at_near_px: f64,
 }
 
@@ -73,17 +75,23 @@ impl Reprojector {
     /// Pipelines and buffers for `reprojection`.
     ///
     /// # Panics
-    /// When the target is taller than the source or either is empty.
+    /// When the images' heights differ or either is empty, the disparity is
+    /// negative or either number is not finite.
     pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, reprojection: Reprojection) -> Self {
         let r = reprojection;
         assert!(
-            r.target_size.1 <= r.source_size.1
-                && r.target_size.0 > 0
-                && r.target_size.1 > 0
-                && r.source_size.0 > 0,
+            r.target_size.1 == r.source_size.1 && r.target_size.0 > 0 && r.source_size.0 > 0,
             "reprojection of {:?} into {:?}",
             r.source_size,
             r.target_size
+        );
+        assert!(
+            r.disparity_at_near_px >= 0.0
+                && r.disparity_at_near_px.is_finite()
+                && r.target_offset.is_finite(),
+            "reprojection with disparity {} and offset {}",
+            r.disparity_at_near_px,
+            r.target_offset
         );
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("dmu reproject.wgsl"),
@@ -144,11 +152,6 @@ impl Reprojector {
                 wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
             ),
         }
-    }
-
-    /// The reprojection it was made for.
-    pub fn reprojection(&self) -> &Reprojection {
-        &self.reprojection
     }
 
     /// Records the reprojection of `source`'s layer 0 (colour and depth, of

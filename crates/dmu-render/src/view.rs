@@ -271,7 +271,8 @@ pub struct View {
     /// Where the headlight is, world space (`None`: at each eye). A stereo
     /// pair lit from between the eyes, as one lamp on the head lights both,
     /// shades each surface point alike in both eyes, which a reprojected eye
-    /// ([`crate::Reprojector`]) needs.
+    /// ([`crate::Reprojector`]) needs. A far field keeps the light of its
+    /// capture.
     pub light: Option<glam::DVec3>,
     /// The far field of the viewpoint cell the eye is in
     /// ([`crate::FarField`]): where it serves the eye (and far fields are
