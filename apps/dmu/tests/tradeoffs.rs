@@ -104,6 +104,7 @@ fn tradeoffs_quick_writes_plots_and_every_reference_setting_is_exact() {
             "rendering: far field resolution",
             "rendering: far field mesh error",
             "rendering: far field skins",
+            "rendering: stereo pair",
             "loading: predicted view",
         ]);
     }
@@ -191,6 +192,34 @@ fn tradeoffs_quick_writes_plots_and_every_reference_setting_is_exact() {
         );
         assert!(extra(meshes, "bytes per cell") > 0.0, "{meshes}");
         assert!(extra(meshes, "build per cell, ms") > 0.0, "{meshes}");
+    }
+    // The stereo pair: the full pair, the far part shared at two errors and
+    // the reprojected right eye, which differs from the full pair's (its
+    // gaps are filled, not drawn).
+    if skipped.is_empty() {
+        let stereo = knob("stereo pair")["points"].as_array().unwrap();
+        let labels: Vec<&str> = stereo
+            .iter()
+            .map(|p| p["label"].as_str().unwrap())
+            .collect();
+        assert_eq!(
+            labels,
+            [
+                "pair in full",
+                "far part shared within 0.5 px",
+                "far part shared within 2 px",
+                "right eye reprojected"
+            ]
+        );
+        let reprojected = &stereo[3];
+        assert!(
+            number(&reprojected["error"], "error") > 0.0,
+            "{reprojected}"
+        );
+        assert!(
+            number(&reprojected["extra"]["gaps filled, %"], "gaps") > 0.0,
+            "{reprojected}"
+        );
     }
     let discrete = knob("discrete step")["points"].as_array().unwrap();
     let last = discrete.last().unwrap();

@@ -26,6 +26,7 @@ mod numerics;
 mod plot;
 mod render;
 mod report;
+mod stereo;
 mod tree;
 
 use std::collections::BTreeMap;

@@ -2,7 +2,8 @@
 //! pixel for pixel with culling `none` (the reference image) and its drawn
 //! chunks with the exactly visible ones (chunk ids rendered unculled).
 //!
-//! Each knob is one entry of [`KNOBS`]: how a setting sets up the view. Far
+//! Each knob is one entry of [`KNOBS`]: how a setting sets up the view; the
+//! stereo pair's ways of drawing follow (`stereo.rs`). Far
 //! fields, whose settings are captures rather than a view's culling, are the
 //! `far_field` section, reported under rendering too.
 
@@ -262,6 +263,14 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<(Vec<Knob>, String)> {
             points,
         });
     }
+    knobs.push(super::stereo::knob(
+        bench,
+        &mut renderer,
+        &device,
+        &queue,
+        scene,
+        &tree,
+    )?);
     Ok((knobs, adapter.name))
 }
 
@@ -270,5 +279,6 @@ pub fn steps(quick: bool) -> u64 {
     KNOBS
         .iter()
         .map(|k| if quick { k.quick.len() } else { k.full.len() } as u64)
-        .sum()
+        .sum::<u64>()
+        + super::stereo::steps()
 }
