@@ -87,7 +87,8 @@ pub struct Args {
     /// With --stereo: the left eye's field of view as `left,right,down,up`
     /// angles in degrees (left and down negative), as a headset gives it; the
     /// right eye's is its mirror image. Default: --fov, symmetric. Used by
-    /// --shared-far-px.
+    /// the pairs --shared-far-px and --reproject draw and compare (the plain
+    /// --stereo pair, OUTPUT-left.png and OUTPUT-right.png, keeps --fov).
     #[arg(
         long,
         requires = "stereo",
