@@ -170,8 +170,16 @@ impl Aabb3d {
         // Rounding in the centre, the radius and the final sums can leave the box an
         // ulp or two short of a transformed corner; pad outwards by a few ulps of
         // the magnitudes involved so the box always encloses (trees and ray tests
-        // rely on it). Deterministic: the same transform gives the same box.
-        let pad = (c.abs() + r) * (8.0 * f64::EPSILON);
+        // rely on it). The magnitudes are the terms summed, not the sum: a
+        // translation that cancels the rotated centre leaves a small centre
+        // with the rounding of the large terms. Deterministic: the same
+        // transform gives the same box.
+        let p = self.center().abs();
+        let terms = a.x_axis.abs() * p.x
+            + a.y_axis.abs() * p.y
+            + a.z_axis.abs() * p.z
+            + m.translation.abs();
+        let pad = (terms + r) * (8.0 * f64::EPSILON);
         Aabb3d {
             min: c - r - pad,
             max: c + r + pad,

@@ -2,7 +2,7 @@
 //! against the f64 box it must enclose, and the set operations against point
 //! membership.
 
-use dmu_geom::glam::{DAffine3, DQuat, DVec3, Vec3};
+use dmu_geom::glam::{DAffine3, DMat3, DQuat, DVec3, Vec3};
 use dmu_geom::{Aabb3d, Aabb3f};
 use proptest::prelude::*;
 
@@ -52,6 +52,41 @@ fn grid_box() -> impl Strategy<Value = Aabb3d> {
 /// Componentwise `|a - b| <= tol`.
 fn close(a: DVec3, b: DVec3, tol: f64) -> bool {
     (a - b).abs().cmple(DVec3::splat(tol)).all()
+}
+
+/// Regression (a CI run's proptest case): a translation that nearly cancels
+/// the rotated centre (-23,359 + 22,938 = -421) left the centre with the
+/// rounding of the large terms, more than a pad scaled by the small centre
+/// covered; the box fell 6e-14 short of a transformed corner.
+#[test]
+fn a_translation_cancelling_the_rotated_centre_still_encloses() {
+    let aabb = Aabb3d {
+        min: DVec3::new(-406.9422364589349, -160.42731694847097, 0.0),
+        max: DVec3::new(-406.9422364589349, -160.42731694847097, 804.066835184158),
+    };
+    let m = DAffine3 {
+        matrix3: DMat3::from_cols(
+            DVec3::new(-19.978559368966675, -19.865890987922295, -77.00682275892946),
+            DVec3::new(-92.3025971487713, 5.7882177426573795, 22.45365738266422),
+            DVec3::new(
+                4.224196694158078e-7,
+                -0.009683007721245914,
+                0.002497871352142397,
+            ),
+        ),
+        translation: DVec3::new(-23358.637292008807, 0.0, 0.0),
+    };
+    let local = Aabb3f::new(aabb.min.as_vec3(), aabb.max.as_vec3());
+    let corners = |points: [DVec3; 8]| Aabb3d::from_points(points.map(|c| m.transform_point3(c)));
+    for (got, want) in [
+        (aabb.transformed(&m), corners(aabb.corners())),
+        (
+            local.transformed(&m),
+            corners(local.corners().map(|c| c.as_dvec3())),
+        ),
+    ] {
+        assert!(got.contains(&want), "{got:?} does not enclose {want:?}");
+    }
 }
 
 proptest! {
