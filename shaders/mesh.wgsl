@@ -37,10 +37,13 @@ struct ModelView {
     r2: vec4<f32>,
 }
 
-// One chunk instance: the draw's instance index selects it.
+// One chunk instance: the draw's instance index selects it. `look` holds its
+// material id in the low bits and its part's flags from FLAGS_SHIFT on (the
+// CPU rewrites a part's entries when its flags change), so a vertex finds
+// its colour with one read more, not two.
 struct EntryGpu {
     part: u32,
-    material: u32,
+    look: u32,
 }
 
 // A world-aligned box in view space: centre plus three half-axes, so the CPU
@@ -55,7 +58,6 @@ struct QueryBox {
 @group(0) @binding(0) var<uniform> view: ViewUniform;
 @group(0) @binding(1) var<storage, read> model_views: array<ModelView>;
 @group(0) @binding(2) var<storage, read> entries: array<EntryGpu>;
-@group(0) @binding(3) var<storage, read> part_flags: array<u32>;
 @group(0) @binding(4) var<storage, read> materials: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read> boxes: array<QueryBox>;
 
@@ -63,10 +65,13 @@ struct QueryBox {
 // without the discard, which would cost early depth testing.
 override SECTIONED: bool = false;
 
-// Part flag bits; the tint goes by priority: selected, clashing, hovered.
+// Part flag bits, from FLAGS_SHIFT on in EntryGpu.look; the tint goes by
+// priority: selected, clashing, hovered.
 const PART_SELECTED: u32 = 1u;
 const PART_CLASHING: u32 = 2u;
 const PART_HOVERED: u32 = 4u;
+const FLAGS_SHIFT: u32 = 29u;
+const MATERIAL_MASK: u32 = (1u << FLAGS_SHIFT) - 1u;
 
 struct MeshOut {
     // Invariant: the colour, id and query pipelines must cover identical pixels.
@@ -75,12 +80,17 @@ struct MeshOut {
     @location(1) normal: vec3<f32>,
     @location(2) @interpolate(flat) entry: u32,
     @location(3) @interpolate(flat) eye: u32,
+    // The entry's material with its part's tint, formed once per vertex: read
+    // per fragment, the entry and its material cost a CPU rasterizer more
+    // than the rest of the shading.
+    @location(4) @interpolate(flat) base: vec3<f32>,
 }
 
 // A chunk vertex as eye `eye` sees it. Every mesh entry point goes through
 // here, so a stereo layer computes exactly what a single-eye render does.
 fn mesh_vertex(position: vec3<f32>, normal: vec4<f32>, entry: u32, eye: u32) -> MeshOut {
-    let m = model_views[eye * view.eye_stride + entries[entry].part];
+    let e = entries[entry];
+    let m = model_views[eye * view.eye_stride + e.part];
     let p = vec4<f32>(position, 1.0);
     let view_pos = vec3<f32>(dot(m.r0, p), dot(m.r1, p), dot(m.r2, p));
     // Normals go through the cofactor matrix (the inverse transpose up to a
@@ -90,18 +100,36 @@ fn mesh_vertex(position: vec3<f32>, normal: vec4<f32>, entry: u32, eye: u32) -> 
     let c2 = vec3<f32>(m.r0.z, m.r1.z, m.r2.z);
     let n = normal.xyz;
     let view_normal = cross(c1, c2) * n.x + cross(c2, c0) * n.y + cross(c0, c1) * n.z;
-    return mesh_out(view_pos, view_normal, entry, eye);
+    return mesh_out(view_pos, view_normal, entry, e.look, eye);
 }
 
 // What every mesh vertex passes on, from its view-space position and normal.
-fn mesh_out(view_pos: vec3<f32>, view_normal: vec3<f32>, entry: u32, eye: u32) -> MeshOut {
+fn mesh_out(view_pos: vec3<f32>, view_normal: vec3<f32>, entry: u32, look: u32, eye: u32) -> MeshOut {
     var out: MeshOut;
     out.clip = view.proj * vec4<f32>(view_pos, 1.0);
     out.view_pos = view_pos;
     out.normal = view_normal;
     out.entry = entry;
     out.eye = eye;
+    out.base = base_colour(look);
     return out;
+}
+
+// An entry's colour from its look: its material, mixed with its part's tint
+// (selected, else clashing, else hovered) where it has one.
+fn base_colour(look: u32) -> vec3<f32> {
+    let base = materials[look & MATERIAL_MASK].rgb;
+    let flags = look >> FLAGS_SHIFT;
+    if flags == 0u {
+        return base;
+    }
+    var tint = view.hover;
+    if (flags & PART_SELECTED) != 0u {
+        tint = view.highlight;
+    } else if (flags & PART_CLASHING) != 0u {
+        tint = view.clash;
+    }
+    return mix(base, tint.rgb, tint.a);
 }
 
 // Whether a fragment at view_pos of eye `eye` is cut away by a section plane.
@@ -143,7 +171,7 @@ fn vs_proxy(
     let view_pos = f.center.xyz + f.axis_x.xyz * position.x + f.axis_y.xyz * position.y
         + f.axis_z.xyz * position.z;
     let view_normal = f.axis_x.xyz * normal.x + f.axis_y.xyz * normal.y + f.axis_z.xyz * normal.z;
-    return mesh_out(view_pos, view_normal, entry, view.eye);
+    return mesh_out(view_pos, view_normal, entry, entries[entry].look, view.eye);
 }
 
 @fragment
@@ -160,25 +188,13 @@ fn fs_shade(in: MeshOut) -> @location(0) vec4<f32> {
             return vec4<f32>(view.section_cap, 1.0);
         }
     }
-    let e = entries[in.entry];
-    var base = materials[e.material];
-    let flags = part_flags[e.part];
-    if flags != 0u {
-        var tint = view.hover;
-        if (flags & PART_SELECTED) != 0u {
-            tint = view.highlight;
-        } else if (flags & PART_CLASHING) != 0u {
-            tint = view.clash;
-        }
-        base = vec4<f32>(mix(base.rgb, tint.rgb, tint.a), base.a);
-    }
     // Headlight: the light sits at the eye (or between a pair's eyes), so
     // every visible face is lit and two-sided lighting hides inconsistent CAD
     // windings.
     let n = normalize(in.normal);
     let l = normalize(view.light[in.eye].xyz - in.view_pos);
     let lambert = abs(dot(n, l));
-    return vec4<f32>(base.rgb * (0.2 + 0.8 * lambert), 1.0);
+    return vec4<f32>(in.base * (0.2 + 0.8 * lambert), 1.0);
 }
 
 @fragment

@@ -248,6 +248,7 @@ impl Renderer {
         let start = Instant::now();
         view.frame += 1;
         self.hierarchy.sync(tree);
+        self.sync_part_flags(scene, tree);
         let proxy_time = self.sync_proxies(scene, tree, geometry);
         if view.entries.len() != tree.entries().len() {
             view.entries = vec![EntryState::default(); tree.entries().len()];
@@ -430,6 +431,7 @@ impl Renderer {
     ) -> Result<IdImage, RenderError> {
         assert_eq!(capture.size(), view.size, "capture and view sizes differ");
         self.hierarchy.sync(tree);
+        self.sync_part_flags(scene, tree);
         let cull = Cull {
             min_pixels: 0.0,
             ..Cull::new(view, None, KnobsInEffect::default())

@@ -53,15 +53,28 @@ pub(crate) struct ModelView {
 }
 const _: () = assert!(size_of::<ModelView>() == 48);
 
-/// `EntryGpu`: a chunk instance's part and material; indexed by entry id, which
+/// `EntryGpu`: a chunk instance's part and look; indexed by entry id, which
 /// the draw passes as its instance index.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Pod, Zeroable)]
 #[repr(C)]
 pub(crate) struct EntryGpu {
-    /// Part id (index into model-views and part flags).
+    /// Part id (index into model-views).
     pub part: u32,
-    /// Material id (index into materials).
-    pub material: u32,
+    /// Material id (index into materials) in the low [`FLAGS_SHIFT`] bits,
+    /// the part's flags above them.
+    pub look: u32,
+}
+
+impl EntryGpu {
+    /// The entry of `part` drawn in `material` while the part has `flags`.
+    /// Material ids past the field's range (more than 5e8 materials) wrap;
+    /// no store comes near.
+    pub fn new(part: u32, material: u32, flags: u32) -> Self {
+        EntryGpu {
+            part,
+            look: (material & ((1 << FLAGS_SHIFT) - 1)) | (flags << FLAGS_SHIFT),
+        }
+    }
 }
 const _: () = assert!(size_of::<EntryGpu>() == 8);
 
@@ -135,6 +148,8 @@ pub(crate) const PART_SELECTED: u32 = 1;
 pub(crate) const PART_CLASHING: u32 = 2;
 /// Part flag bit: the pointer is over the part.
 pub(crate) const PART_HOVERED: u32 = 4;
+/// Where the part flags start in [`EntryGpu::look`].
+const FLAGS_SHIFT: u32 = 29;
 
 #[cfg(test)]
 mod tests {
@@ -159,6 +174,34 @@ mod tests {
                 entries.iter().any(|e| e == entry),
                 "missing entry point {entry}"
             );
+        }
+    }
+
+    /// The part flags and where they sit in an entry's look are the shader's,
+    /// and a look keeps its material and flags apart.
+    #[test]
+    fn entry_looks_match_the_shader() {
+        let module = naga::front::wgsl::parse_str(super::SHADER).expect("WGSL parses");
+        let constant = |name: &str| -> u32 {
+            let (_, c) = module
+                .constants
+                .iter()
+                .find(|(_, c)| c.name.as_deref() == Some(name))
+                .unwrap_or_else(|| panic!("the shader has no {name}"));
+            match module.global_expressions[c.init] {
+                naga::Expression::Literal(naga::Literal::U32(v)) => v,
+                ref e => panic!("{name} is {e:?}"),
+            }
+        };
+        assert_eq!(constant("FLAGS_SHIFT"), super::FLAGS_SHIFT);
+        assert_eq!(constant("PART_SELECTED"), super::PART_SELECTED);
+        assert_eq!(constant("PART_CLASHING"), super::PART_CLASHING);
+        assert_eq!(constant("PART_HOVERED"), super::PART_HOVERED);
+        let all = super::PART_SELECTED | super::PART_CLASHING | super::PART_HOVERED;
+        let mask = (1 << super::FLAGS_SHIFT) - 1;
+        for (material, flags) in [(0, 0), (1, all), (mask, super::PART_CLASHING), (12_345, 0)] {
+            let look = super::EntryGpu::new(7, material, flags).look;
+            assert_eq!((look & mask, look >> super::FLAGS_SHIFT), (material, flags));
         }
     }
 

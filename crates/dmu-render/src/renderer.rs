@@ -313,9 +313,10 @@ pub struct Renderer {
     ids: [wgpu::RenderPipeline; 2],
     boxes_color: wgpu::RenderPipeline,
     entries: wgpu::Buffer,
-    part_flags_buffer: wgpu::Buffer,
     materials: wgpu::Buffer,
     part_flags: Vec<u32>,
+    /// Parts whose flags changed since the last frame wrote their entries.
+    flags_changed: Vec<PartId>,
     pub(crate) pool: GeometryPool,
     pub(crate) hierarchy: Hierarchy,
     pub(crate) timestamp_period_ns: Option<f64>,
@@ -392,7 +393,6 @@ impl Renderer {
                 },
                 storage(1),
                 storage(2),
-                storage(3),
                 storage(4),
                 storage(5),
             ],
@@ -570,18 +570,14 @@ impl Renderer {
         let entry_table: Vec<EntryGpu> = tree
             .entries()
             .iter()
-            .map(|e| EntryGpu {
-                part: e.part.0,
-                material: scene.chunk(e.chunk).material.0,
-            })
+            .map(|e| EntryGpu::new(e.part.0, scene.chunk(e.chunk).material.0, 0))
             .collect();
         let materials: Vec<[f32; 4]> = scene.materials().iter().map(|m| m.base_color).collect();
-        let part_flags = vec![0u32; scene.parts().len()];
         Self {
             entries: storage_buffer("dmu entries", bytemuck::cast_slice(&entry_table)),
             materials: storage_buffer("dmu materials", bytemuck::cast_slice(&materials)),
-            part_flags_buffer: storage_buffer("dmu part flags", bytemuck::cast_slice(&part_flags)),
-            part_flags,
+            part_flags: vec![0; scene.parts().len()],
+            flags_changed: Vec::new(),
             device: device.clone(),
             queue: queue.clone(),
             options,
@@ -706,8 +702,8 @@ impl Renderer {
         self.set_part_flag(part, PART_HOVERED, hovered);
     }
 
-    /// Sets or clears one flag bit of a part; writes one word to the GPU when
-    /// it changed.
+    /// Sets or clears one flag bit of a part; the next frame writes the
+    /// part's entries to the GPU when it changed.
     fn set_part_flag(&mut self, part: PartId, bit: u32, on: bool) {
         let flags = &mut self.part_flags[part.index()];
         let new = if on { *flags | bit } else { *flags & !bit };
@@ -715,11 +711,26 @@ impl Renderer {
             return;
         }
         *flags = new;
-        self.queue.write_buffer(
-            &self.part_flags_buffer,
-            4 * part.index() as u64,
-            bytemuck::bytes_of(flags),
-        );
+        self.flags_changed.push(part);
+    }
+
+    /// Writes the entries of the parts whose flags changed since the last
+    /// frame (one 8-byte write each).
+    pub(crate) fn sync_part_flags(&mut self, scene: &Scene, tree: &Tree) {
+        self.flags_changed.sort_unstable();
+        self.flags_changed.dedup();
+        for part in self.flags_changed.drain(..) {
+            let flags = self.part_flags[part.index()];
+            for e in tree.part_entries(part) {
+                let chunk = tree.entries()[e.0 as usize].chunk;
+                let gpu = EntryGpu::new(part.0, scene.chunk(chunk).material.0, flags);
+                self.queue.write_buffer(
+                    &self.entries,
+                    8 * u64::from(e.0),
+                    bytemuck::bytes_of(&gpu),
+                );
+            }
+        }
     }
 
     /// The pooled geometry (resident chunks, bytes; eviction).
@@ -967,7 +978,6 @@ impl Renderer {
                     },
                     entry(1, model_views),
                     entry(2, &self.entries),
-                    entry(3, &self.part_flags_buffer),
                     entry(4, &self.materials),
                     entry(5, boxes),
                 ],
