@@ -570,7 +570,7 @@ impl Renderer {
         let entry_table: Vec<EntryGpu> = tree
             .entries()
             .iter()
-            .map(|e| EntryGpu::new(e.part.0, scene.chunk(e.chunk).material.0, 0))
+            .map(|e| entry_gpu(scene, e, 0))
             .collect();
         let materials: Vec<[f32; 4]> = scene.materials().iter().map(|m| m.base_color).collect();
         Self {
@@ -722,8 +722,7 @@ impl Renderer {
         for part in self.flags_changed.drain(..) {
             let flags = self.part_flags[part.index()];
             for e in tree.part_entries(part) {
-                let chunk = tree.entries()[e.0 as usize].chunk;
-                let gpu = EntryGpu::new(part.0, scene.chunk(chunk).material.0, flags);
+                let gpu = entry_gpu(scene, &tree.entries()[e.0 as usize], flags);
                 self.queue.write_buffer(
                     &self.entries,
                     8 * u64::from(e.0),
@@ -1452,6 +1451,11 @@ pub(crate) fn pass_over<'e>(
         occlusion_query_set: None,
         multiview_mask: None,
     })
+}
+
+/// The GPU record of a chunk instance whose part has `flags`.
+fn entry_gpu(scene: &Scene, entry: &dmu_tree::Entry, flags: u32) -> EntryGpu {
+    EntryGpu::new(entry.part.0, scene.chunk(entry.chunk).material.0, flags)
 }
 
 /// A render pass of a round.
