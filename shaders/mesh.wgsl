@@ -3,7 +3,8 @@
 // Positions arrive part-local (f32); each part's model-view was formed in f64 on
 // the CPU, camera-relative, so nothing here ever sees a large coordinate.
 // Depth is reverse-Z (1 at the near plane); front faces are counter-clockwise,
-// but CAD windings are unreliable, so nothing is culled and shading is two-sided.
+// but CAD windings are unreliable: back faces are culled (by the pipeline) only
+// for meshes found solid at import, and shading is two-sided.
 
 struct ViewUniform {
     // View space to clip space (reverse-Z, infinite far plane), shared by the
@@ -183,7 +184,7 @@ fn fs_shade(in: MeshOut) -> @location(0) vec4<f32> {
         // A face seen from behind under a section is the inside of a closed
         // part through the cut: it shows as the cut face, flat in the section
         // colour. Behind by the normal the shading uses, not by the winding,
-        // which CAD exports get wrong (nothing is culled for that reason).
+        // which CAD exports get wrong (cut frames cull nothing, for this).
         if dot(in.normal, in.view_pos) > 0.0 {
             return vec4<f32>(view.section_cap, 1.0);
         }

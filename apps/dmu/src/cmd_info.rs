@@ -31,6 +31,9 @@ struct Info {
     /// Mesh instances: one per part (compare with `meshes` for how much is shared).
     instances: usize,
     meshes: usize,
+    /// Meshes that bound solids with outward windings: the renderer culls
+    /// their back faces.
+    solid_meshes: usize,
     nodes: usize,
     triangles: u64,
     unique_triangles: u64,
@@ -65,6 +68,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         parts: s.parts().len(),
         instances: s.parts().len(),
         meshes: s.meshes().len(),
+        solid_meshes: s.meshes().iter().filter(|m| m.solid).count(),
         nodes: s.nodes().len(),
         triangles: s.triangle_count(),
         unique_triangles: s.unique_triangle_count(),
@@ -86,8 +90,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     }
     println!("{} ({})", info.name, info.source);
     println!(
-        "  parts           {:>14}   (meshes {}, nodes {})",
-        info.parts, info.meshes, info.nodes
+        "  parts           {:>14}   (meshes {}, {} of them solid; nodes {})",
+        info.parts, info.meshes, info.solid_meshes, info.nodes
     );
     println!(
         "  triangles       {:>14}   (unique {}, degenerate {})",

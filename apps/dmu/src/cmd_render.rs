@@ -65,6 +65,11 @@ pub struct Args {
     /// batching saves).
     #[arg(long)]
     no_batch_draws: bool,
+    /// Draw the back faces of solid meshes too. By default they are culled
+    /// where no section plane cuts (from outside a solid they are hidden;
+    /// see `dmu info`'s solid meshes); for measuring what that saves.
+    #[arg(long)]
+    no_cull_back_faces: bool,
     /// Frames rendered from the viewpoint (occlusion culling converges over a
     /// few); the image and stats are the last frame's.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10_000))]
@@ -316,6 +321,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         stereo: stereo_mode,
         lod_levels: culling_options.may_draw_lods(),
         batch_draws: !args.no_batch_draws,
+        cull_back_faces: !args.no_cull_back_faces,
         ..Default::default()
     };
     let mut renderer = Renderer::new(&device, &queue, scene, &tree, options);

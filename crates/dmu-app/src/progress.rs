@@ -89,6 +89,7 @@ pub fn proxies_json(stats: &dmu_render::ProxyStats) -> serde_json::Value {
     serde_json::json!({
         "proxies": stats.proxies,
         "stale": stats.stale,
+        "solid": stats.solid,
         "triangles": stats.triangles,
         "bytes": stats.bytes,
         "made": stats.made,

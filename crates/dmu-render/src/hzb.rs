@@ -19,7 +19,7 @@ use crate::RenderError;
 use crate::device::map_read;
 use crate::geometry::{ChunkSlot, GeometrySource};
 use crate::gpu::{HZB_DRAWN, HZB_FORCED, HZB_SHADER, HzbCandidate, HzbParams, QueryBox};
-use crate::renderer::{Draw, LodPick, Renderer, ViewGpu};
+use crate::renderer::{Draw, Faces, LodPick, Renderer, ViewGpu};
 
 /// Bytes of one `DrawIndexedIndirectArgs`.
 const ARGS_BYTES: u64 = 20;
@@ -189,6 +189,7 @@ enum GroupKey {
         vertex_page: u32,
         index_page: u32,
         short_indices: bool,
+        faces: Faces,
     },
     /// A proxy by its place in the frame's proxies.
     Proxy(u32),
@@ -283,16 +284,18 @@ impl Renderer {
         let mut group_of: HashMap<GroupKey, u32> = HashMap::new();
         let mut gpu_candidates = Vec::with_capacity(candidates.len());
         let mut triangles_of = Vec::with_capacity(candidates.len());
-        let proxy_counts: Vec<u32> = match &self.proxies {
+        let (proxy_counts, proxy_faces): (Vec<u32>, Vec<Faces>) = match &self.proxies {
             Some(p) => proxy_nodes
                 .iter()
                 .map(|&n| {
-                    p.cpu.nodes[n as usize]
-                        .as_ref()
-                        .map_or(0, |x| x.indices.len() as u32)
+                    let proxy = p.cpu.nodes[n as usize].as_ref();
+                    (
+                        proxy.map_or(0, |x| x.indices.len() as u32),
+                        self.faces(gpu, proxy.is_some_and(|x| x.solid)),
+                    )
                 })
-                .collect(),
-            None => Vec::new(),
+                .unzip(),
+            None => (Vec::new(), Vec::new()),
         };
         out.missing = vec![false; candidates.len()];
         for (i, c) in candidates.iter().enumerate() {
@@ -318,6 +321,7 @@ impl Renderer {
                                 vertex_page: slot.vertex_page,
                                 index_page: slot.index_page,
                                 short_indices: slot.short_indices,
+                                faces: self.faces_of(gpu, tree, e),
                             })
                         }
                         None => {
@@ -415,23 +419,26 @@ impl Renderer {
             let mut pass =
                 crate::renderer::pass_over(&mut encoder, "dmu hzb second pass", target, timestamps);
             pass.set_bind_group(0, &gpu.bind_groups[0], &[]);
-            let cut = usize::from(gpu.sectioned);
-            let mut pipeline_is_proxy = None;
+            let mut bound_pipeline = None;
             for (g, &(key, len)) in groups.iter().enumerate() {
-                let proxy = matches!(key, GroupKey::Proxy(_));
-                if pipeline_is_proxy != Some(proxy) {
-                    pass.set_pipeline(if proxy {
-                        &self.proxy[cut]
-                    } else {
-                        &self.shade[cut]
+                // Whether it draws a proxy, and which faces.
+                let pipeline = match key {
+                    GroupKey::Pages { faces, .. } => (false, faces),
+                    GroupKey::Proxy(k) => (true, proxy_faces[k as usize]),
+                };
+                if bound_pipeline != Some(pipeline) {
+                    pass.set_pipeline(match pipeline {
+                        (true, faces) => &self.proxy[faces as usize],
+                        (false, faces) => &self.shade[faces as usize],
                     });
-                    pipeline_is_proxy = Some(proxy);
+                    bound_pipeline = Some(pipeline);
                 }
                 match key {
                     GroupKey::Pages {
                         vertex_page,
                         index_page,
                         short_indices,
+                        ..
                     } => {
                         pass.set_vertex_buffer(0, self.pool.vertex_slice(vertex_page));
                         pass.set_index_buffer(

@@ -54,9 +54,12 @@
 //!
 //! Conventions: right-handed world, model units, f64 world and f32 local as in
 //! `dmu-geom`; cameras look down -Z; reverse-Z depth (Depth32Float cleared to 0,
-//! compared with Greater) and an infinite far plane; counter-clockwise fronts,
-//! but nothing is culled by winding and shading is two-sided, a headlight at
-//! the eye. Colours are linear; captures are sRGB.
+//! compared with Greater) and an infinite far plane; counter-clockwise fronts;
+//! back faces are culled only for solid meshes (`dmu_scene::is_solid`) in
+//! parts that do not mirror, in frames without section planes
+//! ([`RendererOptions::cull_back_faces`]), since CAD windings are unreliable
+//! elsewhere; shading is two-sided, a headlight at the eye. Colours are
+//! linear; captures are sRGB.
 //!
 //! ```no_run
 //! use dmu_render::{Camera, Capture, Culling, Renderer, View, headless_device};

@@ -100,6 +100,10 @@ pub(crate) struct Proxy {
     signature: u64,
     /// Triangles of the chunk instances it stands for.
     pub source_triangles: u64,
+    /// Whether its simplified mesh bounds solids with outward windings
+    /// ([`dmu_scene::is_solid`]; so never where it holds an open mesh or a
+    /// mirrored part): its back faces may be culled.
+    pub solid: bool,
 }
 
 impl Proxy {
@@ -115,6 +119,8 @@ pub struct ProxyStats {
     pub proxies: u64,
     /// Nodes whose proxy is stale or missing.
     pub stale: u64,
+    /// Current proxies that bound solids (their back faces are culled).
+    pub solid: u64,
     /// Triangles in all current proxies.
     pub triangles: u64,
     /// Bytes of proxy geometry (kept once on the CPU and once on the GPU).
@@ -213,6 +219,7 @@ impl Proxies {
             match p {
                 Some(p) if p.signature == self.signature[n] => {
                     s.proxies += 1;
+                    s.solid += u64::from(p.solid);
                     s.triangles += p.triangles();
                     s.bytes +=
                         (p.vertices.len() * size_of::<ProxyVertex>() + p.indices.len() * 4) as u64;
@@ -377,7 +384,10 @@ impl Proxies {
         }
         let target = self.options.error_fraction * h.bounds(tree, n).extent().length();
         let (vertices, indices, error) = simplify(merged.vertices, &merged.indices, target);
+        let positions: Vec<Vec3> = vertices.iter().map(|v| Vec3::from(v.position)).collect();
+        let solid = dmu_scene::is_solid(&positions, &indices);
         self.nodes[n as usize] = Some(Box::new(Proxy {
+            solid,
             origin: merged.origin,
             vertices,
             indices,

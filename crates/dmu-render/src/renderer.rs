@@ -199,6 +199,12 @@ pub struct RendererOptions {
     /// The images are the same; on lavapipe batching saves 10-25 % of a
     /// frame.
     pub batch_draws: bool,
+    /// Cull the back faces of solid meshes ([`dmu_scene::Mesh::solid`]) in
+    /// parts that do not mirror, in frames without section planes: from
+    /// outside a solid they are hidden behind its front faces. The images
+    /// differ only where a back face won a depth tie at a silhouette; on
+    /// lavapipe the view inside the 10M plant is about a quarter faster.
+    pub cull_back_faces: bool,
 }
 
 impl Default for RendererOptions {
@@ -219,6 +225,7 @@ impl Default for RendererOptions {
             stereo: crate::StereoMode::Auto,
             lod_levels: false,
             batch_draws: true,
+            cull_back_faces: true,
         }
     }
 }
@@ -285,6 +292,9 @@ pub(crate) struct ViewGpu {
     /// The frame cuts with section planes: it draws with the pipelines that
     /// discard what is cut away (the others keep early depth testing).
     pub(crate) sectioned: bool,
+    /// Whether each part's model-view mirrors (its windings flip), as of the
+    /// frame's model-views: such parts are drawn without culling.
+    mirrored: Vec<bool>,
     /// The depth pyramid and box-test buffers of `hzb` frames.
     pub(crate) hzb: Option<crate::hzb::HzbGpu>,
 }
@@ -300,18 +310,21 @@ pub struct Renderer {
     pub(crate) queue: wgpu::Queue,
     pub(crate) options: RendererOptions,
     layout: wgpu::BindGroupLayout,
-    /// Shading, and shading that discards what section planes cut away
-    /// (`[uncut, cut]`; so is every mesh pipeline pair here).
-    pub(crate) shade: [wgpu::RenderPipeline; 2],
+    /// Shading, shading that discards what section planes cut away, and
+    /// shading that culls back faces (indexed by [`Faces`]; so is every
+    /// mesh pipeline triple here).
+    pub(crate) shade: [wgpu::RenderPipeline; 3],
     /// The multiview shading pipelines; `None` without [`wgpu::Features::MULTIVIEW`]
     /// or when stereo pairs are drawn a layer at a time.
-    shade_stereo: Option<[wgpu::RenderPipeline; 2]>,
+    shade_stereo: Option<[wgpu::RenderPipeline; 3]>,
     /// How stereo pairs are drawn, resolved from the options.
     stereo_mode: crate::StereoMode,
     /// Bytes between the eyes' uniforms (the device's uniform offset alignment).
     uniform_stride: u64,
-    ids: [wgpu::RenderPipeline; 2],
+    ids: [wgpu::RenderPipeline; 3],
     boxes_color: wgpu::RenderPipeline,
+    /// Whether each tree entry's chunk belongs to a solid mesh.
+    solid: Vec<bool>,
     entries: wgpu::Buffer,
     materials: wgpu::Buffer,
     part_flags: Vec<u32>,
@@ -322,8 +335,8 @@ pub struct Renderer {
     pub(crate) timestamp_period_ns: Option<f64>,
     /// Reused per-round scratch: resolved slots of the round's draws.
     slots: Vec<(u32, crate::geometry::SlotDraw)>,
-    /// Shading of proxies (merged subtrees), uncut and cut.
-    pub(crate) proxy: [wgpu::RenderPipeline; 2],
+    /// Shading of proxies (merged subtrees), by [`Faces`].
+    pub(crate) proxy: [wgpu::RenderPipeline; 3],
     /// Proxies of the tree's subtrees and their GPU buffers, once set.
     pub(crate) proxies: Option<ProxyGpu>,
     /// The compute pipelines of `hzb` frames, made on the first.
@@ -415,7 +428,7 @@ impl Renderer {
                         format,
                         write: bool,
                         multiview_mask,
-                        sectioned: bool| {
+                        faces: Faces| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(label),
                 layout: Some(&pipeline_layout),
@@ -425,10 +438,11 @@ impl Renderer {
                     compilation_options: Default::default(),
                     buffers,
                 },
-                // CAD windings are unreliable: nothing is culled.
+                // CAD windings are unreliable: only solid meshes' back faces
+                // are culled, with the pipelines for them.
                 primitive: wgpu::PrimitiveState {
                     topology: wgpu::PrimitiveTopology::TriangleList,
-                    cull_mode: None,
+                    cull_mode: (faces == Faces::Solid).then_some(wgpu::Face::Back),
                     ..Default::default()
                 },
                 depth_stencil: Some(wgpu::DepthStencilState {
@@ -451,7 +465,7 @@ impl Renderer {
                     // The uncut pipelines compile without the discard, which
                     // would cost early depth testing.
                     compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: if sectioned {
+                        constants: if faces == Faces::Cut {
                             &[("SECTIONED", 1.0)]
                         } else {
                             &[]
@@ -477,7 +491,7 @@ impl Renderer {
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Snorm8x4, 2 => Uint32],
         })];
-        let proxy = [false, true].map(|cut| {
+        let proxy = Faces::ALL.map(|faces| {
             pipeline(
                 "dmu shade proxies",
                 &module,
@@ -487,10 +501,10 @@ impl Renderer {
                 options.color_format,
                 true,
                 None,
-                cut,
+                faces,
             )
         });
-        let shade = [false, true].map(|cut| {
+        let shade = Faces::ALL.map(|faces| {
             pipeline(
                 "dmu shade",
                 &module,
@@ -500,14 +514,14 @@ impl Renderer {
                 options.color_format,
                 true,
                 None,
-                cut,
+                faces,
             )
         });
         // Its own module: one naming `view_index` fails validation without multiview.
         let stereo_module = (multiview && options.stereo != crate::StereoMode::LayerPasses)
             .then(|| shader("dmu mesh.wgsl + stereo.wgsl", STEREO_SHADER));
         let shade_stereo = stereo_module.as_ref().map(|module| {
-            [false, true].map(|cut| {
+            Faces::ALL.map(|faces| {
                 pipeline(
                     "dmu shade stereo",
                     module,
@@ -517,7 +531,7 @@ impl Renderer {
                     options.color_format,
                     true,
                     Some(STEREO_VIEWS),
-                    cut,
+                    faces,
                 )
             })
         });
@@ -530,7 +544,7 @@ impl Renderer {
             (crate::StereoMode::Auto, _) => crate::StereoMode::LayerPasses,
             (mode, _) => mode,
         };
-        let ids = [false, true].map(|cut| {
+        let ids = Faces::ALL.map(|faces| {
             pipeline(
                 "dmu ids",
                 &module,
@@ -540,7 +554,7 @@ impl Renderer {
                 ID_FORMAT,
                 true,
                 None,
-                cut,
+                faces,
             )
         });
         // Stereo pairs query each eye's layer in a pass of its own (see
@@ -554,7 +568,7 @@ impl Renderer {
             options.color_format,
             false,
             None,
-            false,
+            Faces::Uncut,
         );
 
         let storage_buffer = |label, contents: &[u8]| {
@@ -590,6 +604,11 @@ impl Renderer {
                 as u64,
             ids,
             boxes_color,
+            solid: tree
+                .entries()
+                .iter()
+                .map(|e| scene.mesh(scene.chunk(e.chunk).mesh).solid)
+                .collect(),
             proxy,
             proxies: None,
             hzb: None,
@@ -776,6 +795,7 @@ impl Renderer {
             .unwrap_or_else(|| self.make_view_gpu(part_count.max(1) * eye_views.len()));
         self.ensure_capacity(&mut g, part_count * eye_views.len(), 0);
         g.sectioned = !view.section.is_empty();
+        g.mirrored.resize(part_count, false);
         let mut light = [[0.0; 4]; 2];
         if let Some(at) = view.light {
             for (l, v) in light.iter_mut().zip(eye_views) {
@@ -804,6 +824,7 @@ impl Renderer {
         // Formed in f64 for each eye: the eye's large translation cancels the
         // part's before anything is rounded to f32, so far-from-origin models
         // stay exact, and a stereo eye gets what a single view from there gets.
+        // With it, whether it mirrors (eyes never do: the part's transform).
         let model_view = |view_matrix: DAffine3, p: PartId| {
             let m = view_matrix * scene.part_world(p);
             let (a, t) = (m.matrix3, m.translation);
@@ -815,9 +836,10 @@ impl Renderer {
                     t[i] as f32,
                 ]
             };
-            ModelView {
+            let model_view = ModelView {
                 rows: [row(0), row(1), row(2)],
-            }
+            };
+            (model_view, a.determinant() < 0.0)
         };
         match only {
             // Only the parts the frame may draw (a single view: a near
@@ -833,24 +855,32 @@ impl Renderer {
                 while id_runs(parts, gap).nth(MAX_MODEL_VIEW_RUNS).is_some() {
                     gap = gap.saturating_mul(4);
                 }
+                let mirrored = &mut g.mirrored;
                 for (first, last) in id_runs(parts, gap) {
                     self.write_model_views(&g.model_views, first as usize, last - first + 1, |p| {
                         // Parts in the gaps of a run are not drawn: zeros.
                         while next.next_if(|&q| (q as usize) < p).is_some() {}
-                        next.next_if_eq(&(p as u32))
-                            .map_or_else(<ModelView as bytemuck::Zeroable>::zeroed, |_| {
-                                model_view(eye_views[0], PartId::from_index(p))
-                            })
+                        next.next_if_eq(&(p as u32)).map_or_else(
+                            <ModelView as bytemuck::Zeroable>::zeroed,
+                            |_| {
+                                let (m, flips) = model_view(eye_views[0], PartId::from_index(p));
+                                mirrored[p] = flips;
+                                m
+                            },
+                        )
                     });
                 }
             }
             _ => {
                 let count = part_count * eye_views.len();
+                let mirrored = &mut g.mirrored;
                 self.write_model_views(&g.model_views, 0, count as u32, |k| {
-                    model_view(
+                    let (m, flips) = model_view(
                         eye_views[k / part_count],
                         PartId::from_index(k % part_count),
-                    )
+                    );
+                    mirrored[k % part_count] = flips;
+                    m
                 });
             }
         }
@@ -945,7 +975,31 @@ impl Renderer {
                 copy_dst | wgpu::BufferUsages::INDIRECT,
             ),
             sectioned: false,
+            mirrored: Vec::new(),
             hzb: None,
+        }
+    }
+
+    /// The faces a draw of tree entry `entry` draws: the front faces only
+    /// for a solid mesh in a part that does not mirror, in a frame without
+    /// section planes, where the options allow it.
+    pub(crate) fn faces_of(&self, gpu: &ViewGpu, tree: &Tree, entry: u32) -> Faces {
+        let part = tree.entries()[entry as usize].part.index();
+        self.faces(
+            gpu,
+            self.solid[entry as usize] && !gpu.mirrored.get(part).copied().unwrap_or(true),
+        )
+    }
+
+    /// The faces a frame draws of a mesh that bounds solids (`solid`, as
+    /// placed) or not.
+    pub(crate) fn faces(&self, gpu: &ViewGpu, solid: bool) -> Faces {
+        if gpu.sectioned {
+            Faces::Cut
+        } else if solid && self.options.cull_back_faces {
+            Faces::Solid
+        } else {
+            Faces::Uncut
         }
     }
 
@@ -1081,6 +1135,24 @@ impl Renderer {
             }
         }
         result.upload_ms = (self.pool.upload_time - uploaded_before).as_secs_f64() * 1e3;
+        // Queried draw k's place among the round's queried draws, in draw order.
+        let mut rank = Vec::with_capacity(queried.len());
+        let mut queried_draws = 0;
+        for &wrapped in &queried {
+            rank.push(queried_draws);
+            queried_draws += usize::from(wrapped);
+        }
+        // Draws of solid meshes first, each kind in draw order, so that a
+        // pass changes pipeline at most once; `order[k]` is draw k's place
+        // before.
+        let solid: Vec<bool> = (self.slots.iter())
+            .map(|&(entry, _)| self.faces_of(gpu, tree, entry) == Faces::Solid)
+            .collect();
+        let mut order: Vec<usize> = (0..solid.len()).filter(|&k| solid[k]).collect();
+        order.extend((0..solid.len()).filter(|&k| !solid[k]));
+        self.slots = order.iter().map(|&k| self.slots[k]).collect();
+        let queried: Vec<bool> = order.iter().map(|&k| queried[k]).collect();
+        let solid: Vec<bool> = order.iter().map(|&k| solid[k]).collect();
         // The proxies' frames follow the query boxes in the same buffer.
         if !boxes.is_empty() || !proxies.frames.is_empty() {
             self.ensure_capacity(gpu, 0, boxes.len() + proxies.frames.len());
@@ -1100,7 +1172,8 @@ impl Renderer {
                 .filter_map(|(k, &n)| {
                     let proxy = p.cpu.nodes[n as usize].as_ref()?;
                     let (v, i) = p.buffers.get(n as usize)?.as_ref()?;
-                    Some((k as u32, v, i, proxy.indices.len() as u32))
+                    let faces = self.faces(gpu, proxy.solid);
+                    Some((k as u32, v, i, proxy.indices.len() as u32, faces))
                 })
                 .collect(),
             None => Vec::new(),
@@ -1235,22 +1308,29 @@ impl Renderer {
             pass.set_bind_group(0, &gpu.bind_groups[pass_plan.eye], &[]);
             let mut q = 0;
             let mut bound: Option<(u32, u32, bool)> = None;
-            if !pass_plan.draws.is_empty() {
-                let cut = usize::from(gpu.sectioned);
-                pass.set_pipeline(match shading {
-                    _ if multiview_mask.is_some() => &self
-                        .shade_stereo
-                        .as_ref()
-                        .expect("multiview rounds only where the pipeline exists")[cut],
-                    Shading::Color => &self.shade[cut],
-                    Shading::Ids => &self.ids[cut],
-                });
-            }
+            let mut faces = None;
             let range = pass_plan.draws.clone();
             let mut k = range.start;
             while k < range.end {
                 let (entry, slot) = self.slots[k];
                 let wrapped = queried[k];
+                let draw_faces = match (solid[k], gpu.sectioned) {
+                    (true, _) => Faces::Solid,
+                    (false, true) => Faces::Cut,
+                    (false, false) => Faces::Uncut,
+                };
+                if faces != Some(draw_faces) {
+                    pass.set_pipeline(match shading {
+                        _ if multiview_mask.is_some() => &self
+                            .shade_stereo
+                            .as_ref()
+                            .expect("multiview rounds only where the pipeline exists")
+                            [draw_faces as usize],
+                        Shading::Color => &self.shade[draw_faces as usize],
+                        Shading::Ids => &self.ids[draw_faces as usize],
+                    });
+                    faces = Some(draw_faces);
+                }
                 let key = pages(&slot);
                 if bound != Some(key) {
                     pass.set_vertex_buffer(0, self.pool.vertex_slice(slot.vertex_page));
@@ -1264,7 +1344,11 @@ impl Renderer {
                 }
                 if batched && !wrapped {
                     let mut end = k + 1;
-                    while end < range.end && !queried[end] && pages(&self.slots[end].1) == key {
+                    while end < range.end
+                        && !queried[end]
+                        && solid[end] == solid[k]
+                        && pages(&self.slots[end].1) == key
+                    {
                         end += 1;
                     }
                     pass.multi_draw_indexed_indirect(
@@ -1295,9 +1379,13 @@ impl Renderer {
             // before its boxes, whose queries they may hide.
             let eye = pass_plan.layer.unwrap_or(0);
             if !proxy_buffers.is_empty() && !std::mem::replace(&mut proxies_drawn_in[eye], true) {
-                pass.set_pipeline(&self.proxy[usize::from(gpu.sectioned)]);
                 let first_frame = (boxes.len() + eye * proxies.nodes.len()) as u32;
-                for &(k, vertices, indices, count) in &proxy_buffers {
+                let mut bound_faces = None;
+                for &(k, vertices, indices, count, faces) in &proxy_buffers {
+                    if bound_faces != Some(faces) {
+                        pass.set_pipeline(&self.proxy[faces as usize]);
+                        bound_faces = Some(faces);
+                    }
                     pass.set_vertex_buffer(0, vertices.slice(..));
                     pass.set_index_buffer(indices.slice(..), wgpu::IndexFormat::Uint32);
                     let frame = first_frame + k;
@@ -1352,20 +1440,14 @@ impl Renderer {
                 "occlusion queries",
                 bytemuck::pod_collect_to_vec,
             )?;
-            // Queried draw j's result slot; every eye's passes add to it.
-            let mut rank = Vec::with_capacity(queried.len());
-            let mut queried_draws = 0;
-            for &wrapped in &queried {
-                rank.push(queried_draws);
-                queried_draws += usize::from(wrapped);
-            }
+            // Every eye's passes add to a queried draw's result.
             result.draw_samples = vec![0; queried_draws];
             result.box_samples = vec![0; per_eye];
             // Query q of pass p sits at p * QUERIES_PER_PASS + q, in item order.
             for (p, pass_plan) in passes.iter().enumerate() {
                 let mut at = (p * QUERIES_PER_PASS as usize..).map(|i| samples[i]);
                 for j in pass_plan.draws.clone().filter(|&j| queried[j]) {
-                    result.draw_samples[rank[j]] += at.next().expect("one slot per query");
+                    result.draw_samples[rank[order[j]]] += at.next().expect("one slot per query");
                 }
                 for b in pass_plan.boxes.clone() {
                     result.box_samples[b % per_eye] += at.next().expect("one slot per query");
@@ -1451,6 +1533,21 @@ pub(crate) fn pass_over<'e>(
         occlusion_query_set: None,
         multiview_mask: None,
     })
+}
+
+/// Which faces a mesh pipeline draws: all of them (`Uncut`), all but what
+/// section planes cut away (`Cut`), or the front faces only (`Solid`, for
+/// solid meshes in frames without section planes). Indexes the pipeline
+/// triples.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(crate) enum Faces {
+    Uncut = 0,
+    Cut = 1,
+    Solid = 2,
+}
+
+impl Faces {
+    const ALL: [Self; 3] = [Self::Uncut, Self::Cut, Self::Solid];
 }
 
 /// The GPU record of a chunk instance whose part has `flags`.

@@ -452,3 +452,141 @@ fn srgb_byte(linear: f32) -> u8 {
     };
     (s * 255.0).round() as u8
 }
+
+/// A unit box around the origin whose six faces have six colours, as one
+/// mesh: counter-clockwise outward faces, or inward (`inside_out`), without
+/// the +z face (`open`).
+fn coloured_box(
+    b: &mut dmu_scene::SceneBuilder,
+    colours: &[dmu_scene::MaterialId; 6],
+    inside_out: bool,
+    open: bool,
+) -> dmu_scene::MeshId {
+    use dmu_geom::glam::Vec3;
+    let mut mesh = dmu_scene::MeshData {
+        name: "box".into(),
+        ..Default::default()
+    };
+    for (face, &material) in colours.iter().enumerate() {
+        let (axis, positive) = (face / 2, face % 2 == 1);
+        if open && axis == 2 && positive {
+            continue;
+        }
+        let mut n = Vec3::ZERO;
+        n[axis] = if positive { 1.0 } else { -1.0 };
+        // Tangents ordered so that (u x v) points along n.
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        let (u, v) = if positive { (u, v) } else { (v, u) };
+        let corner = |a: f32, c: f32| {
+            let mut p = n;
+            p[u] = a;
+            p[v] = c;
+            p
+        };
+        let quad = [
+            corner(-1.0, -1.0),
+            corner(1.0, -1.0),
+            corner(1.0, 1.0),
+            corner(-1.0, 1.0),
+        ];
+        let triangles = if inside_out {
+            [0, 2, 1, 0, 3, 2]
+        } else {
+            [0, 1, 2, 0, 2, 3]
+        };
+        mesh.push_primitive(&quad, &[n; 4], &triangles, material);
+    }
+    b.add_mesh(&mesh)
+}
+
+/// Back faces are culled where that hides nothing, and only there. Four
+/// boxes with a colour per face: solid; the same mesh mirrored (its windings
+/// flip); an inside-out box; an open box (no top). Seen from above, culling
+/// on and off give the same image but for a few silhouette pixels (where a
+/// back face won a depth tie): culling a mirrored, inside-out or open box's
+/// back faces would show its far faces' colours instead, or nothing. From
+/// inside the solid box, culling shows what lies beyond it, where drawing
+/// back faces shows its inside.
+#[test]
+fn back_faces_are_culled_only_on_solids_that_do_not_mirror() {
+    let mut b = dmu_scene::SceneBuilder::new("boxes", 2048);
+    let colours = [
+        [0.8, 0.1, 0.1, 1.0],
+        [0.1, 0.8, 0.1, 1.0],
+        [0.1, 0.1, 0.8, 1.0],
+        [0.8, 0.8, 0.1, 1.0],
+        [0.1, 0.8, 0.8, 1.0],
+        [0.8, 0.1, 0.8, 1.0],
+    ]
+    .map(|c| b.add_material("face", c));
+    let solid = coloured_box(&mut b, &colours, false, false);
+    let inside_out = coloured_box(&mut b, &colours, true, false);
+    let open = coloured_box(&mut b, &colours, false, true);
+    let mirror = DAffine3::from_scale(DVec3::new(-1.0, 1.0, 1.0));
+    for (k, (mesh, placed)) in [
+        (solid, DAffine3::IDENTITY),
+        (solid, mirror),
+        (inside_out, DAffine3::IDENTITY),
+        (open, DAffine3::IDENTITY),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let at = DAffine3::from_translation(DVec3::new(4.0 * k as f64, 0.0, 0.0)) * placed;
+        let node = b.add_node(dmu_scene::SceneBuilder::ROOT, format!("box{k}"), at);
+        b.add_part(node, mesh);
+    }
+    let scene = b.finish();
+    let solid_meshes: Vec<bool> = scene.meshes().iter().map(|m| m.solid).collect();
+    assert_eq!(solid_meshes, [true, false, false]);
+    let tree = Tree::build(&scene, TreeOptions::default());
+    let size = (320, 240);
+    let rig = |cull_back_faces| {
+        let options = RendererOptions {
+            cull_back_faces,
+            ..Default::default()
+        };
+        Rig::with_options(&scene, &tree, size, options)
+    };
+    let (Some(mut culling), Some(mut drawing)) = (rig(true), rig(false)) else {
+        return;
+    };
+    let above = camera(DVec3::new(0.0, -6.0, 6.0), DVec3::new(6.0, 0.0, 0.0), 0.1);
+    let culled = culling.shot(above, Culling::Frustum, &scene, &tree);
+    let drawn = drawing.shot(above, Culling::Frustum, &scene, &tree);
+    culled.save(image_path("back_faces_culled.png")).unwrap();
+    drawn.save(image_path("back_faces_drawn.png")).unwrap();
+    let background = drawn.pixels().filter(|&&p| p == drawn[(0, 0)]).count();
+    let covered = drawn.pixels().count() - background;
+    assert!(
+        covered > 8_000,
+        "the boxes fill much of the view: {covered} pixels"
+    );
+    let differ = differing(&culled, &drawn);
+    assert!(
+        differ.len() <= 20,
+        "{} of {covered} pixels differ: {:?}",
+        differ.len(),
+        &differ[..differ.len().min(10)]
+    );
+
+    // From inside the solid box, looking at the others.
+    let inside = camera(DVec3::new(0.0, -0.5, 0.0), DVec3::new(8.0, 0.0, 0.0), 0.1);
+    let part_pixels = |rig: &mut Rig| {
+        let mut view = View::new(inside, size, Culling::Frustum);
+        let ids = rig.ids(&mut view, &scene, &tree);
+        let mut per_part = [0usize; 4];
+        for e in ids.ids.iter().filter_map(|&v| v.checked_sub(1)) {
+            per_part[tree.entries()[e as usize].part.index()] += 1;
+        }
+        per_part
+    };
+    let (seen_culling, seen_drawing) = (part_pixels(&mut culling), part_pixels(&mut drawing));
+    let pixels = (size.0 * size.1) as usize;
+    assert_eq!(seen_drawing, [pixels, 0, 0, 0], "its inside fills the view");
+    assert_eq!(seen_culling[0], 0, "{seen_culling:?}");
+    assert!(
+        seen_culling[1] > 1000,
+        "the mirrored box beyond: {seen_culling:?}"
+    );
+}

@@ -121,6 +121,8 @@ pub struct ChunkedMesh {
     pub chunks: Vec<ChunkData>,
     /// Triangles with zero area (kept, and counted here).
     pub degenerate_triangles: u32,
+    /// Whether it bounds solids with outward windings ([`crate::is_solid`]).
+    pub solid: bool,
 }
 
 /// Splits `mesh` into chunks of at most `chunk_triangles` triangles. Each material
@@ -151,6 +153,7 @@ pub fn chunk_mesh(mesh: &MeshData, chunk_triangles: u32) -> ChunkedMesh {
 
     let mut out = ChunkedMesh {
         name: mesh.name.clone(),
+        solid: crate::is_solid(&mesh.positions, &mesh.indices),
         positions: Vec::with_capacity(vertex_count),
         normals: Vec::with_capacity(vertex_count),
         indices: Vec::with_capacity(mesh.indices.len()),

@@ -41,6 +41,7 @@ mod gltf_import;
 mod ids;
 mod lod;
 mod scene;
+mod solid;
 mod structure;
 
 pub use atomic::{AtomicFile, open_regular_file, read_regular_file, write_file_atomically};
@@ -57,4 +58,5 @@ pub use scene::{
     AssemblyNode, Chunk, ChunkGeometry, DEFAULT_CHUNK_TRIANGLES, MAX_WORLD_COORDINATE, Material,
     Mesh, Part, Scene, SceneBuilder, limits,
 };
+pub use solid::is_solid;
 pub use structure::{ChunkEntry, MeshEntry, NO_PARENT, Names, NodeEntry, PartEntry, Structure};

@@ -97,6 +97,9 @@ pub struct Mesh {
     pub bounds: Aabb3f,
     /// Triangles of zero area: kept, and counted.
     pub degenerate_triangles: u32,
+    /// Whether it bounds solids with outward windings ([`crate::is_solid`]):
+    /// a renderer may cull its back faces.
+    pub solid: bool,
 }
 
 impl Mesh {
@@ -735,6 +738,7 @@ impl SceneBuilder {
         name: impl Into<String>,
         chunks: Vec<ChunkData>,
         degenerate_triangles: u32,
+        solid: bool,
     ) -> MeshId {
         let (mut tri, mut vert) = (0, 0);
         for c in &chunks {
@@ -748,6 +752,7 @@ impl SceneBuilder {
             name: name.into(),
             chunks,
             degenerate_triangles,
+            solid,
             ..ChunkedMesh::default()
         };
         self.push_mesh(mesh, tri)
@@ -781,6 +786,7 @@ impl SceneBuilder {
             chunks: first..self.scene.chunks.len() as u32,
             bounds,
             degenerate_triangles: mesh.degenerate_triangles,
+            solid: mesh.solid,
         });
         id
     }

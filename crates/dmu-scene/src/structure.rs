@@ -8,7 +8,7 @@ use bytemuck::{Pod, Zeroable};
 use dmu_geom::Aabb3f;
 use glam::{DAffine3, Vec3};
 
-use crate::chunking::ChunkData;
+use crate::chunking::{ChunkData, ChunkedMesh};
 use crate::error::SceneError;
 use crate::ids::{MaterialId, MeshId, NodeId, PartId};
 use crate::scene::{Scene, SceneBuilder, world_is_valid};
@@ -48,6 +48,8 @@ pub struct MeshEntry {
     pub chunks: u32,
     /// Zero-area triangles it holds.
     pub degenerate_triangles: u32,
+    /// 1 when it bounds solids with outward windings ([`crate::is_solid`]), else 0.
+    pub solid: u32,
 }
 
 /// A chunk: material, sizes, and its local box.
@@ -189,6 +191,7 @@ impl Structure {
             s.meshes.push(MeshEntry {
                 chunks: m.chunks.end - m.chunks.start,
                 degenerate_triangles: m.degenerate_triangles,
+                solid: u32::from(m.solid),
             });
             s.mesh_names.push(&m.name);
         }
@@ -233,9 +236,11 @@ impl Structure {
         NodeId::from_index(self.nodes.len() - 1)
     }
 
-    /// Adds a mesh's chunk table (ranges following each other from 0, as
-    /// [`crate::chunk_mesh`] makes them).
-    pub fn add_mesh(&mut self, name: &str, chunks: &[ChunkData], degenerate: u32) -> MeshId {
+    /// Adds a mesh's chunk table and counts (its chunk ranges following each
+    /// other from 0, as [`crate::chunk_mesh`] makes them; the geometry is
+    /// not kept).
+    pub fn add_mesh(&mut self, mesh: &ChunkedMesh) -> MeshId {
+        let chunks = &mesh.chunks;
         self.chunks.extend(chunks.iter().map(|c| ChunkEntry {
             material: c.material.0,
             vertices: c.vertices.end - c.vertices.start,
@@ -245,9 +250,10 @@ impl Structure {
         }));
         self.meshes.push(MeshEntry {
             chunks: chunks.len() as u32,
-            degenerate_triangles: degenerate,
+            degenerate_triangles: mesh.degenerate_triangles,
+            solid: u32::from(mesh.solid),
         });
-        self.mesh_names.push(name);
+        self.mesh_names.push(&mesh.name);
         MeshId::from_index(self.meshes.len() - 1)
     }
 
@@ -363,6 +369,9 @@ impl Structure {
         }
         let mut chunk_total = 0usize;
         for (m, mesh) in self.meshes.iter().enumerate() {
+            if mesh.solid > 1 {
+                return Err(format!("mesh {m}: solid flag {}", mesh.solid));
+            }
             let first = chunk_total;
             chunk_total = chunk_total
                 .checked_add(mesh.chunks as usize)
@@ -451,7 +460,12 @@ impl Structure {
                     data
                 })
                 .collect();
-            b.add_unloaded_mesh(self.mesh_names.get(m), table, mesh.degenerate_triangles);
+            b.add_unloaded_mesh(
+                self.mesh_names.get(m),
+                table,
+                mesh.degenerate_triangles,
+                mesh.solid == 1,
+            );
         }
         let mut hidden = Vec::new();
         for p in &self.parts {
@@ -485,11 +499,12 @@ impl StructureBuilder {
         }
     }
 
-    pub fn add_mesh(&mut self, name: &str, chunks: &[ChunkData], degenerate: u32) -> MeshId {
+    pub fn add_mesh(&mut self, mesh: &ChunkedMesh) -> MeshId {
+        let chunks = &mesh.chunks;
         let bounds = chunks.iter().fold(Aabb3f::EMPTY, |b, c| b.union(c.bounds));
         let triangles = chunks.last().map_or(0, |c| c.triangles.end);
         self.mesh_boxes.push((bounds, triangles));
-        self.structure.add_mesh(name, chunks, degenerate)
+        self.structure.add_mesh(mesh)
     }
 
     /// Whether `part`'s world transform is valid (see [`Scene::is_valid_world`]).

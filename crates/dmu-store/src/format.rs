@@ -33,14 +33,17 @@ pub(crate) const MAGIC: [u8; 8] = *b"DMUSTORE";
 ///
 /// Version 2 (issue 14) holds the skeleton as flat arrays (see `skeleton.rs`);
 /// version 1 stores (a bincode skeleton) are refused with a request to
-/// re-import the model.
+/// re-import the model. Version 3 adds to each mesh record whether the mesh
+/// bounds solids with outward windings (the renderer culls their back faces);
+/// version 2 stores are refused the same way, since that is known only from
+/// the geometry.
 ///
 /// Far-field segments (an index and one blob per cell, kinds 3 and 4) were
 /// added within version 2 rather than as version 3: a store without them is
 /// byte for byte what it was, and a version-2 reader from before them refuses
 /// a store that has them with "segment N has unknown kind 3" (or 4) rather
 /// than misreading it, which is acceptable for an optional addition.
-pub const FORMAT_VERSION: u32 = 2;
+pub const FORMAT_VERSION: u32 = 3;
 /// Written as a native `u32` by a little-endian writer: reads back swapped on a
 /// big-endian one.
 const BYTE_ORDER_MARK: u32 = 0x0102_0304;

@@ -12,11 +12,12 @@
 //!   f64 transforms, parts, each mesh's chunk table with the chunk boxes, as
 //!   flat aligned arrays ([`dmu_scene::Structure`]: a few dozen bytes a node,
 //!   part and chunk, names in one string table) written as they are and read
-//!   back with `pread` straight into them (format version 2; issue 14). The
-//!   skeleton opens as a [`dmu_scene::Scene`] whose geometry is not loaded, and
-//!   the cell tree is built from it (chunk boxes alone, about 80 ms for 100M
-//!   triangles) rather than stored: it is derived data, and rebuilding it cannot
-//!   disagree with the transforms.
+//!   back with `pread` straight into them (format version 2, issue 14;
+//!   version 3 adds whether each mesh is solid). The skeleton opens as a
+//!   [`dmu_scene::Scene`] whose geometry is not loaded, and the cell tree is
+//!   built from it (chunk boxes alone, about 80 ms for 100M triangles) rather
+//!   than stored: it is derived data, and rebuilding it cannot disagree with
+//!   the transforms.
 //! - Far fields (a textured depth mesh per viewpoint cell, made by the
 //!   renderer) are kept beside the geometry as opaque blobs: one far-field
 //!   index segment and one segment per cell, read one at a time

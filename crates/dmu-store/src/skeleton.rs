@@ -8,7 +8,7 @@
 //! nodes      NodeEntry x nodes          parent u32, 0 u32, world 12 x f64
 //! node names u64 end x nodes, then the UTF-8 bytes
 //! parts      PartEntry x parts          node u32, mesh u32, hidden u32
-//! meshes     MeshEntry x meshes         chunks u32, degenerate triangles u32
+//! meshes     MeshEntry x meshes         chunks u32, degenerate triangles u32, solid u32
 //! mesh names u64 end x meshes, then the bytes
 //! chunks     ChunkEntry x chunks        material, vertices, triangles u32, min, max 3 x f32
 //! materials  [f32; 4] x materials, then their names as above
@@ -232,7 +232,12 @@ pub(crate) fn chunk_tables(skeleton: &Scene) -> Scene {
             .chunk_ids()
             .map(|c| chunk_data(skeleton.chunk(c)))
             .collect();
-        b.add_unloaded_mesh(mesh.name.clone(), table, mesh.degenerate_triangles);
+        b.add_unloaded_mesh(
+            mesh.name.clone(),
+            table,
+            mesh.degenerate_triangles,
+            mesh.solid,
+        );
     }
     b.finish()
 }
@@ -266,6 +271,7 @@ pub(crate) fn with_geometry(
             let mut out = ChunkedMesh {
                 name: mesh.name.clone(),
                 degenerate_triangles: mesh.degenerate_triangles,
+                solid: mesh.solid,
                 ..ChunkedMesh::default()
             };
             for (c, g) in mesh.chunk_ids().zip(chunks) {
@@ -330,6 +336,7 @@ pub(crate) fn structure_difference(a: &Scene, b: &Scene) -> Option<String> {
                 m.chunks.clone(),
                 m.triangles,
                 m.degenerate_triangles,
+                m.solid,
             )
         };
         if key(x) != key(y) {

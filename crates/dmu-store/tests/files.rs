@@ -119,7 +119,7 @@ fn a_flipped_geometry_byte_names_its_chunk_when_touched() {
 
 /// A store of format version 1 (bincode skeleton; `dmu generate grid --n 1`
 /// before issue 14) is refused by version with a request to re-import, never
-/// read as version 2's flat arrays.
+/// read as the flat arrays of later versions.
 #[test]
 fn a_version_1_store_asks_to_be_reimported() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/grid1_version1.dmu");
@@ -129,7 +129,7 @@ fn a_version_1_store_asks_to_be_reimported() {
             err,
             StoreError::UnsupportedVersion {
                 found: 1,
-                supported: 2,
+                supported: FORMAT_VERSION,
                 ..
             }
         ),
@@ -144,19 +144,21 @@ fn a_version_1_store_asks_to_be_reimported() {
 #[test]
 fn other_versions_and_other_files_are_named() {
     let (dir, path, bytes) = small_store();
-    // The next version with a correct header checksum: refused by version.
-    let mut v2 = bytes.clone();
-    v2[8..12].copy_from_slice(&(FORMAT_VERSION + 1).to_le_bytes());
-    std::fs::write(&path, &v2).unwrap();
-    let err = Store::open(&path).unwrap_err();
-    assert!(
-        matches!(err, StoreError::UnsupportedVersion { found, .. } if found == FORMAT_VERSION + 1)
-    );
-    let msg = err.to_string();
-    assert!(
-        msg.contains(&format!("version {}", FORMAT_VERSION + 1)),
-        "{msg}"
-    );
+    // The version before (version 2: no solid flag in the mesh records)
+    // and the next, with a correct header checksum: refused by version.
+    for version in [FORMAT_VERSION - 1, FORMAT_VERSION + 1] {
+        let mut other = bytes.clone();
+        other[8..12].copy_from_slice(&version.to_le_bytes());
+        std::fs::write(&path, &other).unwrap();
+        let err = Store::open(&path).unwrap_err();
+        assert!(
+            matches!(err, StoreError::UnsupportedVersion { found, .. } if found == version),
+            "{err}"
+        );
+        let msg = err.to_string();
+        assert!(msg.contains(&format!("version {version}")), "{msg}");
+        assert!(msg.contains("re-import"), "{msg}");
+    }
     // Big-endian byte order mark.
     let mut be = bytes.clone();
     be[12..16].copy_from_slice(&0x0102_0304u32.to_be_bytes());
@@ -346,8 +348,17 @@ fn with_skeleton(bytes: &[u8], change: impl FnOnce(&mut [u8])) -> Vec<u8> {
 fn a_crafted_skeleton_is_refused_by_its_own_checks() {
     let (_dir, path, bytes) = small_store();
     let node = |i: usize| 64 + 104 * i;
+    // The first mesh record, past the nodes, their names and the parts
+    // (each array at a 16-byte boundary): chunks, degenerate triangles,
+    // solid (u32 each).
+    let first_mesh = |s: &[u8]| {
+        let count = |k: usize| u64::from_le_bytes(s[8 * k..8 * k + 8].try_into().unwrap()) as usize;
+        [104 * count(0), 8 * count(0), count(1), 12 * count(2)]
+            .iter()
+            .fold(64, |at, bytes| (at + bytes).next_multiple_of(16))
+    };
     type Change = Box<dyn Fn(&mut [u8])>;
-    let cases: [(&str, Change); 4] = [
+    let cases: [(&str, Change); 5] = [
         ("do not make its", Box::new(|s| s[0] += 1)),
         (
             "do not make its",
@@ -356,6 +367,14 @@ fn a_crafted_skeleton_is_refused_by_its_own_checks() {
         (
             "node 1: parent 7 is not stored before it",
             Box::new(move |s| s[node(1)..node(1) + 4].copy_from_slice(&7u32.to_le_bytes())),
+        ),
+        (
+            "mesh 0: solid flag 2",
+            Box::new(move |s| {
+                let at = first_mesh(s) + 8;
+                assert_eq!(s[at..at + 4], 1u32.to_le_bytes(), "the grid's box is solid");
+                s[at..at + 4].copy_from_slice(&2u32.to_le_bytes());
+            }),
         ),
         (
             "node 2: transform is not finite",

@@ -162,7 +162,7 @@ pub fn import_gltf_streaming<E: From<ImportError>>(
             .collect::<Result<_, ImportError>>()?;
         for (&m, (chunked, r)) in batch.iter().zip(decoded) {
             report.add(&r);
-            let id = builder.add_mesh(&chunked.name, &chunked.chunks, chunked.degenerate_triangles);
+            let id = builder.add_mesh(&chunked);
             mesh_ids[m] = Some(id);
             sink(id, chunked)?;
             done += 1;
