@@ -55,6 +55,8 @@ pub struct Options {
     /// Compose frames from the panels as last painted where the surface
     /// allows (else paint the whole window every frame).
     pub compose: bool,
+    /// Cull the back faces of solid meshes (`RendererOptions::cull_back_faces`).
+    pub cull_back_faces: bool,
     /// Pixels of error a chunk's simplified level may show (0: exact).
     pub lod_error_px: f64,
     /// Coverage threshold of the main view: chunk instances smaller on
@@ -368,6 +370,7 @@ impl App {
                 // draw them (a LOD error raised from 0 in the panel later
                 // draws chunks whole).
                 lod_levels: self.panes[0].view.options.may_draw_lods(),
+                cull_back_faces: self.options.cull_back_faces,
                 ..Default::default()
             },
         );

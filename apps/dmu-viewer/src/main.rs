@@ -113,6 +113,11 @@ struct Cli {
     /// chunks where its error projects within --lod-error-px.
     #[arg(long)]
     no_proxies: bool,
+    /// Draw the back faces of solid meshes too. By default they are culled
+    /// where no section plane cuts (from outside a solid they are hidden);
+    /// for measuring what that saves.
+    #[arg(long)]
+    no_cull_back_faces: bool,
     /// A frame-time budget for the 3D view, ms (e.g. 100 for 10 frames a
     /// second): each frame then chooses its LOD error (from 0, exact) and
     /// coverage threshold after the last frame's time; the stats overlay shows
@@ -228,6 +233,7 @@ fn run(cli: &Cli, started: Instant) -> anyhow::Result<()> {
         script,
         vsync: !(cli.no_vsync || automated),
         compose: !cli.paint_whole,
+        cull_back_faces: !cli.no_cull_back_faces,
         lod_error_px: cli.lod_error_px,
         min_pixels: cli.min_pixels.unwrap_or(if cli.memory_budget.is_some() {
             budget::MIN_PIXELS
