@@ -1145,14 +1145,15 @@ impl Renderer {
         // Draws of solid meshes first, each kind in draw order, so that a
         // pass changes pipeline at most once; `order[k]` is draw k's place
         // before.
-        let solid: Vec<bool> = (self.slots.iter())
-            .map(|&(entry, _)| self.faces_of(gpu, tree, entry) == Faces::Solid)
+        let faces: Vec<Faces> = (self.slots.iter())
+            .map(|&(entry, _)| self.faces_of(gpu, tree, entry))
             .collect();
-        let mut order: Vec<usize> = (0..solid.len()).filter(|&k| solid[k]).collect();
-        order.extend((0..solid.len()).filter(|&k| !solid[k]));
+        let solid = |k: &usize| faces[*k] == Faces::Solid;
+        let mut order: Vec<usize> = (0..faces.len()).filter(solid).collect();
+        order.extend((0..faces.len()).filter(|k| !solid(k)));
         self.slots = order.iter().map(|&k| self.slots[k]).collect();
         let queried: Vec<bool> = order.iter().map(|&k| queried[k]).collect();
-        let solid: Vec<bool> = order.iter().map(|&k| solid[k]).collect();
+        let faces: Vec<Faces> = order.iter().map(|&k| faces[k]).collect();
         // The proxies' frames follow the query boxes in the same buffer.
         if !boxes.is_empty() || !proxies.frames.is_empty() {
             self.ensure_capacity(gpu, 0, boxes.len() + proxies.frames.len());
@@ -1308,18 +1309,14 @@ impl Renderer {
             pass.set_bind_group(0, &gpu.bind_groups[pass_plan.eye], &[]);
             let mut q = 0;
             let mut bound: Option<(u32, u32, bool)> = None;
-            let mut faces = None;
+            let mut bound_faces = None;
             let range = pass_plan.draws.clone();
             let mut k = range.start;
             while k < range.end {
                 let (entry, slot) = self.slots[k];
                 let wrapped = queried[k];
-                let draw_faces = match (solid[k], gpu.sectioned) {
-                    (true, _) => Faces::Solid,
-                    (false, true) => Faces::Cut,
-                    (false, false) => Faces::Uncut,
-                };
-                if faces != Some(draw_faces) {
+                let draw_faces = faces[k];
+                if bound_faces != Some(draw_faces) {
                     pass.set_pipeline(match shading {
                         _ if multiview_mask.is_some() => &self
                             .shade_stereo
@@ -1329,7 +1326,7 @@ impl Renderer {
                         Shading::Color => &self.shade[draw_faces as usize],
                         Shading::Ids => &self.ids[draw_faces as usize],
                     });
-                    faces = Some(draw_faces);
+                    bound_faces = Some(draw_faces);
                 }
                 let key = pages(&slot);
                 if bound != Some(key) {
@@ -1346,7 +1343,7 @@ impl Renderer {
                     let mut end = k + 1;
                     while end < range.end
                         && !queried[end]
-                        && solid[end] == solid[k]
+                        && faces[end] == faces[k]
                         && pages(&self.slots[end].1) == key
                     {
                         end += 1;
@@ -1381,10 +1378,10 @@ impl Renderer {
             if !proxy_buffers.is_empty() && !std::mem::replace(&mut proxies_drawn_in[eye], true) {
                 let first_frame = (boxes.len() + eye * proxies.nodes.len()) as u32;
                 let mut bound_faces = None;
-                for &(k, vertices, indices, count, faces) in &proxy_buffers {
-                    if bound_faces != Some(faces) {
-                        pass.set_pipeline(&self.proxy[faces as usize]);
-                        bound_faces = Some(faces);
+                for &(k, vertices, indices, count, proxy_faces) in &proxy_buffers {
+                    if bound_faces != Some(proxy_faces) {
+                        pass.set_pipeline(&self.proxy[proxy_faces as usize]);
+                        bound_faces = Some(proxy_faces);
                     }
                     pass.set_vertex_buffer(0, vertices.slice(..));
                     pass.set_index_buffer(indices.slice(..), wgpu::IndexFormat::Uint32);
