@@ -2,6 +2,10 @@
 //
 // Positions arrive part-local (f32); each part's model-view was formed in f64 on
 // the CPU, camera-relative, so nothing here ever sees a large coordinate.
+// What a draw's vertices share (its model-view, colour and entry; a proxy's or
+// a box's frame) arrives as instance-rate vertex attributes, not storage reads:
+// a CPU rasterizer fetches those once per draw, where it gathers a storage
+// read lane by lane for every vertex.
 // Depth is reverse-Z (1 at the near plane); front faces are counter-clockwise,
 // but CAD windings are unreliable: back faces are culled (by the pipeline) only
 // for meshes found solid at import, and shading is two-sided.
@@ -18,8 +22,6 @@ struct ViewUniform {
     hover: vec4<f32>,
     // Colour of cut faces.
     section_cap: vec3<f32>,
-    // Model-views per eye: eye k's are model_views[k * eye_stride ..].
-    eye_stride: u32,
     // The eye single-view entry points draw (0 but for a stereo pair drawn a
     // layer at a time).
     eye: u32,
@@ -38,29 +40,38 @@ struct ModelView {
     r2: vec4<f32>,
 }
 
-// One chunk instance: the draw's instance index selects it. `look` holds its
-// material id in the low bits and its part's flags from FLAGS_SHIFT on (the
-// CPU rewrites a part's entries when its flags change), so a vertex finds
-// its colour with one read more, not two.
+// A chunk draw's instance: its part's model-view in the eye drawn, its
+// colour (material and tint, formed on the CPU) and its tree entry.
+struct Instance {
+    @location(2) r0: vec4<f32>,
+    @location(3) r1: vec4<f32>,
+    @location(4) r2: vec4<f32>,
+    @location(5) base: vec3<f32>,
+    @location(6) entry: u32,
+}
+
+// One chunk instance of the tree, by entry: `look` holds its material id in
+// the low bits and its part's flags from FLAGS_SHIFT on (the CPU rewrites a
+// part's entries when its flags change). Only proxies read it: their
+// vertices come from many entries.
 struct EntryGpu {
     part: u32,
     look: u32,
 }
 
-// A world-aligned box in view space: centre plus three half-axes, so the CPU
-// does the f64 work and the GPU only adds small vectors.
-struct QueryBox {
-    center: vec4<f32>,
-    axis_x: vec4<f32>,
-    axis_y: vec4<f32>,
-    axis_z: vec4<f32>,
+// A world-aligned box in view space, or a proxy's frame: centre plus three
+// half-axes (world axes), so the CPU does the f64 work and the GPU only adds
+// small vectors. An instance of box and proxy draws.
+struct Frame {
+    @location(7) center: vec4<f32>,
+    @location(8) axis_x: vec4<f32>,
+    @location(9) axis_y: vec4<f32>,
+    @location(10) axis_z: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> view: ViewUniform;
-@group(0) @binding(1) var<storage, read> model_views: array<ModelView>;
-@group(0) @binding(2) var<storage, read> entries: array<EntryGpu>;
-@group(0) @binding(4) var<storage, read> materials: array<vec4<f32>>;
-@group(0) @binding(5) var<storage, read> boxes: array<QueryBox>;
+@group(0) @binding(1) var<storage, read> entries: array<EntryGpu>;
+@group(0) @binding(2) var<storage, read> materials: array<vec4<f32>>;
 
 // Whether the pipeline cuts with section planes: the uncut ones compile
 // without the discard, which would cost early depth testing.
@@ -87,11 +98,10 @@ struct MeshOut {
     @location(4) @interpolate(flat) base: vec3<f32>,
 }
 
-// A chunk vertex as eye `eye` sees it. Every mesh entry point goes through
-// here, so a stereo layer computes exactly what a single-eye render does.
-fn mesh_vertex(position: vec3<f32>, normal: vec4<f32>, entry: u32, eye: u32) -> MeshOut {
-    let e = entries[entry];
-    let m = model_views[eye * view.eye_stride + e.part];
+// A chunk vertex of `instance` as eye `eye` sees it, through model-view `m`.
+// Every mesh entry point goes through here, so a stereo layer computes
+// exactly what a single-eye render does.
+fn mesh_vertex(position: vec3<f32>, normal: vec4<f32>, m: ModelView, instance: Instance, eye: u32) -> MeshOut {
     let p = vec4<f32>(position, 1.0);
     let view_pos = vec3<f32>(dot(m.r0, p), dot(m.r1, p), dot(m.r2, p));
     // Normals go through the cofactor matrix (the inverse transpose up to a
@@ -101,23 +111,24 @@ fn mesh_vertex(position: vec3<f32>, normal: vec4<f32>, entry: u32, eye: u32) -> 
     let c2 = vec3<f32>(m.r0.z, m.r1.z, m.r2.z);
     let n = normal.xyz;
     let view_normal = cross(c1, c2) * n.x + cross(c2, c0) * n.y + cross(c0, c1) * n.z;
-    return mesh_out(view_pos, view_normal, entry, e.look, eye);
+    return mesh_out(view_pos, view_normal, instance.entry, instance.base, eye);
 }
 
 // What every mesh vertex passes on, from its view-space position and normal.
-fn mesh_out(view_pos: vec3<f32>, view_normal: vec3<f32>, entry: u32, look: u32, eye: u32) -> MeshOut {
+fn mesh_out(view_pos: vec3<f32>, view_normal: vec3<f32>, entry: u32, base: vec3<f32>, eye: u32) -> MeshOut {
     var out: MeshOut;
     out.clip = view.proj * vec4<f32>(view_pos, 1.0);
     out.view_pos = view_pos;
     out.normal = view_normal;
     out.entry = entry;
     out.eye = eye;
-    out.base = base_colour(look);
+    out.base = base;
     return out;
 }
 
 // An entry's colour from its look: its material, mixed with its part's tint
-// (selected, else clashing, else hovered) where it has one.
+// (selected, else clashing, else hovered) where it has one. The CPU forms
+// the same for chunk draws (`Renderer::instance`).
 fn base_colour(look: u32) -> vec3<f32> {
     let base = materials[look & MATERIAL_MASK].rgb;
     let flags = look >> FLAGS_SHIFT;
@@ -151,28 +162,28 @@ fn cut_away(view_pos: vec3<f32>, eye: u32) -> bool {
 fn vs_mesh(
     @location(0) position: vec3<f32>,
     @location(1) normal: vec4<f32>,
-    @builtin(instance_index) entry: u32,
+    instance: Instance,
 ) -> MeshOut {
-    return mesh_vertex(position, normal, entry, view.eye);
+    let m = ModelView(instance.r0, instance.r1, instance.r2);
+    return mesh_vertex(position, normal, m, instance, view.eye);
 }
 
 // A proxy's vertex (a merged, simplified subtree): its position is relative
-// to the proxy's origin along the world axes, and boxes[frame] holds the
-// proxy's frame in the eye's view space (the origin, formed in f64 on the CPU,
-// and the world axes), so positions go through a rotation and a small
+// to the proxy's origin along the world axes, and its instance is the
+// proxy's frame in the eye's view space (the origin, formed in f64 on the
+// CPU, and the world axes), so positions go through a rotation and a small
 // translation only. The entry it came from picks material and tints.
 @vertex
 fn vs_proxy(
     @location(0) position: vec3<f32>,
     @location(1) normal: vec4<f32>,
     @location(2) entry: u32,
-    @builtin(instance_index) frame: u32,
+    f: Frame,
 ) -> MeshOut {
-    let f = boxes[frame];
     let view_pos = f.center.xyz + f.axis_x.xyz * position.x + f.axis_y.xyz * position.y
         + f.axis_z.xyz * position.z;
     let view_normal = f.axis_x.xyz * normal.x + f.axis_y.xyz * normal.y + f.axis_z.xyz * normal.z;
-    return mesh_out(view_pos, view_normal, entry, entries[entry].look, view.eye);
+    return mesh_out(view_pos, view_normal, entry, base_colour(entries[entry].look), view.eye);
 }
 
 @fragment
@@ -218,8 +229,7 @@ const BOX_CORNERS = array<u32, 36>(
 );
 
 @vertex
-fn vs_box(@builtin(vertex_index) vertex: u32, @builtin(instance_index) index: u32) -> @builtin(position) @invariant vec4<f32> {
-    let b = boxes[index];
+fn vs_box(@builtin(vertex_index) vertex: u32, b: Frame) -> @builtin(position) @invariant vec4<f32> {
     let corner = BOX_CORNERS[vertex];
     let s = vec3<f32>(f32(corner & 1u), f32((corner >> 1u) & 1u), f32((corner >> 2u) & 1u)) * 2.0 - 1.0;
     let p = b.center.xyz + b.axis_x.xyz * s.x + b.axis_y.xyz * s.y + b.axis_z.xyz * s.z;

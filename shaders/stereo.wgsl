@@ -3,17 +3,31 @@
 // names `view_index` does not validate without it).
 //
 // Each layer of the 2-layer target is one eye: the view index picks that eye's
-// model-views, formed in f64 on the CPU relative to that eye exactly as a
-// single-eye render forms them, so a layer equals the single-eye image.
+// model-view, formed in f64 on the CPU relative to that eye exactly as a
+// single-eye render forms it, so a layer equals the single-eye image. The
+// left eye's comes with the instance, the right eye's from a second
+// instance buffer.
+
+// The right eye's model-view of a chunk draw.
+struct RightEye {
+    @location(11) r0: vec4<f32>,
+    @location(12) r1: vec4<f32>,
+    @location(13) r2: vec4<f32>,
+}
 
 @vertex
 fn vs_mesh_stereo(
     @location(0) position: vec3<f32>,
     @location(1) normal: vec4<f32>,
-    @builtin(instance_index) entry: u32,
+    instance: Instance,
+    right: RightEye,
     @builtin(view_index) eye: u32,
 ) -> MeshOut {
-    return mesh_vertex(position, normal, entry, eye);
+    var m = ModelView(instance.r0, instance.r1, instance.r2);
+    if eye == 1u {
+        m = ModelView(right.r0, right.r1, right.r2);
+    }
+    return mesh_vertex(position, normal, m, instance, eye);
 }
 
 // The multiview probe: the same triangle in both views, cut by the near plane

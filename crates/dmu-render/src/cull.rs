@@ -303,27 +303,7 @@ impl Renderer {
                 &mut stats,
             )
         });
-        // A near field's frame forms the model-views of its parts only, so
-        // its cost follows the cull box, not the model; so does a single
-        // view's frame that knows its draws (the model-views of a whole
-        // model are tens of MB at 500M triangles).
-        let only: Option<Vec<u32>> = match (&near, &plain) {
-            (Some(near), _) => Some(near.parts(tree)),
-            (None, Some((draws, _, _))) if target.eye_count() == 1 => {
-                // Marked, then listed in order: no sort of up to a million ids.
-                let mut drawn = vec![false; scene.parts().len()];
-                for d in draws {
-                    drawn[tree.entries()[d.entry as usize].part.index()] = true;
-                }
-                Some(
-                    (0..drawn.len() as u32)
-                        .filter(|&p| drawn[p as usize])
-                        .collect(),
-                )
-            }
-            _ => None,
-        };
-        let mut gpu_state = self.prepare_view(view, scene, cull.eye_views(), only.as_deref());
+        let mut gpu_state = self.prepare_view(view, cull.eye_views());
         view.drawn.clear();
         let outcome = if hzb {
             self.frame_hzb(
@@ -371,6 +351,7 @@ impl Renderer {
                 Shading::Color,
                 true,
                 geometry,
+                scene,
                 tree,
                 &draws,
                 &[],
@@ -437,7 +418,7 @@ impl Renderer {
             ..Cull::new(view, None, KnobsInEffect::default())
         };
         let cell_distance = self.cell_distances(tree, cull.eye());
-        let mut gpu_state = self.prepare_view(view, scene, cull.eye_views(), None);
+        let mut gpu_state = self.prepare_view(view, cull.eye_views());
         let mut scratch = FrameStats::default();
         let mut draws = self.frustum_draws(scene, tree, &cull, &mut scratch);
         sort_draws(&self.hierarchy, &cell_distance, &mut draws);
@@ -447,6 +428,7 @@ impl Renderer {
             Shading::Ids,
             true,
             geometry,
+            scene,
             tree,
             &draws,
             &[],
@@ -749,6 +731,7 @@ impl Renderer {
             Shading::Color,
             true,
             geometry,
+            scene,
             tree,
             &first_draws,
             &[],
@@ -765,6 +748,7 @@ impl Renderer {
             target.all(),
             view.projection(),
             geometry,
+            scene,
             tree,
             &candidates,
             &proxy_nodes,
@@ -934,6 +918,7 @@ impl Renderer {
                 Shading::Color,
                 round == 0,
                 geometry,
+                scene,
                 tree,
                 &draws,
                 &boxes,

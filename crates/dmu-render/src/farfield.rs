@@ -205,20 +205,6 @@ pub(crate) struct NearField {
     pub always: Vec<u32>,
 }
 
-impl NearField {
-    /// The parts of its chunk instances, sorted.
-    pub fn parts(&self, tree: &Tree) -> Vec<u32> {
-        let mut parts: Vec<u32> = self
-            .entries
-            .iter()
-            .map(|e| tree.entries()[e.0 as usize].part.0)
-            .collect();
-        parts.sort_unstable();
-        parts.dedup();
-        parts
-    }
-}
-
 /// A capture's filter: what does not touch the cull box, less the parts left
 /// out.
 #[derive(Clone, Debug)]

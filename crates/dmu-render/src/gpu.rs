@@ -12,9 +12,9 @@ pub(crate) const STEREO_SHADER: &str = concat!(
     include_str!("../../../shaders/stereo.wgsl")
 );
 
-/// `ViewUniform`: projection and highlight colours of one view, and which eye's
-/// model-views the single-view pipelines read (a stereo pair drawn a layer at a
-/// time binds one per eye).
+/// `ViewUniform`: projection and highlight colours of one view, and which eye
+/// the single-view pipelines draw (a stereo pair drawn a layer at a time
+/// binds one per eye).
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 #[repr(C)]
 pub(crate) struct ViewUniform {
@@ -28,12 +28,8 @@ pub(crate) struct ViewUniform {
     pub hover: [f32; 4],
     /// Colour of cut faces (rgb).
     pub section_cap: [f32; 3],
-    /// Model-views per eye: eye `k`'s start at `k * eye_stride` (the part count).
-    pub eye_stride: u32,
     /// The eye single-view pipelines draw (0 for a view).
     pub eye: u32,
-    /// The array that follows starts at a multiple of 16 bytes.
-    pub _pad: [u32; 3],
     /// The headlight in each eye's view space (w unused).
     pub light: [[f32; 4]; 2],
     /// Section planes `(n, d)` in each eye's view space, eye `k`'s at
@@ -41,20 +37,48 @@ pub(crate) struct ViewUniform {
     /// Unused slots are `(0, 0, 0, 1)`, which keep everything.
     pub clip: [[f32; 4]; 2 * crate::MAX_SECTION_PLANES],
 }
-const _: () = assert!(size_of::<ViewUniform>() == 176 + 16 * 2 * crate::MAX_SECTION_PLANES);
+const _: () = assert!(size_of::<ViewUniform>() == 160 + 16 * 2 * crate::MAX_SECTION_PLANES);
 
-/// `ModelView`: rows of a part's camera-relative affine model-view, formed in
-/// f64 and narrowed to f32 only once small.
+/// `Instance`: what the vertices of one chunk draw share, read by the mesh
+/// pipelines as instance-rate vertex attributes (the draw's instance index
+/// selects it).
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 #[repr(C)]
-pub(crate) struct ModelView {
-    /// Three rows `[m0, m1, m2, t]`.
+pub(crate) struct InstanceGpu {
+    /// The rows `[m0, m1, m2, t]` of its part's camera-relative affine
+    /// model-view in the eye drawn, formed in f64 and narrowed to f32 only
+    /// once small.
     pub rows: [[f32; 4]; 3],
+    /// Its material's colour with its part's tint (rgb).
+    pub base: [f32; 3],
+    /// Its tree entry (what the id pipelines write, less one).
+    pub entry: u32,
 }
-const _: () = assert!(size_of::<ModelView>() == 48);
+const _: () = assert!(size_of::<InstanceGpu>() == 64);
 
-/// `EntryGpu`: a chunk instance's part and look; indexed by entry id, which
-/// the draw passes as its instance index.
+/// The attributes of a pooled chunk vertex (`crate::geometry::PoolVertex`):
+/// position and normal.
+pub(crate) const CHUNK_VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 2] =
+    wgpu::vertex_attr_array![0 => Float32x3, 1 => Snorm8x4];
+/// The attributes of a proxy's vertex (`crate::proxy::ProxyVertex`):
+/// position, normal and the entry it came from.
+pub(crate) const PROXY_VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 3] =
+    wgpu::vertex_attr_array![0 => Float32x3, 1 => Snorm8x4, 2 => Uint32];
+/// The instance-rate attributes of [`InstanceGpu`], at the shader's locations.
+pub(crate) const INSTANCE_ATTRIBUTES: [wgpu::VertexAttribute; 5] = wgpu::vertex_attr_array![
+    2 => Float32x4, 3 => Float32x4, 4 => Float32x4, 5 => Float32x3, 6 => Uint32
+];
+/// The right eye's model-view rows of the multiview pipeline, read from a
+/// second [`InstanceGpu`] buffer.
+pub(crate) const RIGHT_EYE_ATTRIBUTES: [wgpu::VertexAttribute; 3] =
+    wgpu::vertex_attr_array![11 => Float32x4, 12 => Float32x4, 13 => Float32x4];
+/// The instance-rate attributes of a [`QueryBox`] (a box or a proxy's frame).
+pub(crate) const FRAME_ATTRIBUTES: [wgpu::VertexAttribute; 4] = wgpu::vertex_attr_array![
+    7 => Float32x4, 8 => Float32x4, 9 => Float32x4, 10 => Float32x4
+];
+
+/// `EntryGpu`: a chunk instance's part and look, indexed by entry id; the
+/// proxies' vertices read it by the entry they came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Pod, Zeroable)]
 #[repr(C)]
 pub(crate) struct EntryGpu {
@@ -78,7 +102,8 @@ impl EntryGpu {
 }
 const _: () = assert!(size_of::<EntryGpu>() == 8);
 
-/// `QueryBox`: a world-aligned box in view space, centre and half-axes.
+/// `Frame` of `mesh.wgsl`: a world-aligned box in view space, centre and
+/// half-axes (a query box, or a proxy's frame).
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 #[repr(C)]
 pub(crate) struct QueryBox {
@@ -202,6 +227,76 @@ mod tests {
         for (material, flags) in [(0, 0), (1, all), (mask, super::PART_CLASHING), (12_345, 0)] {
             let look = super::EntryGpu::new(7, material, flags).look;
             assert_eq!((look & mask, look >> super::FLAGS_SHIFT), (material, flags));
+        }
+    }
+
+    /// The vertex inputs of each vertex entry point, location by location,
+    /// against the attributes of the buffers its pipelines bind: every
+    /// input is fed, with as many components, and nothing else is.
+    #[test]
+    fn vertex_inputs_match_the_buffers() {
+        use super::*;
+        let module = naga::front::wgsl::parse_str(STEREO_SHADER).expect("WGSL parses");
+        let components = |ty: naga::Handle<naga::Type>| match module.types[ty].inner {
+            naga::TypeInner::Scalar(_) => 1,
+            naga::TypeInner::Vector { size, .. } => size as u64,
+            ref t => panic!("vertex input of type {t:?}"),
+        };
+        let inputs = |name: &str| {
+            let entry = (module.entry_points.iter())
+                .find(|e| e.name == name)
+                .unwrap_or_else(|| panic!("no entry point {name}"));
+            let mut found = Vec::new();
+            for arg in &entry.function.arguments {
+                match (&arg.binding, &module.types[arg.ty].inner) {
+                    (Some(naga::Binding::Location { location, .. }), _) => {
+                        found.push((*location, components(arg.ty)));
+                    }
+                    (Some(naga::Binding::BuiltIn(_)), _) => {}
+                    (None, naga::TypeInner::Struct { members, .. }) => {
+                        for m in members {
+                            if let Some(naga::Binding::Location { location, .. }) = m.binding {
+                                found.push((location, components(m.ty)));
+                            }
+                        }
+                    }
+                    (b, t) => panic!("{name}: input {b:?} of type {t:?}"),
+                }
+            }
+            found.sort_unstable();
+            found
+        };
+        let fed = |buffers: &[&[wgpu::VertexAttribute]]| {
+            let mut found: Vec<(u32, u64)> = (buffers.iter())
+                .flat_map(|b| b.iter())
+                .map(|a| {
+                    let n = match a.format {
+                        wgpu::VertexFormat::Uint32 => 1,
+                        wgpu::VertexFormat::Float32x3 => 3,
+                        wgpu::VertexFormat::Float32x4 | wgpu::VertexFormat::Snorm8x4 => 4,
+                        f => panic!("a format this test does not know: {f:?}"),
+                    };
+                    (a.shader_location, n)
+                })
+                .collect();
+            found.sort_unstable();
+            found
+        };
+        let cases: [(&str, &[&[wgpu::VertexAttribute]]); 4] = [
+            ("vs_mesh", &[&CHUNK_VERTEX_ATTRIBUTES, &INSTANCE_ATTRIBUTES]),
+            (
+                "vs_mesh_stereo",
+                &[
+                    &CHUNK_VERTEX_ATTRIBUTES,
+                    &INSTANCE_ATTRIBUTES,
+                    &RIGHT_EYE_ATTRIBUTES,
+                ],
+            ),
+            ("vs_proxy", &[&PROXY_VERTEX_ATTRIBUTES, &FRAME_ATTRIBUTES]),
+            ("vs_box", &[&FRAME_ATTRIBUTES]),
+        ];
+        for (name, buffers) in cases {
+            assert_eq!(inputs(name), fed(buffers), "{name}");
         }
     }
 

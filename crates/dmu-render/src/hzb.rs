@@ -13,6 +13,7 @@
 
 use std::collections::HashMap;
 
+use dmu_scene::Scene;
 use dmu_tree::Tree;
 
 use crate::RenderError;
@@ -260,6 +261,7 @@ impl Renderer {
         target: crate::FrameTarget<'_>,
         projection: glam::DMat4,
         geometry: &dyn GeometrySource,
+        scene: &Scene,
         tree: &Tree,
         candidates: &[Candidate],
         proxy_nodes: &[u32],
@@ -298,6 +300,8 @@ impl Renderer {
             None => (Vec::new(), Vec::new()),
         };
         out.missing = vec![false; candidates.len()];
+        // Candidate i's draw is instance i.
+        let mut instances = vec![None; candidates.len()];
         for (i, c) in candidates.iter().enumerate() {
             let mut g = HzbCandidate {
                 bounds: c.bounds,
@@ -315,13 +319,14 @@ impl Renderer {
                 let key = match c.kind {
                     CandidateKind::Entry(e) => match self.resolve_slot(geometry, tree, e, lod) {
                         Some(slot) => {
-                            set_draw(&mut g, &slot, e);
+                            set_draw(&mut g, &slot, i as u32);
+                            instances[i] = Some(e);
                             triangles = slot.index_count / 3;
                             Some(GroupKey::Pages {
                                 vertex_page: slot.vertex_page,
                                 index_page: slot.index_page,
                                 short_indices: slot.short_indices,
-                                faces: self.faces_of(gpu, tree, e),
+                                faces: self.faces_of(gpu, scene, tree, e),
                             })
                         }
                         None => {
@@ -381,9 +386,10 @@ impl Renderer {
             self.queue
                 .write_buffer(&state.candidates, 0, bytemuck::cast_slice(&gpu_candidates));
         }
+        self.write_instances(gpu, scene, tree, &instances);
         // Proxies' frames, read by the proxy pipeline at their places.
         if !proxy_frames.is_empty() {
-            self.ensure_capacity(gpu, 0, proxy_frames.len());
+            self.ensure_capacity(gpu, proxy_frames.len());
             self.queue
                 .write_buffer(&gpu.boxes, 0, bytemuck::cast_slice(proxy_frames));
         }
@@ -441,6 +447,7 @@ impl Renderer {
                         ..
                     } => {
                         pass.set_vertex_buffer(0, self.pool.vertex_slice(vertex_page));
+                        pass.set_vertex_buffer(1, gpu.instances.slice(..));
                         pass.set_index_buffer(
                             self.pool.index_slice(index_page),
                             if short_indices {
@@ -457,6 +464,7 @@ impl Renderer {
                             continue;
                         };
                         pass.set_vertex_buffer(0, v.slice(..));
+                        pass.set_vertex_buffer(1, gpu.boxes.slice(..));
                         pass.set_index_buffer(i.slice(..), wgpu::IndexFormat::Uint32);
                     }
                 }
@@ -618,12 +626,13 @@ impl Renderer {
     }
 }
 
-/// Fills a candidate's draw from its chunk's slot; its instance is its entry.
-fn set_draw(g: &mut HzbCandidate, slot: &ChunkSlot, entry: u32) {
+/// Fills a candidate's draw from its chunk's slot; its instance is
+/// `instance`.
+fn set_draw(g: &mut HzbCandidate, slot: &ChunkSlot, instance: u32) {
     g.index_count = slot.index_count;
     g.first_index = slot.first_index;
     g.base_vertex = slot.first_vertex as i32;
-    g.first_instance = entry;
+    g.first_instance = instance;
 }
 
 /// Candidates of a frame in the order its first pass would draw them.

@@ -14,8 +14,9 @@ use crate::capture::{DEPTH_FORMAT, ID_FORMAT};
 use crate::device::map_read;
 use crate::geometry::{GeometryPool, GeometrySource, PoolVertex};
 use crate::gpu::{
-    EntryGpu, ModelView, PART_CLASHING, PART_HOVERED, PART_SELECTED, QueryBox, SHADER,
-    STEREO_SHADER, ViewUniform,
+    CHUNK_VERTEX_ATTRIBUTES, EntryGpu, FRAME_ATTRIBUTES, INSTANCE_ATTRIBUTES, InstanceGpu,
+    PART_CLASHING, PART_HOVERED, PART_SELECTED, PROXY_VERTEX_ATTRIBUTES, QueryBox,
+    RIGHT_EYE_ATTRIBUTES, SHADER, STEREO_SHADER, ViewUniform,
 };
 use crate::hierarchy::Hierarchy;
 use crate::proxy::{Proxies, ProxyStats, ProxyVertex};
@@ -28,11 +29,6 @@ pub(crate) const QUERIES_PER_PASS: u32 = 512;
 const TIMED_PASSES: u32 = 64;
 /// Bytes of one indexed indirect draw's arguments.
 const DRAW_ARGS_BYTES: u64 = 20;
-/// Model-views of parts this many ids apart or nearer are written in one run
-/// (the few kilobytes between cost less than another write).
-const MODEL_VIEW_RUN_GAP: u32 = 64;
-/// The most model-view writes a frame makes (see `prepare_view`).
-const MAX_MODEL_VIEW_RUNS: usize = 256;
 /// The layers a stereo pair's multiview pass draws: left eye 0, right eye 1.
 const STEREO_VIEWS: NonZeroU32 = NonZeroU32::new(0b11).expect("non-zero");
 
@@ -277,7 +273,12 @@ pub(crate) struct RoundResult {
 pub(crate) struct ViewGpu {
     /// One [`ViewUniform`] per eye, each at a multiple of `uniform_stride`.
     uniform: wgpu::Buffer,
-    model_views: wgpu::Buffer,
+    /// The eyes' world-to-view transforms, as of `prepare_view`.
+    eye_views: Vec<DAffine3>,
+    /// A round's [`InstanceGpu`]s, eye-major: eye `k`'s from `k` times the
+    /// round's draws on (a vertex buffer, bound at the eye's).
+    pub(crate) instances: wgpu::Buffer,
+    /// Query boxes and proxies' frames (a vertex buffer, read per instance).
     pub(crate) boxes: wgpu::Buffer,
     /// One per eye: eye `k`'s binds its own uniform.
     pub(crate) bind_groups: [wgpu::BindGroup; 2],
@@ -292,9 +293,6 @@ pub(crate) struct ViewGpu {
     /// The frame cuts with section planes: it draws with the pipelines that
     /// discard what is cut away (the others keep early depth testing).
     pub(crate) sectioned: bool,
-    /// Whether each part's model-view mirrors (its windings flip), as of the
-    /// frame's model-views: such parts are drawn without culling.
-    mirrored: Vec<bool>,
     /// The depth pyramid and box-test buffers of `hzb` frames.
     pub(crate) hzb: Option<crate::hzb::HzbGpu>,
 }
@@ -327,6 +325,8 @@ pub struct Renderer {
     solid: Vec<bool>,
     entries: wgpu::Buffer,
     materials: wgpu::Buffer,
+    /// The materials' colours (rgb), as the GPU's `materials`.
+    material_colours: Vec<[f32; 3]>,
     part_flags: Vec<u32>,
     /// Parts whose flags changed since the last frame wrote their entries.
     flags_changed: Vec<PartId>,
@@ -406,8 +406,6 @@ impl Renderer {
                 },
                 storage(1),
                 storage(2),
-                storage(4),
-                storage(5),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -415,11 +413,30 @@ impl Renderer {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let mesh_buffers = [Some(wgpu::VertexBufferLayout {
+        let vertices = wgpu::VertexBufferLayout {
             array_stride: size_of::<PoolVertex>() as u64,
             step_mode: wgpu::VertexStepMode::Vertex,
-            attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Snorm8x4],
-        })];
+            attributes: &CHUNK_VERTEX_ATTRIBUTES,
+        };
+        let per_instance =
+            |attributes: &'static [wgpu::VertexAttribute]| wgpu::VertexBufferLayout {
+                array_stride: size_of::<InstanceGpu>() as u64,
+                step_mode: wgpu::VertexStepMode::Instance,
+                attributes,
+            };
+        let frames = wgpu::VertexBufferLayout {
+            array_stride: size_of::<QueryBox>() as u64,
+            ..per_instance(&FRAME_ATTRIBUTES)
+        };
+        let mesh_buffers = [
+            Some(vertices.clone()),
+            Some(per_instance(&INSTANCE_ATTRIBUTES)),
+        ];
+        let stereo_buffers = [
+            Some(vertices),
+            Some(per_instance(&INSTANCE_ATTRIBUTES)),
+            Some(per_instance(&RIGHT_EYE_ATTRIBUTES)),
+        ];
         let pipeline = |label,
                         module: &wgpu::ShaderModule,
                         vs,
@@ -486,11 +503,14 @@ impl Renderer {
                 cache: None,
             })
         };
-        let proxy_buffers = [Some(wgpu::VertexBufferLayout {
-            array_stride: size_of::<ProxyVertex>() as u64,
-            step_mode: wgpu::VertexStepMode::Vertex,
-            attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Snorm8x4, 2 => Uint32],
-        })];
+        let proxy_buffers = [
+            Some(wgpu::VertexBufferLayout {
+                array_stride: size_of::<ProxyVertex>() as u64,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &PROXY_VERTEX_ATTRIBUTES,
+            }),
+            Some(frames.clone()),
+        ];
         let proxy = Faces::ALL.map(|faces| {
             pipeline(
                 "dmu shade proxies",
@@ -526,7 +546,7 @@ impl Renderer {
                     "dmu shade stereo",
                     module,
                     "vs_mesh_stereo",
-                    &mesh_buffers,
+                    &stereo_buffers,
                     "fs_shade",
                     options.color_format,
                     true,
@@ -563,7 +583,7 @@ impl Renderer {
             "dmu query boxes",
             &module,
             "vs_box",
-            &[],
+            &[Some(frames)],
             "fs_box",
             options.color_format,
             false,
@@ -590,6 +610,7 @@ impl Renderer {
         Self {
             entries: storage_buffer("dmu entries", bytemuck::cast_slice(&entry_table)),
             materials: storage_buffer("dmu materials", bytemuck::cast_slice(&materials)),
+            material_colours: materials.iter().map(|&[r, g, b, _]| [r, g, b]).collect(),
             part_flags: vec![0; scene.parts().len()],
             flags_changed: Vec::new(),
             device: device.clone(),
@@ -702,7 +723,9 @@ impl Renderer {
         }
     }
 
-    /// Highlights a part as selected or not; writes one word to the GPU.
+    /// Highlights a part as selected or not, from the next frame on (its
+    /// draws' instances carry the tint; its entries, which proxies read, are
+    /// rewritten then).
     pub fn set_selected(&mut self, part: PartId, selected: bool) {
         self.set_part_flag(part, PART_SELECTED, selected);
     }
@@ -774,28 +797,15 @@ impl Renderer {
         self.timestamp_period_ns.is_some()
     }
 
-    /// Takes a view's GPU resources (making them the first time) for the
-    /// frame, grows them as needed and uploads its per-frame data: the
-    /// projection and every part's camera-relative model-view for each eye
-    /// (one view matrix per eye: one for a view, two for a stereo pair), or
-    /// with `only` (sorted part ids) of those parts alone.
-    pub(crate) fn prepare_view(
-        &self,
-        view: &mut View,
-        scene: &Scene,
-        eye_views: &[DAffine3],
-        only: Option<&[u32]>,
-    ) -> ViewGpu {
+    /// Sets a view's uniforms for its eyes (world-to-view `eye_views`) and
+    /// keeps the eyes for its rounds, which form their draws' model-views.
+    pub(crate) fn prepare_view(&self, view: &mut View, eye_views: &[DAffine3]) -> ViewGpu {
         let proj = view.projection();
-        let part_count = scene.parts().len();
         let clip = section_in_eyes(&view.section, eye_views);
-        let mut g = view
-            .gpu
-            .take()
-            .unwrap_or_else(|| self.make_view_gpu(part_count.max(1) * eye_views.len()));
-        self.ensure_capacity(&mut g, part_count * eye_views.len(), 0);
+        let mut g = view.gpu.take().unwrap_or_else(|| self.make_view_gpu());
         g.sectioned = !view.section.is_empty();
-        g.mirrored.resize(part_count, false);
+        g.eye_views.clear();
+        g.eye_views.extend_from_slice(eye_views);
         let mut light = [[0.0; 4]; 2];
         if let Some(at) = view.light {
             for (l, v) in light.iter_mut().zip(eye_views) {
@@ -809,9 +819,7 @@ impl Renderer {
                 clash: self.options.clash_highlight,
                 hover: self.options.hover_highlight,
                 section_cap: self.options.section_cap,
-                eye_stride: part_count as u32,
                 eye: eye as u32,
-                _pad: [0; 3],
                 light,
                 clip,
             };
@@ -821,106 +829,81 @@ impl Renderer {
                 bytemuck::bytes_of(&uniform),
             );
         }
-        // Formed in f64 for each eye: the eye's large translation cancels the
-        // part's before anything is rounded to f32, so far-from-origin models
-        // stay exact, and a stereo eye gets what a single view from there gets.
-        // With it, whether it mirrors (eyes never do: the part's transform).
-        let model_view = |view_matrix: DAffine3, p: PartId| {
-            let m = view_matrix * scene.part_world(p);
-            let (a, t) = (m.matrix3, m.translation);
-            let row = |i: usize| {
-                [
-                    a.x_axis[i] as f32,
-                    a.y_axis[i] as f32,
-                    a.z_axis[i] as f32,
-                    t[i] as f32,
-                ]
-            };
-            let model_view = ModelView {
-                rows: [row(0), row(1), row(2)],
-            };
-            (model_view, a.determinant() < 0.0)
-        };
-        match only {
-            // Only the parts the frame may draw (a single view: a near
-            // field's, or the draws of a frame without occlusion culling):
-            // the others' model-views are not read this frame. Written in
-            // runs of nearby ids (the parts of a view may be spread over the
-            // whole id range); parts in a run's gaps get zeros.
-            Some(parts) if eye_views.len() == 1 => {
-                let mut next = parts.iter().copied().peekable();
-                // Each run is a staging allocation of its own: a frame
-                // writes at most `MAX_MODEL_VIEW_RUNS`, joined over wider gaps.
-                let mut gap = MODEL_VIEW_RUN_GAP;
-                while id_runs(parts, gap).nth(MAX_MODEL_VIEW_RUNS).is_some() {
-                    gap = gap.saturating_mul(4);
-                }
-                let mirrored = &mut g.mirrored;
-                for (first, last) in id_runs(parts, gap) {
-                    self.write_model_views(&g.model_views, first as usize, last - first + 1, |p| {
-                        // Parts in the gaps of a run are not drawn: zeros.
-                        while next.next_if(|&q| (q as usize) < p).is_some() {}
-                        next.next_if_eq(&(p as u32)).map_or_else(
-                            <ModelView as bytemuck::Zeroable>::zeroed,
-                            |_| {
-                                let (m, flips) = model_view(eye_views[0], PartId::from_index(p));
-                                mirrored[p] = flips;
-                                m
-                            },
-                        )
-                    });
-                }
-            }
-            _ => {
-                let count = part_count * eye_views.len();
-                let mirrored = &mut g.mirrored;
-                self.write_model_views(&g.model_views, 0, count as u32, |k| {
-                    let (m, flips) = model_view(
-                        eye_views[k / part_count],
-                        PartId::from_index(k % part_count),
-                    );
-                    mirrored[k % part_count] = flips;
-                    m
-                });
-            }
-        }
         g
     }
 
-    /// Writes `count` model-views into `buffer` from index `first`, the
-    /// `k`-th as `at(first + k)` (called once per index, in ascending
-    /// order), straight into the queue's staging memory in pieces (no
-    /// model-sized copy on the CPU).
-    fn write_model_views(
-        &self,
-        buffer: &wgpu::Buffer,
-        first: usize,
-        count: u32,
-        mut at: impl FnMut(usize) -> ModelView,
-    ) {
-        const PIECE: usize = 4096;
-        let size = size_of::<ModelView>();
-        let Some(bytes) = wgpu::BufferSize::new(u64::from(count) * size as u64) else {
-            return;
+    /// The instance of a draw of tree entry `entry` in the eye whose
+    /// world-to-view is `eye_view`: its part's model-view, formed in f64 (the
+    /// eye's large translation cancels the part's before anything is
+    /// rounded to f32, so far-from-origin models stay exact, and a stereo
+    /// eye gets what a single view from there gets), and its colour as
+    /// `base_colour` in `mesh.wgsl` forms it.
+    fn instance(&self, scene: &Scene, tree: &Tree, eye_view: DAffine3, entry: u32) -> InstanceGpu {
+        let e = &tree.entries()[entry as usize];
+        let m = eye_view * scene.part_world(e.part);
+        let (a, t) = (m.matrix3, m.translation);
+        let row = |i: usize| {
+            [
+                a.x_axis[i] as f32,
+                a.y_axis[i] as f32,
+                a.z_axis[i] as f32,
+                t[i] as f32,
+            ]
         };
-        let Some(mut mapped) = self
-            .queue
-            .write_buffer_with(buffer, (first * size) as u64, bytes)
-        else {
-            return;
+        let [r, g, b] = self.material_colours[scene.chunk(e.chunk).material.index()];
+        let flags = self.part_flags[e.part.index()];
+        let tint = if flags & PART_SELECTED != 0 {
+            Some(self.options.highlight)
+        } else if flags & PART_CLASHING != 0 {
+            Some(self.options.clash_highlight)
+        } else if flags & PART_HOVERED != 0 {
+            Some(self.options.hover_highlight)
+        } else {
+            None
         };
-        let mut piece = Vec::with_capacity(PIECE.min(count as usize));
-        for start in (0..count as usize).step_by(PIECE) {
-            let end = (start + PIECE).min(count as usize);
-            piece.clear();
-            piece.extend((start..end).map(|k| at(first + k)));
-            mapped
-                .slice(start * size..end * size)
-                .copy_from_slice(bytemuck::cast_slice(&piece));
+        let base = match tint {
+            Some([tr, tg, tb, w]) => [r + (tr - r) * w, g + (tg - g) * w, b + (tb - b) * w],
+            None => [r, g, b],
+        };
+        InstanceGpu {
+            rows: [row(0), row(1), row(2)],
+            base,
+            entry,
         }
     }
 
-    fn make_view_gpu(&self, model_views: usize) -> ViewGpu {
+    /// Writes the instances of `entries` (`None`: an unused slot) for each
+    /// of the view's eyes, eye-major, into its instance buffer.
+    pub(crate) fn write_instances(
+        &self,
+        gpu: &mut ViewGpu,
+        scene: &Scene,
+        tree: &Tree,
+        entries: &[Option<u32>],
+    ) {
+        let instances: Vec<InstanceGpu> = (gpu.eye_views.iter())
+            .flat_map(|&eye_view| {
+                entries.iter().map(move |e| {
+                    e.map_or_else(<InstanceGpu as bytemuck::Zeroable>::zeroed, |e| {
+                        self.instance(scene, tree, eye_view, e)
+                    })
+                })
+            })
+            .collect();
+        if instances.is_empty() {
+            return;
+        }
+        grow_buffer(
+            &self.device,
+            &mut gpu.instances,
+            "dmu instances",
+            std::mem::size_of_val(instances.as_slice()) as u64,
+        );
+        self.queue
+            .write_buffer(&gpu.instances, 0, bytemuck::cast_slice(&instances));
+    }
+
+    fn make_view_gpu(&self) -> ViewGpu {
         let buffer = |label, size: u64, usage| {
             self.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -949,21 +932,17 @@ impl Renderer {
             self.uniform_stride + size_of::<ViewUniform>() as u64,
             wgpu::BufferUsages::UNIFORM | copy_dst,
         );
-        let model_views = buffer(
-            "dmu model-views",
-            (model_views * size_of::<ModelView>()) as u64,
-            wgpu::BufferUsages::STORAGE | copy_dst,
-        );
-        let boxes = buffer(
-            "dmu query boxes",
-            64 * size_of::<QueryBox>() as u64,
-            wgpu::BufferUsages::STORAGE | copy_dst,
-        );
-        let bind_groups = self.bind_groups(&uniform, &model_views, &boxes);
+        let vertex = wgpu::BufferUsages::VERTEX | copy_dst;
+        let bind_groups = self.bind_groups(&uniform);
         ViewGpu {
             uniform,
-            model_views,
-            boxes,
+            eye_views: Vec::new(),
+            instances: buffer(
+                "dmu instances",
+                64 * size_of::<InstanceGpu>() as u64,
+                vertex,
+            ),
+            boxes: buffer("dmu query boxes", 64 * size_of::<QueryBox>() as u64, vertex),
             bind_groups,
             query_sets: Vec::new(),
             resolve: buffer("dmu query resolve", 8, resolve_usage),
@@ -975,20 +954,22 @@ impl Renderer {
                 copy_dst | wgpu::BufferUsages::INDIRECT,
             ),
             sectioned: false,
-            mirrored: Vec::new(),
             hzb: None,
         }
     }
 
     /// The faces a draw of tree entry `entry` draws: the front faces only
-    /// for a solid mesh in a part that does not mirror, in a frame without
-    /// section planes, where the options allow it.
-    pub(crate) fn faces_of(&self, gpu: &ViewGpu, tree: &Tree, entry: u32) -> Faces {
-        let part = tree.entries()[entry as usize].part.index();
-        self.faces(
-            gpu,
-            self.solid[entry as usize] && !gpu.mirrored.get(part).copied().unwrap_or(true),
-        )
+    /// for a solid mesh in a part that does not mirror (its windings would
+    /// flip; eyes never mirror), in a frame without section planes, where
+    /// the options allow it.
+    pub(crate) fn faces_of(&self, gpu: &ViewGpu, scene: &Scene, tree: &Tree, entry: u32) -> Faces {
+        let solid = self.solid[entry as usize]
+            && scene
+                .part_world(tree.entries()[entry as usize].part)
+                .matrix3
+                .determinant()
+                >= 0.0;
+        self.faces(gpu, solid)
     }
 
     /// The faces a frame draws of a mesh that bounds solids (`solid`, as
@@ -1004,12 +985,7 @@ impl Renderer {
     }
 
     /// A view's bind group for each eye, which differ in the uniform.
-    fn bind_groups(
-        &self,
-        uniform: &wgpu::Buffer,
-        model_views: &wgpu::Buffer,
-        boxes: &wgpu::Buffer,
-    ) -> [wgpu::BindGroup; 2] {
+    fn bind_groups(&self, uniform: &wgpu::Buffer) -> [wgpu::BindGroup; 2] {
         fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
             wgpu::BindGroupEntry {
                 binding,
@@ -1029,33 +1005,21 @@ impl Renderer {
                             size: wgpu::BufferSize::new(size_of::<ViewUniform>() as u64),
                         }),
                     },
-                    entry(1, model_views),
-                    entry(2, &self.entries),
-                    entry(4, &self.materials),
-                    entry(5, boxes),
+                    entry(1, &self.entries),
+                    entry(2, &self.materials),
                 ],
             })
         })
     }
 
-    /// Grows a view's model-view and box buffers (and so its bind group) to
-    /// hold `model_views` model-views and `boxes` boxes.
-    pub(crate) fn ensure_capacity(&self, gpu: &mut ViewGpu, model_views: usize, boxes: usize) {
-        let grow = |buffer: &mut wgpu::Buffer, label, need: usize| {
-            grow_buffer(&self.device, buffer, label, need as u64)
-        };
-        let grown = grow(
-            &mut gpu.model_views,
-            "dmu model-views",
-            model_views * size_of::<ModelView>(),
-        ) | grow(
+    /// Grows a view's box buffer to hold `boxes` boxes.
+    pub(crate) fn ensure_capacity(&self, gpu: &mut ViewGpu, boxes: usize) {
+        grow_buffer(
+            &self.device,
             &mut gpu.boxes,
             "dmu query boxes",
-            boxes * size_of::<QueryBox>(),
+            (boxes * size_of::<QueryBox>()) as u64,
         );
-        if grown {
-            gpu.bind_groups = self.bind_groups(&gpu.uniform, &gpu.model_views, &gpu.boxes);
-        }
     }
 
     /// Where chunk instance `entry`'s geometry is in the pool (uploaded now
@@ -1098,6 +1062,7 @@ impl Renderer {
         shading: Shading,
         clear: bool,
         geometry: &dyn GeometrySource,
+        scene: &Scene,
         tree: &Tree,
         draws: &[Draw],
         boxes: &[QueryBox],
@@ -1146,7 +1111,7 @@ impl Renderer {
         // pass changes pipeline at most once; `order[k]` is draw k's place
         // before.
         let faces: Vec<Faces> = (self.slots.iter())
-            .map(|&(entry, _)| self.faces_of(gpu, tree, entry))
+            .map(|&(entry, _)| self.faces_of(gpu, scene, tree, entry))
             .collect();
         let solid = |k: &usize| faces[*k] == Faces::Solid;
         let mut order: Vec<usize> = (0..faces.len()).filter(solid).collect();
@@ -1154,9 +1119,12 @@ impl Renderer {
         self.slots = order.iter().map(|&k| self.slots[k]).collect();
         let queried: Vec<bool> = order.iter().map(|&k| queried[k]).collect();
         let faces: Vec<Faces> = order.iter().map(|&k| faces[k]).collect();
+        // Draw k's instance is the k-th of its eye's.
+        let instances: Vec<Option<u32>> = self.slots.iter().map(|&(e, _)| Some(e)).collect();
+        self.write_instances(gpu, scene, tree, &instances);
         // The proxies' frames follow the query boxes in the same buffer.
         if !boxes.is_empty() || !proxies.frames.is_empty() {
-            self.ensure_capacity(gpu, 0, boxes.len() + proxies.frames.len());
+            self.ensure_capacity(gpu, boxes.len() + proxies.frames.len());
             self.queue
                 .write_buffer(&gpu.boxes, 0, bytemuck::cast_slice(boxes));
             self.queue.write_buffer(
@@ -1219,8 +1187,8 @@ impl Renderer {
 
         // Runs of unqueried draws from the same pages go in one indirect
         // multi-draw each (lavapipe's cost is per recorded command as much
-        // as per triangle): their arguments, in draw order. The entry is the
-        // first instance, hence the feature.
+        // as per triangle): their arguments, in draw order. The draw's place
+        // is its first instance, hence the feature.
         let batched = self.options.batch_draws
             && self
                 .device
@@ -1228,17 +1196,9 @@ impl Renderer {
                 .contains(wgpu::Features::INDIRECT_FIRST_INSTANCE)
             && queried.contains(&false);
         if batched {
-            let args: Vec<u32> = self
-                .slots
-                .iter()
-                .flat_map(|&(entry, slot)| {
-                    [
-                        slot.index_count,
-                        1,
-                        slot.first_index,
-                        slot.first_vertex,
-                        entry,
-                    ]
+            let args: Vec<u32> = (self.slots.iter().zip(0..))
+                .flat_map(|(&(_, slot), k)| {
+                    [slot.index_count, 1, slot.first_index, slot.first_vertex, k]
                 })
                 .collect();
             grow_buffer(
@@ -1250,6 +1210,10 @@ impl Renderer {
             self.queue
                 .write_buffer(&gpu.draw_args, 0, bytemuck::cast_slice(&args));
         }
+        let eye_instances = |eye: usize| {
+            let start = (eye * instances.len() * size_of::<InstanceGpu>()) as u64;
+            gpu.instances.slice(start..)
+        };
         let mut encoder = self
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -1307,13 +1271,19 @@ impl Renderer {
                 multiview_mask,
             });
             pass.set_bind_group(0, &gpu.bind_groups[pass_plan.eye], &[]);
+            if !pass_plan.draws.is_empty() {
+                pass.set_vertex_buffer(1, eye_instances(pass_plan.eye));
+                if multiview_mask.is_some() {
+                    pass.set_vertex_buffer(2, eye_instances(1));
+                }
+            }
             let mut q = 0;
             let mut bound: Option<(u32, u32, bool)> = None;
             let mut bound_faces = None;
             let range = pass_plan.draws.clone();
             let mut k = range.start;
             while k < range.end {
-                let (entry, slot) = self.slots[k];
+                let slot = self.slots[k].1;
                 let wrapped = queried[k];
                 let draw_faces = faces[k];
                 if bound_faces != Some(draw_faces) {
@@ -1364,7 +1334,7 @@ impl Renderer {
                 pass.draw_indexed(
                     slot.first_index..slot.first_index + slot.index_count,
                     slot.first_vertex as i32,
-                    entry..entry + 1,
+                    k as u32..k as u32 + 1,
                 );
                 result.draw_calls += 1;
                 if wrapped {
@@ -1377,6 +1347,7 @@ impl Renderer {
             let eye = pass_plan.layer.unwrap_or(0);
             if !proxy_buffers.is_empty() && !std::mem::replace(&mut proxies_drawn_in[eye], true) {
                 let first_frame = (boxes.len() + eye * proxies.nodes.len()) as u32;
+                pass.set_vertex_buffer(1, gpu.boxes.slice(..));
                 let mut bound_faces = None;
                 for &(k, vertices, indices, count, proxy_faces) in &proxy_buffers {
                     if bound_faces != Some(proxy_faces) {
@@ -1395,6 +1366,7 @@ impl Renderer {
             }
             if !pass_plan.boxes.is_empty() {
                 pass.set_pipeline(&self.boxes_color);
+                pass.set_vertex_buffer(0, gpu.boxes.slice(..));
                 // Eye-major: a box's instance is its index in the buffer.
                 for b in pass_plan.boxes.clone() {
                     let b = b as u32;
@@ -1590,20 +1562,6 @@ fn pages(slot: &crate::geometry::SlotDraw) -> (u32, u32, bool) {
     (slot.vertex_page, slot.index_page, slot.short_indices)
 }
 
-/// Sorted `ids` as inclusive runs `(first, last)`, ids at most `gap` apart
-/// joined into one run.
-fn id_runs(ids: &[u32], gap: u32) -> impl Iterator<Item = (u32, u32)> + '_ {
-    let mut rest = ids.iter().copied().peekable();
-    std::iter::from_fn(move || {
-        let first = rest.next()?;
-        let mut last = first;
-        while let Some(next) = rest.next_if(|&n| n <= last.saturating_add(gap)) {
-            last = next;
-        }
-        Some((first, last))
-    })
-}
-
 /// The section planes in each eye's view space, six per eye (unused slots are
 /// `(0, 0, 0, 1)`: every point is 1 above them, kept). The plane
 /// goes through the inverse transpose of world-to-view in f64, so a plane far
@@ -1625,45 +1583,7 @@ fn section_in_eyes(
 
 #[cfg(test)]
 mod tests {
-    use super::{Pass, QUERIES_PER_PASS, id_runs, plan_passes};
-
-    /// Runs cover every id, only ids within a gap of one, and no run could
-    /// join the next (checked against a set over random sorted ids).
-    #[test]
-    fn id_runs_cover_the_ids_and_nothing_far_from_them() {
-        let mut seed = 7u64;
-        for case in 0..200 {
-            let mut ids: Vec<u32> = (0..case % 40)
-                .map(|_| {
-                    seed = seed
-                        .wrapping_mul(6364136223846793005)
-                        .wrapping_add(1442695040888963407);
-                    (seed >> 40) as u32 % 1000
-                })
-                .collect();
-            ids.sort_unstable();
-            ids.dedup();
-            let gap = (case % 5) as u32 * 7;
-            let runs: Vec<(u32, u32)> = id_runs(&ids, gap).collect();
-            let covered: Vec<u32> = ids
-                .iter()
-                .copied()
-                .filter(|&i| runs.iter().any(|&(a, b)| a <= i && i <= b))
-                .collect();
-            assert_eq!(covered, ids);
-            for &(a, b) in &runs {
-                assert!(ids.contains(&a) && ids.contains(&b) && a <= b);
-                // Inside a run no two consecutive ids lie more than `gap` apart.
-                let inside: Vec<u32> = ids.iter().copied().filter(|&i| a <= i && i <= b).collect();
-                assert!(inside.windows(2).all(|w| w[1] - w[0] <= gap), "{inside:?}");
-            }
-            assert!(runs.windows(2).all(|w| w[1].0 > w[0].1 + gap), "{runs:?}");
-        }
-        assert_eq!(
-            id_runs(&[u32::MAX - 1, u32::MAX], 64).collect::<Vec<_>>(),
-            [(u32::MAX - 1, u32::MAX)]
-        );
-    }
+    use super::{Pass, QUERIES_PER_PASS, plan_passes};
 
     /// Every draw is issued once per layer it must reach and every box once,
     /// in order; no pass holds more than [`QUERIES_PER_PASS`] queries; each
