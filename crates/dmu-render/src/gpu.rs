@@ -82,7 +82,7 @@ pub(crate) const FRAME_ATTRIBUTES: [wgpu::VertexAttribute; 4] = wgpu::vertex_att
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Pod, Zeroable)]
 #[repr(C)]
 pub(crate) struct EntryGpu {
-    /// Part id (index into model-views).
+    /// Part id (the shader's layout has it; no shader reads it).
     pub part: u32,
     /// Material id (index into materials) in the low [`FLAGS_SHIFT`] bits,
     /// the part's flags above them.

@@ -836,8 +836,9 @@ impl Renderer {
     /// world-to-view is `eye_view`: its part's model-view, formed in f64 (the
     /// eye's large translation cancels the part's before anything is
     /// rounded to f32, so far-from-origin models stay exact, and a stereo
-    /// eye gets what a single view from there gets), and its colour as
-    /// `base_colour` in `mesh.wgsl` forms it.
+    /// eye gets what a single view from there gets), and its colour by the
+    /// rule of `base_colour` in `mesh.wgsl` (which a driver may round a last
+    /// place differently).
     fn instance(&self, scene: &Scene, tree: &Tree, eye_view: DAffine3, entry: u32) -> InstanceGpu {
         let e = &tree.entries()[entry as usize];
         let m = eye_view * scene.part_world(e.part);
@@ -862,7 +863,12 @@ impl Renderer {
             None
         };
         let base = match tint {
-            Some([tr, tg, tb, w]) => [r + (tr - r) * w, g + (tg - g) * w, b + (tb - b) * w],
+            // WGSL's mix(x, y, a) is defined as x * (1 - a) + y * a.
+            Some([tr, tg, tb, w]) => [
+                r * (1.0 - w) + tr * w,
+                g * (1.0 - w) + tg * w,
+                b * (1.0 - w) + tb * w,
+            ],
             None => [r, g, b],
         };
         InstanceGpu {
@@ -1529,7 +1535,7 @@ fn entry_gpu(scene: &Scene, entry: &dmu_tree::Entry, flags: u32) -> EntryGpu {
 struct Pass {
     /// The eye whose layer alone it draws into; `None`: every layer.
     layer: Option<usize>,
-    /// The eye whose uniform (model-views) it binds.
+    /// The eye whose uniform and instance records it binds.
     eye: usize,
     /// The round's draws it issues (indices into the resolved slots).
     draws: Range<usize>,
