@@ -359,6 +359,7 @@ impl Renderer {
                 ProxyRound {
                     nodes: &proxy_nodes,
                     frames: &frames,
+                    tinted: &self.proxies_tinted(&self.hierarchy, tree, &proxy_nodes),
                 },
             )
             .map(|r| add_round(&mut stats, &r))
@@ -739,6 +740,7 @@ impl Renderer {
             ProxyRound {
                 nodes: &first_nodes,
                 frames: &first_frames,
+                tinted: &self.proxies_tinted(&self.hierarchy, tree, &first_nodes),
             },
         )?;
         add_round(stats, &r);
@@ -912,6 +914,7 @@ impl Renderer {
             let boxes = cull.query_boxes(&bounds);
             let mut proxy_nodes = std::mem::take(&mut walk.proxy_draws);
             let frames = self.proxy_frames(&h, tree, &mut proxy_nodes, cull);
+            let tinted = self.proxies_tinted(&h, tree, &proxy_nodes);
             let r = match self.run_round(
                 gpu,
                 target,
@@ -926,6 +929,7 @@ impl Renderer {
                 ProxyRound {
                     nodes: &proxy_nodes,
                     frames: &frames,
+                    tinted: &tinted,
                 },
             ) {
                 Ok(r) => r,

@@ -61,9 +61,9 @@ const _: () = assert!(size_of::<InstanceGpu>() == 64);
 pub(crate) const CHUNK_VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 2] =
     wgpu::vertex_attr_array![0 => Float32x3, 1 => Snorm8x4];
 /// The attributes of a proxy's vertex (`crate::proxy::ProxyVertex`):
-/// position, normal and the entry it came from.
-pub(crate) const PROXY_VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 3] =
-    wgpu::vertex_attr_array![0 => Float32x3, 1 => Snorm8x4, 2 => Uint32];
+/// position, normal, the entry it came from and its material's colour.
+pub(crate) const PROXY_VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 4] =
+    wgpu::vertex_attr_array![0 => Float32x3, 1 => Snorm8x4, 2 => Uint32, 5 => Float32x3];
 /// The instance-rate attributes of [`InstanceGpu`], at the shader's locations.
 pub(crate) const INSTANCE_ATTRIBUTES: [wgpu::VertexAttribute; 5] = wgpu::vertex_attr_array![
     2 => Float32x4, 3 => Float32x4, 4 => Float32x4, 5 => Float32x3, 6 => Uint32
@@ -282,7 +282,7 @@ mod tests {
             found.sort_unstable();
             found
         };
-        let cases: [(&str, &[&[wgpu::VertexAttribute]]); 4] = [
+        let cases: [(&str, &[&[wgpu::VertexAttribute]]); 5] = [
             ("vs_mesh", &[&CHUNK_VERTEX_ATTRIBUTES, &INSTANCE_ATTRIBUTES]),
             (
                 "vs_mesh_stereo",
@@ -293,6 +293,10 @@ mod tests {
                 ],
             ),
             ("vs_proxy", &[&PROXY_VERTEX_ATTRIBUTES, &FRAME_ATTRIBUTES]),
+            (
+                "vs_proxy_tinted",
+                &[&PROXY_VERTEX_ATTRIBUTES, &FRAME_ATTRIBUTES],
+            ),
             ("vs_box", &[&FRAME_ATTRIBUTES]),
         ];
         for (name, buffers) in cases {

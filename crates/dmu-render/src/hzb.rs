@@ -299,6 +299,7 @@ impl Renderer {
                 .unzip(),
             None => (Vec::new(), Vec::new()),
         };
+        let tinted = self.proxies_tinted(&self.hierarchy, tree, proxy_nodes);
         out.missing = vec![false; candidates.len()];
         // Candidate i's draw is instance i.
         let mut instances = vec![None; candidates.len()];
@@ -427,15 +428,15 @@ impl Renderer {
             pass.set_bind_group(0, &gpu.bind_groups[0], &[]);
             let mut bound_pipeline = None;
             for (g, &(key, len)) in groups.iter().enumerate() {
-                // Whether it draws a proxy, and which faces.
+                // Whether it draws a proxy (tinted or not), and which faces.
                 let pipeline = match key {
-                    GroupKey::Pages { faces, .. } => (false, faces),
-                    GroupKey::Proxy(k) => (true, proxy_faces[k as usize]),
+                    GroupKey::Pages { faces, .. } => (None, faces),
+                    GroupKey::Proxy(k) => (Some(tinted[k as usize]), proxy_faces[k as usize]),
                 };
                 if bound_pipeline != Some(pipeline) {
                     pass.set_pipeline(match pipeline {
-                        (true, faces) => &self.proxy[faces as usize],
-                        (false, faces) => &self.shade[faces as usize],
+                        (Some(tinted), faces) => self.proxy_pipeline(tinted, faces),
+                        (None, faces) => &self.shade[faces as usize],
                     });
                     bound_pipeline = Some(pipeline);
                 }

@@ -77,15 +77,17 @@ impl Default for ProxyOptions {
 }
 
 /// A proxy vertex: position relative to the proxy's origin, normal in
-/// snorm8 and the chunk instance (entry) it came from.
+/// snorm8, the chunk instance (entry) it came from and its material's colour
+/// (rgb), so that a proxy without tinted parts reads no storage per vertex.
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 #[repr(C)]
 pub(crate) struct ProxyVertex {
     pub position: [f32; 3],
     pub normal: [i8; 4],
     pub entry: u32,
+    pub base: [f32; 3],
 }
-const _: () = assert!(size_of::<ProxyVertex>() == 20);
+const _: () = assert!(size_of::<ProxyVertex>() == 32);
 
 /// The stand-in of one tree node's subtree.
 #[derive(Clone, Debug)]
@@ -476,6 +478,8 @@ impl Merged {
             );
             let base = self.vertices.len() as u32;
             let origin = self.origin;
+            let [red, green, blue, _] =
+                scene.materials()[scene.chunk(entry.chunk).material.index()].base_color;
             self.vertices
                 .extend(g.positions.iter().zip(g.normals).map(|(p, nrm)| {
                     let w = world.transform_point3(p.as_dvec3()) - origin;
@@ -484,6 +488,7 @@ impl Merged {
                         position: w.as_vec3().to_array(),
                         normal: pack_normal(nn.as_vec3()),
                         entry: e,
+                        base: [red, green, blue],
                     }
                 }));
             self.indices.extend(g.indices.iter().map(|&i| base + i));

@@ -29,6 +29,10 @@ pub(crate) const QUERIES_PER_PASS: u32 = 512;
 const TIMED_PASSES: u32 = 64;
 /// Bytes of one indexed indirect draw's arguments.
 const DRAW_ARGS_BYTES: u64 = 20;
+/// The most boxes of flagged parts' chunk instances each proxy is tested
+/// against (`Renderer::proxies_tinted`); with more, every proxy is drawn
+/// tinted.
+const MAX_TINT_TESTS: usize = 256;
 /// The layers a stereo pair's multiview pass draws: left eye 0, right eye 1.
 const STEREO_VIEWS: NonZeroU32 = NonZeroU32::new(0b11).expect("non-zero");
 
@@ -328,6 +332,8 @@ pub struct Renderer {
     /// The materials' colours (rgb), as the GPU's `materials`.
     material_colours: Vec<[f32; 3]>,
     part_flags: Vec<u32>,
+    /// The parts with a flag set.
+    flagged: std::collections::BTreeSet<PartId>,
     /// Parts whose flags changed since the last frame wrote their entries.
     flags_changed: Vec<PartId>,
     pub(crate) pool: GeometryPool,
@@ -335,8 +341,9 @@ pub struct Renderer {
     pub(crate) timestamp_period_ns: Option<f64>,
     /// Reused per-round scratch: resolved slots of the round's draws.
     slots: Vec<(u32, crate::geometry::SlotDraw)>,
-    /// Shading of proxies (merged subtrees), by [`Faces`].
-    pub(crate) proxy: [wgpu::RenderPipeline; 3],
+    /// Shading of proxies (merged subtrees) in their vertices' colours, and
+    /// tinted as their entries' parts are, by [`Faces`].
+    pub(crate) proxy: [[wgpu::RenderPipeline; 3]; 2],
     /// Proxies of the tree's subtrees and their GPU buffers, once set.
     pub(crate) proxies: Option<ProxyGpu>,
     /// The compute pipelines of `hzb` frames, made on the first.
@@ -354,12 +361,14 @@ pub(crate) struct ProxyGpu {
     pub buffers: Vec<Option<(wgpu::Buffer, wgpu::Buffer)>>,
 }
 
-/// A round's proxies: mirror nodes, and each one's frame in each eye's view
-/// space (eye-major), as [`crate::gpu::QueryBox`]es.
+/// A round's proxies: mirror nodes, each one's frame in each eye's view
+/// space (eye-major), as [`crate::gpu::QueryBox`]es, and whether each is
+/// drawn tinted ([`Renderer::proxies_tinted`]).
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct ProxyRound<'a> {
     pub nodes: &'a [u32],
     pub frames: &'a [QueryBox],
+    pub tinted: &'a [bool],
 }
 
 impl Renderer {
@@ -511,18 +520,20 @@ impl Renderer {
             }),
             Some(frames.clone()),
         ];
-        let proxy = Faces::ALL.map(|faces| {
-            pipeline(
-                "dmu shade proxies",
-                &module,
-                "vs_proxy",
-                &proxy_buffers,
-                "fs_shade",
-                options.color_format,
-                true,
-                None,
-                faces,
-            )
+        let proxy = ["vs_proxy", "vs_proxy_tinted"].map(|vs| {
+            Faces::ALL.map(|faces| {
+                pipeline(
+                    "dmu shade proxies",
+                    &module,
+                    vs,
+                    &proxy_buffers,
+                    "fs_shade",
+                    options.color_format,
+                    true,
+                    None,
+                    faces,
+                )
+            })
         });
         let shade = Faces::ALL.map(|faces| {
             pipeline(
@@ -612,6 +623,7 @@ impl Renderer {
             materials: storage_buffer("dmu materials", bytemuck::cast_slice(&materials)),
             material_colours: materials.iter().map(|&[r, g, b, _]| [r, g, b]).collect(),
             part_flags: vec![0; scene.parts().len()],
+            flagged: Default::default(),
             flags_changed: Vec::new(),
             device: device.clone(),
             queue: queue.clone(),
@@ -753,6 +765,11 @@ impl Renderer {
             return;
         }
         *flags = new;
+        if new == 0 {
+            self.flagged.remove(&part);
+        } else {
+            self.flagged.insert(part);
+        }
         self.flags_changed.push(part);
     }
 
@@ -978,6 +995,36 @@ impl Renderer {
         self.faces(gpu, solid)
     }
 
+    /// Which of the proxies of mirror nodes `nodes` (of `h`, this renderer's
+    /// mirror of `tree`) may hold a part with a flag (selected, clashing,
+    /// hovered), so are drawn tinted: those whose box meets a flagged part's
+    /// chunk instance's (a subtree's box holds its chunk instances'), or all
+    /// of them past [`MAX_TINT_TESTS`] such boxes.
+    pub(crate) fn proxies_tinted(&self, h: &Hierarchy, tree: &Tree, nodes: &[u32]) -> Vec<bool> {
+        let mut boxes = Vec::new();
+        for &part in &self.flagged {
+            boxes.extend(
+                tree.part_entries(part)
+                    .map(|e| tree.entries()[e.0 as usize].bounds),
+            );
+            if boxes.len() > MAX_TINT_TESTS {
+                return vec![true; nodes.len()];
+            }
+        }
+        (nodes.iter())
+            .map(|&n| {
+                let node = h.bounds(tree, n);
+                boxes.iter().any(|b| b.overlaps(node))
+            })
+            .collect()
+    }
+
+    /// The pipeline of proxies drawing `faces`, `tinted` or in their
+    /// vertices' colours.
+    pub(crate) fn proxy_pipeline(&self, tinted: bool, faces: Faces) -> &wgpu::RenderPipeline {
+        &self.proxy[usize::from(tinted)][faces as usize]
+    }
+
     /// The faces a frame draws of a mesh that bounds solids (`solid`, as
     /// placed) or not.
     pub(crate) fn faces(&self, gpu: &ViewGpu, solid: bool) -> Faces {
@@ -1148,7 +1195,13 @@ impl Renderer {
                     let proxy = p.cpu.nodes[n as usize].as_ref()?;
                     let (v, i) = p.buffers.get(n as usize)?.as_ref()?;
                     let faces = self.faces(gpu, proxy.solid);
-                    Some((k as u32, v, i, proxy.indices.len() as u32, faces))
+                    Some((
+                        k as u32,
+                        v,
+                        i,
+                        proxy.indices.len() as u32,
+                        (proxies.tinted[k], faces),
+                    ))
                 })
                 .collect(),
             None => Vec::new(),
@@ -1354,11 +1407,11 @@ impl Renderer {
             if !proxy_buffers.is_empty() && !std::mem::replace(&mut proxies_drawn_in[eye], true) {
                 let first_frame = (boxes.len() + eye * proxies.nodes.len()) as u32;
                 pass.set_vertex_buffer(1, gpu.boxes.slice(..));
-                let mut bound_faces = None;
-                for &(k, vertices, indices, count, proxy_faces) in &proxy_buffers {
-                    if bound_faces != Some(proxy_faces) {
-                        pass.set_pipeline(&self.proxy[proxy_faces as usize]);
-                        bound_faces = Some(proxy_faces);
+                let mut bound_pipeline = None;
+                for &(k, vertices, indices, count, (tinted, faces)) in &proxy_buffers {
+                    if bound_pipeline != Some((tinted, faces)) {
+                        pass.set_pipeline(self.proxy_pipeline(tinted, faces));
+                        bound_pipeline = Some((tinted, faces));
                     }
                     pass.set_vertex_buffer(0, vertices.slice(..));
                     pass.set_index_buffer(indices.slice(..), wgpu::IndexFormat::Uint32);

@@ -256,3 +256,77 @@ fn chc_draws_visible_proxies_and_converges_to_the_frustum_image() {
     }
     assert!(drew_proxies, "chc drew proxies somewhere");
 }
+
+/// Selecting a part drawn inside proxies tints it there, and nothing else:
+/// proxies carry their materials' colours and only those that may hold a
+/// flagged part read their entries' tints. Selected, the part's pixels take
+/// the highlight while every other pixel stays as it was, bit for bit; once
+/// deselected the image is the first one again.
+#[test]
+fn a_selected_part_is_tinted_inside_its_proxies_and_nothing_else_is() {
+    let (scene, tree) = small_plant();
+    let size = (480, 270);
+    let Some(mut rig) = with_proxies(&scene, &tree, size) else {
+        return;
+    };
+    let cam = overview(&tree);
+    // The part owning the most pixels of the exact image.
+    let mut view = View::new(cam, size, Culling::Frustum);
+    let ids = rig.ids(&mut view, &scene, &tree);
+    let mut pixels_of = vec![0usize; scene.parts().len()];
+    for &id in ids.ids.iter().filter(|&&id| id != 0) {
+        pixels_of[tree.entries()[id as usize - 1].part.index()] += 1;
+    }
+    let part = PartId::from_index((0..pixels_of.len()).max_by_key(|&p| pixels_of[p]).unwrap());
+    let region = owned_by(&mut rig, cam, &scene, &tree, part);
+    // Frustum culling draws proxies in its one round, hzb in its second pass.
+    for culling in [Culling::Frustum, Culling::Hzb] {
+        let shot = |rig: &mut Rig| {
+            let mut view = View::new(cam, size, culling);
+            view.options.lod_error_px = 2.0;
+            let stats = rig.frame(&mut view, &scene, &tree);
+            (stats, rig.image())
+        };
+        let (stats, before) = shot(&mut rig);
+        assert!(
+            stats.proxies_drawn > 0,
+            "{culling:?}: the overview draws proxies"
+        );
+        rig.renderer.set_selected(part, true);
+        let (selected_stats, selected) = shot(&mut rig);
+        assert_eq!(selected_stats.proxies_drawn, stats.proxies_drawn);
+        let (a, b) = (before.as_raw(), selected.as_raw());
+        let changed: Vec<usize> = (0..a.len() / 4)
+            .filter(|&i| a[4 * i..4 * i + 3] != b[4 * i..4 * i + 3])
+            .collect();
+        let inside = (changed.iter())
+            .filter(|i| region.binary_search(i).is_ok())
+            .count();
+        println!(
+            "{culling:?}, part {part:?}: {} pixels, {} changed when selected, {inside} of them its own; {} proxies, {} chunks",
+            region.len(),
+            changed.len(),
+            stats.proxies_drawn,
+            stats.chunks_drawn
+        );
+        // Its pixels in the proxy image are not exactly its pixels in the
+        // exact one (simplified silhouettes): most of them, and only pixels
+        // near them, change.
+        assert!(
+            2 * inside >= region.len(),
+            "{culling:?}: {inside} of {} pixels tinted",
+            region.len()
+        );
+        assert!(
+            changed.len() <= region.len() + region.len() / 4 + 50,
+            "{culling:?}: {} pixels changed",
+            changed.len()
+        );
+        rig.renderer.set_selected(part, false);
+        let (_, after) = shot(&mut rig);
+        assert!(
+            after.as_raw() == before.as_raw(),
+            "{culling:?}: deselected, the image is the first"
+        );
+    }
+}
