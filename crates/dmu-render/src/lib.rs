@@ -26,8 +26,9 @@
 //! - Highlights are one flag word per part (selected, clashing, hovered;
 //!   [`Renderer::set_selected`], [`Renderer::set_clashing`],
 //!   [`Renderer::set_hovered`]), tinting, by priority, with a colour of
-//!   [`RendererOptions`]: the records carry the tinted colour, and proxies'
-//!   vertices read it from the entries' looks.
+//!   [`RendererOptions`]: the records carry the tinted colour. Proxies'
+//!   vertices carry their materials' colours, and only proxies that may
+//!   hold a flagged part read the entries' looks per vertex.
 //! - Every mode draws in one canonical order (cells front to back, then tree
 //!   order), so the same visible set gives the same image whatever culled the
 //!   rest: the occlusion-culled image is compared with the unculled one exactly.
