@@ -168,41 +168,38 @@ fn vs_mesh(
     return mesh_vertex(position, normal, m, instance, view.eye);
 }
 
-// A proxy's vertex (a merged, simplified subtree) in colour `base`: its
-// position is relative to the proxy's origin along the world axes, and its
-// instance is the proxy's frame in the eye's view space (the origin, formed
-// in f64 on the CPU, and the world axes), so positions go through a rotation
-// and a small translation only.
-fn proxy_vertex(position: vec3<f32>, normal: vec4<f32>, entry: u32, base: vec3<f32>, f: Frame) -> MeshOut {
-    let view_pos = f.center.xyz + f.axis_x.xyz * position.x + f.axis_y.xyz * position.y
-        + f.axis_z.xyz * position.z;
-    let view_normal = f.axis_x.xyz * normal.x + f.axis_y.xyz * normal.y + f.axis_z.xyz * normal.z;
-    return mesh_out(view_pos, view_normal, entry, base, view.eye);
-}
-
-// A proxy's vertex in its material's colour, which it carries.
-@vertex
-fn vs_proxy(
+// A proxy's vertex (a merged, simplified subtree) as stored: its position
+// is relative to the proxy's origin along the world axes; it carries the
+// entry it came from and that entry's material colour.
+struct ProxyVertex {
     @location(0) position: vec3<f32>,
     @location(1) normal: vec4<f32>,
     @location(2) entry: u32,
     @location(5) base: vec3<f32>,
-    f: Frame,
-) -> MeshOut {
-    return proxy_vertex(position, normal, entry, base, f);
+}
+
+// Proxy vertex `v` in colour `base`. Its instance is the proxy's frame in
+// the eye's view space (the origin, formed in f64 on the CPU, and the world
+// axes), so positions go through a rotation and a small translation only.
+fn proxy_vertex(v: ProxyVertex, base: vec3<f32>, f: Frame) -> MeshOut {
+    let p = v.position;
+    let view_pos = f.center.xyz + f.axis_x.xyz * p.x + f.axis_y.xyz * p.y + f.axis_z.xyz * p.z;
+    let n = v.normal;
+    let view_normal = f.axis_x.xyz * n.x + f.axis_y.xyz * n.y + f.axis_z.xyz * n.z;
+    return mesh_out(view_pos, view_normal, v.entry, base, view.eye);
+}
+
+// A proxy's vertex in its material's colour, which it carries.
+@vertex
+fn vs_proxy(v: ProxyVertex, f: Frame) -> MeshOut {
+    return proxy_vertex(v, v.base, f);
 }
 
 // A proxy's vertex tinted as its entry's part is (drawn only for proxies
 // that may hold a tinted part: the look is a storage read per vertex).
 @vertex
-fn vs_proxy_tinted(
-    @location(0) position: vec3<f32>,
-    @location(1) normal: vec4<f32>,
-    @location(2) entry: u32,
-    @location(5) base: vec3<f32>,
-    f: Frame,
-) -> MeshOut {
-    return proxy_vertex(position, normal, entry, base_colour(entries[entry].look), f);
+fn vs_proxy_tinted(v: ProxyVertex, f: Frame) -> MeshOut {
+    return proxy_vertex(v, base_colour(entries[v.entry].look), f);
 }
 
 @fragment
