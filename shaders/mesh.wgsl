@@ -55,7 +55,6 @@ struct Instance {
 // part's entries when its flags change). Only proxies read it: their
 // vertices come from many entries.
 struct EntryGpu {
-    part: u32,
     look: u32,
 }
 

@@ -77,30 +77,27 @@ pub(crate) const FRAME_ATTRIBUTES: [wgpu::VertexAttribute; 4] = wgpu::vertex_att
     7 => Float32x4, 8 => Float32x4, 9 => Float32x4, 10 => Float32x4
 ];
 
-/// `EntryGpu`: a chunk instance's part and look, indexed by entry id; the
-/// proxies' vertices read it by the entry they came from.
+/// `EntryGpu`: a chunk instance's look, indexed by entry id; the proxies'
+/// vertices read it by the entry they came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Pod, Zeroable)]
 #[repr(C)]
 pub(crate) struct EntryGpu {
-    /// Part id (the shader's layout has it; no shader reads it).
-    pub part: u32,
     /// Material id (index into materials) in the low [`FLAGS_SHIFT`] bits,
     /// the part's flags above them.
     pub look: u32,
 }
 
 impl EntryGpu {
-    /// The entry of `part` drawn in `material` while the part has `flags`.
+    /// The entry of a chunk drawn in `material` while its part has `flags`.
     /// Material ids past the field's range (more than 5e8 materials) wrap;
     /// no store comes near.
-    pub fn new(part: u32, material: u32, flags: u32) -> Self {
+    pub fn new(material: u32, flags: u32) -> Self {
         EntryGpu {
-            part,
             look: (material & ((1 << FLAGS_SHIFT) - 1)) | (flags << FLAGS_SHIFT),
         }
     }
 }
-const _: () = assert!(size_of::<EntryGpu>() == 8);
+const _: () = assert!(size_of::<EntryGpu>() == 4);
 
 /// `Frame` of `mesh.wgsl`: a world-aligned box in view space, centre and
 /// half-axes (a query box, or a proxy's frame).
@@ -225,7 +222,7 @@ mod tests {
         let all = super::PART_SELECTED | super::PART_CLASHING | super::PART_HOVERED;
         let mask = (1 << super::FLAGS_SHIFT) - 1;
         for (material, flags) in [(0, 0), (1, all), (mask, super::PART_CLASHING), (12_345, 0)] {
-            let look = super::EntryGpu::new(7, material, flags).look;
+            let look = super::EntryGpu::new(material, flags).look;
             assert_eq!((look & mask, look >> super::FLAGS_SHIFT), (material, flags));
         }
     }

@@ -774,7 +774,7 @@ impl Renderer {
     }
 
     /// Writes the entries of the parts whose flags changed since the last
-    /// frame (one 8-byte write each).
+    /// frame (one 4-byte write each).
     pub(crate) fn sync_part_flags(&mut self, scene: &Scene, tree: &Tree) {
         self.flags_changed.sort_unstable();
         self.flags_changed.dedup();
@@ -784,7 +784,7 @@ impl Renderer {
                 let gpu = entry_gpu(scene, &tree.entries()[e.0 as usize], flags);
                 self.queue.write_buffer(
                     &self.entries,
-                    8 * u64::from(e.0),
+                    (size_of::<EntryGpu>() as u64) * u64::from(e.0),
                     bytemuck::bytes_of(&gpu),
                 );
             }
@@ -1580,7 +1580,7 @@ impl Faces {
 
 /// The GPU record of a chunk instance whose part has `flags`.
 fn entry_gpu(scene: &Scene, entry: &dmu_tree::Entry, flags: u32) -> EntryGpu {
-    EntryGpu::new(entry.part.0, scene.chunk(entry.chunk).material.0, flags)
+    EntryGpu::new(scene.chunk(entry.chunk).material.0, flags)
 }
 
 /// A render pass of a round.
