@@ -904,26 +904,35 @@ impl Renderer {
         tree: &Tree,
         entries: &[Option<u32>],
     ) {
-        let instances: Vec<InstanceGpu> = (gpu.eye_views.iter())
-            .flat_map(|&eye_view| {
-                entries.iter().map(move |e| {
+        let count = gpu.eye_views.len() * entries.len();
+        let bytes = (count * std::mem::size_of::<InstanceGpu>()) as u64;
+        let Some(size) = wgpu::BufferSize::new(bytes) else {
+            return;
+        };
+        grow_buffer(&self.device, &mut gpu.instances, "dmu instances", bytes);
+        // Written straight into the upload's staging memory: a round of the
+        // 500M plant's overview has 330k draws (21 MB of records).
+        let Some(mut staging) = self.queue.write_buffer_with(&gpu.instances, 0, size) else {
+            return;
+        };
+        // Formed in small batches, each copied whole: written record by
+        // record, the hzb view in the 10M plant took about 5 % longer.
+        let mut rest = staging.slice(..);
+        let mut batch: Vec<InstanceGpu> = Vec::with_capacity(INSTANCE_BATCH);
+        for &eye_view in &gpu.eye_views {
+            for part in entries.chunks(INSTANCE_BATCH) {
+                batch.clear();
+                batch.extend(part.iter().map(|e| {
                     e.map_or_else(<InstanceGpu as bytemuck::Zeroable>::zeroed, |e| {
                         self.instance(scene, tree, eye_view, e)
                     })
-                })
-            })
-            .collect();
-        if instances.is_empty() {
-            return;
+                }));
+                let bytes: &[u8] = bytemuck::cast_slice(&batch);
+                let (mut head, tail) = rest.split_at(bytes.len());
+                head.copy_from_slice(bytes);
+                rest = tail;
+            }
         }
-        grow_buffer(
-            &self.device,
-            &mut gpu.instances,
-            "dmu instances",
-            std::mem::size_of_val(instances.as_slice()) as u64,
-        );
-        self.queue
-            .write_buffer(&gpu.instances, 0, bytemuck::cast_slice(&instances));
     }
 
     fn make_view_gpu(&self) -> ViewGpu {
@@ -1599,6 +1608,9 @@ struct Pass {
     /// It clears its layers first.
     clear: bool,
 }
+
+/// Instance records formed and copied into staging memory at a time.
+const INSTANCE_BATCH: usize = 1024;
 
 /// Replaces `buffer` (keeping its usage) by one of at least `need` bytes,
 /// twice as large as before at least, when it is smaller; whether it did.
