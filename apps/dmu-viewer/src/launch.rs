@@ -67,6 +67,8 @@ pub struct Launcher {
     egui_ctx: egui::Context,
     app: Option<App>,
     frames_while_loading: u64,
+    /// When the loading screen is due to be drawn again.
+    next_loading_frame: Instant,
     error: Option<anyhow::Error>,
 }
 
@@ -90,6 +92,7 @@ impl Launcher {
             egui_ctx: egui::Context::default(),
             app: None,
             frames_while_loading: 0,
+            next_loading_frame: Instant::now(),
             error: None,
         }
     }
@@ -144,6 +147,7 @@ impl Launcher {
         let Some((gfx, state)) = self.window.as_mut() else {
             return Ok(());
         };
+        let start = Instant::now();
         let raw = state.take_egui_input(&gfx.window);
         let (done, total) = (
             self.loading.progress.done.load(Ordering::Relaxed),
@@ -171,6 +175,7 @@ impl Launcher {
         state.handle_platform_output(&gfx.window, output.platform_output.clone());
         gfx.present(&self.egui_ctx, output, false)?;
         self.frames_while_loading += 1;
+        self.next_loading_frame = Instant::now() + loading_redraw_interval(start.elapsed());
         Ok(())
     }
 }
@@ -219,17 +224,57 @@ impl ApplicationHandler for Launcher {
 
     fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
         if self.app.is_none() && !self.poll(event_loop) {
-            // Redraw the progress a few times a second until the model is in.
-            event_loop.set_control_flow(ControlFlow::WaitUntil(
-                Instant::now() + Duration::from_millis(100),
-            ));
-            if let Some((gfx, _)) = &self.window {
+            // Redraw the progress until the model is in, at most a few
+            // times a second and for at most a tenth of the time: on a
+            // software renderer a frame of the window costs as much as
+            // the load's work it would take the core from.
+            if Instant::now() >= self.next_loading_frame
+                && let Some((gfx, _)) = &self.window
+            {
                 gfx.window.request_redraw();
             }
+            // Woken often enough to take the model over as soon as it is in.
+            let check = Instant::now() + LOAD_POLL;
+            event_loop.set_control_flow(ControlFlow::WaitUntil(check.min(self.next_loading_frame)));
             return;
         }
         if let Some(app) = self.app.as_mut() {
             app.about_to_wait(event_loop);
         }
+    }
+}
+
+/// How often the event loop checks whether the model is in while it loads.
+const LOAD_POLL: Duration = Duration::from_millis(20);
+
+/// How long the loading screen waits between frames after one that took
+/// `frame`: nine times the frame, so that drawing it takes at most a tenth
+/// of the time, but at least a quarter of a second and at most one (the
+/// progress moves at least once a second).
+fn loading_redraw_interval(frame: Duration) -> Duration {
+    (frame * 9).clamp(Duration::from_millis(250), Duration::from_secs(1))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_loading_screen_takes_a_tenth_of_the_time_and_moves_each_second() {
+        for ms in [0, 1, 10, 27, 28, 100, 111, 112, 1_000, 60_000] {
+            let frame = Duration::from_millis(ms);
+            let interval = loading_redraw_interval(frame);
+            assert!(interval >= Duration::from_millis(250), "{ms} ms");
+            assert!(interval <= Duration::from_secs(1), "{ms} ms");
+            // Frame plus wait: drawing is at most a tenth of the cycle
+            // wherever that leaves a redraw each second.
+            if 9 * frame <= Duration::from_secs(1) {
+                assert!(10 * frame <= frame + interval, "{ms} ms: {interval:?}");
+            }
+        }
+        assert_eq!(
+            loading_redraw_interval(Duration::from_millis(100)),
+            Duration::from_millis(900)
+        );
     }
 }
