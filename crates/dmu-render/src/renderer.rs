@@ -927,9 +927,9 @@ impl Renderer {
                         self.instance(scene, tree, eye_view, e)
                     })
                 }));
-                let bytes: &[u8] = bytemuck::cast_slice(&batch);
-                let (mut head, tail) = rest.split_at(bytes.len());
-                head.copy_from_slice(bytes);
+                let records: &[u8] = bytemuck::cast_slice(&batch);
+                let (mut head, tail) = rest.split_at(records.len());
+                head.copy_from_slice(records);
                 rest = tail;
             }
         }
