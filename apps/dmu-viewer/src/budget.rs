@@ -29,14 +29,16 @@ pub const MIN_PIXELS: f64 = 2.0;
 /// and the geometry: later frames' transient memory (the window, egui,
 /// command buffers, lavapipe's binning of close-up views), the GPU pool's
 /// simplified levels and its reuse of freed ranges. Measured on the 500M
-/// plant (walk, pick, drag; docs/measurements.md): 214 MB beyond the peak of
-/// the first frame and twice the resident geometry.
-pub const FRAME_RESERVE_BYTES: u64 = 224 << 20;
+/// plant (walk, pick, drag; docs/measurements.md): at most 115 MB beyond the
+/// peak of the first frame and twice the resident geometry; this keeps
+/// half as much again.
+pub const FRAME_RESERVE_BYTES: u64 = 160 << 20;
 
 /// The share of the budget the tools' meshes (picks, checks) may keep
-/// loaded: one sixteenth.
+/// loaded between operations: one sixty-fourth (16 MB of 1 GiB; the 500M
+/// plant's walk, pick and drag loaded 0.42 MB, docs/measurements.md).
 pub fn tool_cap_bytes(budget: u64) -> u64 {
-    budget / 16
+    budget / 64
 }
 
 /// Streaming state of a viewer under a memory budget.

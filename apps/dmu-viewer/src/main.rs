@@ -257,8 +257,10 @@ fn run(cli: &Cli, started: Instant) -> anyhow::Result<()> {
             return Err(e).context("opening the display (is DISPLAY or WAYLAND_DISPLAY set?)");
         }
     };
-    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_with_display_handle_from_env(
-        Box::new(event_loop.owned_display_handle()),
+    let instance = wgpu::Instance::new(dmu_render::instance_descriptor(
+        wgpu::InstanceDescriptor::new_with_display_handle_from_env(Box::new(
+            event_loop.owned_display_handle(),
+        )),
     ));
     let loading = launch::Loading {
         result,

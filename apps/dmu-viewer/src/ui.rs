@@ -412,7 +412,7 @@ fn structure_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) 
             .auto_shrink([false, false])
             .show(ui, |ui| {
                 let reveal = state.reveal.take().map(|p| ancestors(&review.scene, p));
-                let top = review.scene.node(NodeId(0)).children.clone();
+                let top: Vec<NodeId> = review.scene.children(NodeId(0)).collect();
                 for child in top {
                     node_ui(ui, review, child, reveal.as_deref());
                 }
@@ -463,15 +463,13 @@ fn part_label(ui: &mut egui::Ui, review: &mut Review, part: PartId) -> egui::Res
 }
 
 fn node_ui(ui: &mut egui::Ui, review: &mut Review, node: NodeId, reveal: Option<&[NodeId]>) {
-    let (children, part) = {
-        let n = review.scene.node(node);
-        (n.children.clone(), n.part)
-    };
+    let children: Vec<NodeId> = review.scene.children(node).collect();
+    let part = review.scene.node(node).part;
     let on_path = reveal.is_some_and(|r| r.contains(&node));
     if children.is_empty() {
         let response = match part {
             Some(p) => part_label(ui, review, p),
-            None => ui.label(&review.scene.node(node).name),
+            None => ui.label(review.scene.node_name(node)),
         };
         if on_path {
             response.scroll_to_me(Some(egui::Align::Center));
@@ -492,7 +490,7 @@ fn node_ui(ui: &mut egui::Ui, review: &mut Review, node: NodeId, reveal: Option<
             None => {
                 ui.label(format!(
                     "{} ({})",
-                    review.scene.node(node).name,
+                    review.scene.node_name(node),
                     children.len()
                 ));
             }

@@ -26,12 +26,30 @@ pub fn memory_hints(adapter: &wgpu::AdapterInfo) -> wgpu::MemoryHints {
     }
 }
 
+/// The instance `descriptor` with wgpu's check of indirect draw arguments
+/// off in release builds: every draw's arguments come from the geometry
+/// pool's slots (written by the CPU, or by hzb's compute pass from them),
+/// and the check costs a compute pass and a buffer of its own per indirect
+/// round (33.6 MB for the 500M plant's overview, docs/measurements.md).
+/// Debug builds, so the test suite, keep it, and
+/// `WGPU_VALIDATION_INDIRECT_CALL=1` turns it back on.
+pub fn instance_descriptor(mut descriptor: wgpu::InstanceDescriptor) -> wgpu::InstanceDescriptor {
+    if !cfg!(debug_assertions) {
+        descriptor
+            .flags
+            .remove(wgpu::InstanceFlags::VALIDATION_INDIRECT_CALL);
+        descriptor.flags = descriptor.flags.with_env();
+    }
+    descriptor
+}
+
 /// A device and queue with no surface, with the [`OPTIONAL_FEATURES`] the
 /// adapter has. Honours `WGPU_BACKEND` and the other `wgpu` environment
 /// variables.
 pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, wgpu::AdapterInfo), RenderError> {
-    let instance =
-        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    let instance = wgpu::Instance::new(instance_descriptor(
+        wgpu::InstanceDescriptor::new_without_display_handle_from_env(),
+    ));
     let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
         power_preference: wgpu::PowerPreference::HighPerformance,
         compatible_surface: None,

@@ -113,7 +113,7 @@ pub use capture::{
     CAPTURE_FORMAT, Capture, DEPTH_FORMAT, ID_FORMAT, IdImage, SURFACE_CHANGE, count_differing,
     encode_png, save_png,
 };
-pub use device::{OPTIONAL_FEATURES, headless_device, memory_hints};
+pub use device::{OPTIONAL_FEATURES, headless_device, instance_descriptor, memory_hints};
 pub use dmu_geom::Camera;
 pub use error::RenderError;
 pub use farfield::{FAR_FIELD_RESOLUTIONS, FarField, FarFieldBuild, FarFieldOptions};

@@ -100,12 +100,9 @@ fn assembly_is_plant_unit_area_system_part() {
     assert_eq!(scene.assembly_depth(), 4);
     assert_eq!(scene.name(), "plant");
     let mut names = HashSet::new();
-    for node in scene.nodes() {
-        assert!(
-            names.insert(node.name.as_str()),
-            "duplicate node name {}",
-            node.name
-        );
+    for i in 0..scene.nodes().len() {
+        let name = scene.node_name(dmu_scene::NodeId(i as u32));
+        assert!(names.insert(name), "duplicate node name {name}");
     }
     for p in scene.part_ids() {
         let path = scene.part_path(p);
@@ -121,7 +118,7 @@ fn assembly_is_plant_unit_area_system_part() {
             "{path}"
         );
     }
-    let units = scene.node(dmu_scene::NodeId(0)).children.len();
+    let units = scene.children(dmu_scene::NodeId(0)).count();
     assert!(units >= 2, "{units} units");
 }
 

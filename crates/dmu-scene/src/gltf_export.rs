@@ -10,6 +10,7 @@ use base64::Engine as _;
 use glam::{DAffine3, DMat4, Vec3};
 use serde_json::{Value, json};
 
+use crate::NodeId;
 use crate::error::ExportError;
 use crate::scene::Scene;
 
@@ -155,23 +156,21 @@ fn build(scene: &Scene) -> (Value, Vec<u8>) {
     let nodes: Vec<Value> = scene
         .nodes()
         .iter()
+        .enumerate()
         .skip(1)
-        .map(|node| {
+        .map(|(i, node)| {
+            let id = NodeId(i as u32);
             let parent_world = node
                 .parent
                 .map_or(DAffine3::IDENTITY, |p| scene.node(p).world);
             let local = parent_world.inverse() * node.world;
-            let mut n = json!({ "name": node.name });
+            let mut n = json!({ "name": scene.node_name(id) });
             if local != DAffine3::IDENTITY {
                 n["matrix"] = json!(DMat4::from(local).to_cols_array());
             }
-            if !node.children.is_empty() {
-                n["children"] = json!(
-                    node.children
-                        .iter()
-                        .map(|c| c.index() - 1)
-                        .collect::<Vec<_>>()
-                );
+            let children: Vec<usize> = scene.children(id).map(|c| c.index() - 1).collect();
+            if !children.is_empty() {
+                n["children"] = json!(children);
             }
             if let Some(part) = node.part {
                 n["mesh"] = json!(scene.part(part).mesh.0);
@@ -179,11 +178,7 @@ fn build(scene: &Scene) -> (Value, Vec<u8>) {
             n
         })
         .collect();
-    let roots: Vec<usize> = scene.nodes()[0]
-        .children
-        .iter()
-        .map(|c| c.index() - 1)
-        .collect();
+    let roots: Vec<usize> = scene.children(NodeId(0)).map(|c| c.index() - 1).collect();
 
     let doc = json!({
         "asset": { "version": "2.0", "generator": concat!("dmu ", env!("CARGO_PKG_VERSION")) },

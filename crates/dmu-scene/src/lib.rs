@@ -55,8 +55,8 @@ pub use gltf_import::{StreamOptions, Streamed, import_gltf_streaming};
 pub use ids::{ChunkId, MaterialId, MeshId, NodeId, PartId};
 pub use lod::{LodLevel, MAX_LOD_LEVELS, MIN_LOD_TRIANGLES, lod_levels, simplify_to_error};
 pub use scene::{
-    AssemblyNode, Chunk, ChunkGeometry, DEFAULT_CHUNK_TRIANGLES, MAX_WORLD_COORDINATE, Material,
-    Mesh, Part, Scene, SceneBuilder, limits,
+    AssemblyNode, Children, Chunk, ChunkGeometry, DEFAULT_CHUNK_TRIANGLES, MAX_WORLD_COORDINATE,
+    Material, Mesh, Part, Scene, SceneBuilder, limits,
 };
 pub use solid::is_solid;
 pub use structure::{ChunkEntry, MeshEntry, NO_PARENT, Names, NodeEntry, PartEntry, Structure};

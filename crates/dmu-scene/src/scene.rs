@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 use crate::chunking::{ChunkData, ChunkedMesh, MeshData, chunk_mesh};
 use crate::error::SceneError;
 use crate::ids::{ChunkId, MaterialId, MeshId, NodeId, PartId};
+use crate::structure::Names;
 
 /// Default maximum triangles per chunk.
 pub const DEFAULT_CHUNK_TRIANGLES: u32 = 2048;
@@ -39,21 +40,58 @@ pub struct Material {
     pub base_color: [f32; 4],
 }
 
-/// A node of the assembly tree (product structure).
+/// A node of the assembly tree (product structure). Its name and its
+/// children are kept by the scene ([`Scene::node_name`],
+/// [`Scene::children`]): a name table and sibling links take a few bytes a
+/// node where a `String` and a `Vec` each took 24 and an allocation (the
+/// 500M plant has 935,650 nodes).
 #[derive(Clone, Debug, PartialEq)]
 pub struct AssemblyNode {
-    /// Name; importers give unnamed nodes stable generated names.
-    pub name: String,
     /// Parent node; `None` only for the root (node 0).
     pub parent: Option<NodeId>,
-    /// Children in file order.
-    pub children: Vec<NodeId>,
     /// Absolute world transform, f64: CAD coordinates far from the origin keep their
     /// millimetres. Stored absolutely, never accumulated, so moves are reversible bit
     /// for bit; moving a node does not move its children.
     pub world: DAffine3,
     /// The part this node instances, if it owns geometry.
     pub part: Option<PartId>,
+    /// The first child, [`NO_NODE`] for none.
+    first_child: u32,
+    /// The next child of the same parent, [`NO_NODE`] for none.
+    next_sibling: u32,
+}
+
+/// "No node" in a node's sibling links.
+const NO_NODE: u32 = u32::MAX;
+
+impl AssemblyNode {
+    fn new(parent: Option<NodeId>, world: DAffine3) -> Self {
+        Self {
+            parent,
+            world,
+            part: None,
+            first_child: NO_NODE,
+            next_sibling: NO_NODE,
+        }
+    }
+}
+
+/// A node's children in file order ([`Scene::children`]).
+#[derive(Clone, Debug)]
+pub struct Children<'a> {
+    nodes: &'a [AssemblyNode],
+    next: u32,
+}
+
+impl Iterator for Children<'_> {
+    type Item = NodeId;
+
+    fn next(&mut self) -> Option<NodeId> {
+        let node = self.nodes.get(self.next as usize)?;
+        let id = NodeId(self.next);
+        self.next = node.next_sibling;
+        Some(id)
+    }
 }
 
 /// A part: a node that owns geometry, i.e. one instance of a mesh.
@@ -205,6 +243,8 @@ impl Chunk {
 pub struct Scene {
     name: String,
     nodes: Vec<AssemblyNode>,
+    /// Every node's name, by node.
+    names: Names,
     parts: Vec<Part>,
     meshes: Vec<Mesh>,
     chunks: Vec<Chunk>,
@@ -240,6 +280,17 @@ impl Scene {
     pub fn node(&self, id: NodeId) -> &AssemblyNode {
         &self.nodes[id.index()]
     }
+    /// A node's name; importers give unnamed nodes stable generated names.
+    pub fn node_name(&self, id: NodeId) -> &str {
+        self.names.get(id.index())
+    }
+    /// A node's children in file order.
+    pub fn children(&self, id: NodeId) -> Children<'_> {
+        Children {
+            nodes: &self.nodes,
+            next: self.nodes[id.index()].first_child,
+        }
+    }
     /// One part.
     pub fn part(&self, id: PartId) -> &Part {
         &self.parts[id.index()]
@@ -258,7 +309,7 @@ impl Scene {
     }
     /// A part's name (its node's name).
     pub fn part_name(&self, id: PartId) -> &str {
-        &self.node(self.part(id).node).name
+        self.node_name(self.part(id).node)
     }
     /// A part's world transform.
     pub fn part_world(&self, id: PartId) -> DAffine3 {
@@ -347,7 +398,7 @@ impl Scene {
         while let Some(n) = at {
             let node = self.node(n);
             if node.parent.is_some() {
-                names.push(node.name.as_str());
+                names.push(self.node_name(n));
             }
             at = node.parent;
         }
@@ -502,7 +553,7 @@ impl Scene {
             if i > 0 && node.parent.is_none_or(|p| p.index() >= i) {
                 return fail(format!("node {i} must have a parent stored before it"));
             }
-            for c in &node.children {
+            for c in self.children(NodeId(i as u32)) {
                 if self.nodes.get(c.index()).and_then(|c| c.parent) != Some(NodeId(i as u32)) {
                     return fail(format!("node {i}: child {c} does not name it as parent"));
                 }
@@ -637,6 +688,8 @@ pub const MAX_WORLD_COORDINATE: f64 = 1e15;
 pub struct SceneBuilder {
     scene: Scene,
     chunk_triangles: u32,
+    /// Each node's last child so far, [`NO_NODE`] for none.
+    last_child: Vec<u32>,
 }
 
 impl SceneBuilder {
@@ -646,13 +699,12 @@ impl SceneBuilder {
         let name = name.into();
         Self {
             scene: Scene {
-                nodes: vec![AssemblyNode {
-                    name: name.clone(),
-                    parent: None,
-                    children: Vec::new(),
-                    world: DAffine3::IDENTITY,
-                    part: None,
-                }],
+                nodes: vec![AssemblyNode::new(None, DAffine3::IDENTITY)],
+                names: {
+                    let mut names = Names::default();
+                    names.push(&name);
+                    names
+                },
                 name,
                 parts: Vec::new(),
                 meshes: Vec::new(),
@@ -660,7 +712,16 @@ impl SceneBuilder {
                 materials: Vec::new(),
             },
             chunk_triangles,
+            last_child: vec![NO_NODE],
         }
+    }
+
+    /// Room for `nodes` more nodes, when the caller knows (a store's
+    /// structure): the node table is then allocated once, at its size.
+    pub fn reserve_nodes(&mut self, nodes: usize) {
+        self.scene.nodes.reserve_exact(nodes);
+        self.scene.names.ends.reserve_exact(nodes);
+        self.last_child.reserve_exact(nodes);
     }
 
     /// The root node.
@@ -686,16 +747,19 @@ impl SceneBuilder {
     }
 
     /// Adds a node under `parent` with an absolute world transform.
-    pub fn add_node(&mut self, parent: NodeId, name: impl Into<String>, world: DAffine3) -> NodeId {
+    pub fn add_node(&mut self, parent: NodeId, name: impl AsRef<str>, world: DAffine3) -> NodeId {
         let id = NodeId::from_index(self.scene.nodes.len());
-        self.scene.nodes[parent.index()].children.push(id);
-        self.scene.nodes.push(AssemblyNode {
-            name: name.into(),
-            parent: Some(parent),
-            children: Vec::new(),
-            world,
-            part: None,
-        });
+        let p = parent.index();
+        match self.last_child[p] {
+            NO_NODE => self.scene.nodes[p].first_child = id.0,
+            last => self.scene.nodes[last as usize].next_sibling = id.0,
+        }
+        self.last_child[p] = id.0;
+        self.last_child.push(NO_NODE);
+        self.scene
+            .nodes
+            .push(AssemblyNode::new(Some(parent), world));
+        self.scene.names.push(name.as_ref());
         id
     }
 

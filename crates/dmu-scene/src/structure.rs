@@ -170,13 +170,13 @@ impl Structure {
     /// The structure of `scene` (loaded or not; its geometry is not read).
     pub fn of(scene: &Scene) -> Self {
         let mut s = Self::default();
-        for n in scene.nodes() {
+        for (i, n) in scene.nodes().iter().enumerate() {
             s.nodes.push(NodeEntry {
                 parent: n.parent.map_or(NO_PARENT, |p| p.0),
                 reserved: 0,
                 world: n.world.to_cols_array(),
             });
-            s.node_names.push(&n.name);
+            s.node_names.push(scene.node_name(NodeId(i as u32)));
         }
         s.parts = scene
             .parts()
@@ -430,6 +430,7 @@ impl Structure {
         let invalid = |what: String| SceneError::Invalid { what };
         self.check().map_err(invalid)?;
         let mut b = SceneBuilder::new(self.name(), crate::DEFAULT_CHUNK_TRIANGLES);
+        b.reserve_nodes(self.nodes.len());
         for (i, &color) in self.materials.iter().enumerate() {
             b.add_material(self.material_names.get(i), color);
         }

@@ -3,5 +3,6 @@ mod fuzz_gltf_import;
 #[path = "../../../fuzz/replay.rs"]
 mod fuzz_replay;
 mod import;
+mod nodes;
 mod real_models;
 mod support;

@@ -26,7 +26,7 @@ use std::path::Path;
 use bytemuck::{Pod, Zeroable};
 use dmu_scene::{
     ChunkData, ChunkEntry, ChunkId, ChunkedMesh, DEFAULT_CHUNK_TRIANGLES, MeshEntry, MeshId, Names,
-    NodeEntry, PartEntry, PartId, Scene, SceneBuilder, Structure,
+    NodeEntry, NodeId, PartEntry, PartId, Scene, SceneBuilder, Structure,
 };
 use xxhash_rust::xxh3::Xxh3;
 
@@ -252,10 +252,11 @@ pub(crate) fn with_geometry(
     for m in skeleton.materials() {
         b.add_material(m.name.clone(), m.base_color);
     }
-    for n in &skeleton.nodes()[1..] {
+    b.reserve_nodes(skeleton.nodes().len());
+    for (i, n) in skeleton.nodes().iter().enumerate().skip(1) {
         b.add_node(
             n.parent.unwrap_or(SceneBuilder::ROOT),
-            n.name.clone(),
+            skeleton.node_name(NodeId(i as u32)),
             n.world,
         );
     }
@@ -314,8 +315,11 @@ pub(crate) fn structure_difference(a: &Scene, b: &Scene) -> Option<String> {
         ));
     }
     for (i, (x, y)) in a.nodes().iter().zip(b.nodes()).enumerate() {
-        if (&x.name, x.parent, &x.children, x.part) != (&y.name, y.parent, &y.children, y.part) {
-            return Some(format!("node {i} ({:?}) differs", x.name));
+        let id = NodeId(i as u32);
+        if (a.node_name(id), x.parent, x.part) != (b.node_name(id), y.parent, y.part)
+            || !a.children(id).eq(b.children(id))
+        {
+            return Some(format!("node {i} ({:?}) differs", a.node_name(id)));
         }
     }
     if a.parts().len() != b.parts().len()
