@@ -55,6 +55,9 @@ pub struct Options {
     /// Compose frames from the panels as last painted where the surface
     /// allows (else paint the whole window every frame).
     pub compose: bool,
+    /// While a part is dragged, how long the panels as last painted may
+    /// stand for panels that changed ([`Gfx::panel_lag`]).
+    pub panel_lag: std::time::Duration,
     /// Cull the back faces of solid meshes (`RendererOptions::cull_back_faces`).
     pub cull_back_faces: bool,
     /// Pixels of error a chunk's simplified level may show (0: exact).
@@ -1436,8 +1439,12 @@ impl App {
                 e.frames += 1;
                 e.frames >= SNAPSHOT_SETTLE_FRAMES || stats.iter().all(|s| s.newly_visible == 0)
             });
-            let presented =
-                gfx.present(&self.egui_ctx, output, screenshot.is_some() || snapshot)?;
+            let presented = gfx.present(
+                &self.egui_ctx,
+                output,
+                screenshot.is_some() || snapshot,
+                self.review.dragging(),
+            )?;
             if snapshot && let Some(image) = &presented.image {
                 self.export_snapshot(image)?;
             }
@@ -1482,6 +1489,7 @@ impl App {
                     "view_ms": view_ms,
                     "paint_ms": paint_ms,
                     "painted_whole": presented.painted_whole,
+                    "panels_stale": presented.panels_stale,
                     "render_cpu_ms": main.cpu_ms,
                     "render_gpu_ms": main.gpu_ms,
                     "culling": main.culling.name(),
@@ -1543,7 +1551,8 @@ pub fn open_window(
     let window = event_loop
         .create_window(attributes)
         .context("opening the window")?;
-    let gfx = Gfx::new(instance, Arc::new(window), options.vsync, options.compose)?;
+    let mut gfx = Gfx::new(instance, Arc::new(window), options.vsync, options.compose)?;
+    gfx.panel_lag = options.panel_lag;
     let state = egui_winit::State::new(
         ctx.clone(),
         egui::ViewportId::ROOT,

@@ -3,6 +3,7 @@
 //! (see [`crate::compose`]), and reading a frame back for screenshots.
 
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use dmu_render::{DEPTH_FORMAT, FrameTarget};
@@ -109,6 +110,10 @@ pub struct Gfx {
     panels: Option<Panels>,
     /// Whether the surface can be copied into (frames can be composed).
     can_compose: bool,
+    /// How long the panels as last painted may stand for panels that
+    /// changed, while [`Gfx::present`] is told they may lag (a part is
+    /// being dragged); zero: never.
+    pub panel_lag: Duration,
 }
 
 /// The window's panels as last painted and what they were painted from.
@@ -117,6 +122,8 @@ struct Panels {
     /// The primitives outside the views it was painted from, and where the
     /// views were (`None`: it cannot be reused).
     painted_from: Option<PaintedFrom>,
+    /// When it was painted.
+    painted_at: Option<Instant>,
 }
 
 /// What the panels were painted from: the primitives outside the views, and
@@ -134,6 +141,9 @@ pub struct Presented {
     /// Whether the whole window was painted; otherwise the panels were copied
     /// from the last paint and only the 3D views' rectangles painted.
     pub painted_whole: bool,
+    /// Whether the panels copied were painted from panels that have changed
+    /// since (a drag within [`Gfx::panel_lag`] of their paint).
+    pub panels_stale: bool,
 }
 
 impl std::fmt::Debug for Gfx {
@@ -236,6 +246,7 @@ impl Gfx {
             views: Vec::new(),
             panels: None,
             can_compose,
+            panel_lag: Duration::ZERO,
         };
         gfx.set_compose(compose);
         Ok(gfx)
@@ -248,6 +259,7 @@ impl Gfx {
             self.panels = (compose && self.can_compose).then(|| Panels {
                 texture: None,
                 painted_from: None,
+                painted_at: None,
             });
         }
     }
@@ -302,12 +314,18 @@ impl Gfx {
     /// nothing outside the 3D views changed since the panels were last
     /// painted, the frame is a copy of that paint with only the views'
     /// rectangles painted over it; otherwise the whole window is painted (and
-    /// kept). With `read_back`, the frame as shown comes back too.
+    /// kept). With `may_lag` (a part is being dragged: its position and
+    /// clashes change every frame), panels that changed are still copied
+    /// while their paint is under [`Gfx::panel_lag`] old, where the views
+    /// have not moved: on a CPU rasterizer painting the whole window costs
+    /// as much as the 3D view. With `read_back`, the frame as shown comes
+    /// back too, never with stale panels.
     pub fn present(
         &mut self,
         ctx: &egui::Context,
         output: egui::FullOutput,
         read_back: bool,
+        may_lag: bool,
     ) -> anyhow::Result<Presented> {
         // A new glyph or image changes how unchanged primitives look: the
         // kept panels are stale even if this frame is never shown.
@@ -361,6 +379,7 @@ impl Gfx {
         // The views' images to copy: set when the panels' last paint is
         // reused, and then only what lies over the views is painted.
         let mut copies = None;
+        let mut panels_stale = false;
         let (jobs, panels) = match self.panels.as_mut() {
             None => (jobs, None),
             Some(panels) => {
@@ -382,10 +401,19 @@ impl Gfx {
                 let found = split
                     .as_ref()
                     .and_then(|s| image_copies(&self.views, &s.images, size));
-                let reuse = !textures_changed
-                    && found.is_some()
-                    && split.as_ref().map(|s| (&s.panels, &s.images))
-                        == panels.painted_from.as_ref().map(|(p, i)| (p, i));
+                let (same_panels, same_views) = match (split.as_ref(), panels.painted_from.as_ref())
+                {
+                    (Some(s), Some((p, i))) => (s.panels == *p, s.images == *i),
+                    _ => (false, false),
+                };
+                let lagging = may_lag
+                    && !read_back
+                    && panels
+                        .painted_at
+                        .is_some_and(|at| at.elapsed() < self.panel_lag);
+                let reuse =
+                    !textures_changed && found.is_some() && same_views && (same_panels || lagging);
+                panels_stale = reuse && !same_panels;
                 let jobs = match split {
                     Some(split) if reuse => {
                         copies = found;
@@ -393,6 +421,7 @@ impl Gfx {
                     }
                     split => {
                         panels.painted_from = split.map(|s| (s.panels, s.images));
+                        panels.painted_at = Some(Instant::now());
                         jobs
                     }
                 };
@@ -476,6 +505,7 @@ impl Gfx {
         Ok(Presented {
             image,
             painted_whole,
+            panels_stale,
         })
     }
 

@@ -177,7 +177,7 @@ impl Launcher {
             });
         });
         state.handle_platform_output(&gfx.window, output.platform_output.clone());
-        gfx.present(&self.egui_ctx, output, false)?;
+        gfx.present(&self.egui_ctx, output, false, false)?;
         self.frames_while_loading += 1;
         self.next_loading_frame = Instant::now() + loading_redraw_interval(start.elapsed());
         Ok(())

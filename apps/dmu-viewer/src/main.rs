@@ -103,6 +103,13 @@ struct Cli {
     /// rasterizer; for comparison).
     #[arg(long)]
     paint_whole: bool,
+    /// While a part is dragged, repaint the side panels (its position, its
+    /// clashes) at most this often, in ms; the 3D view is drawn every frame
+    /// and the panels are exact again once the drag ends. On a CPU
+    /// rasterizer repainting the whole window costs about as much as the 3D
+    /// view. 0: every frame.
+    #[arg(long, default_value_t = 500, value_parser = clap::value_parser!(u64).range(0..=60_000))]
+    panel_refresh_ms: u64,
     /// Draw each chunk's coarsest simplified level whose estimated error
     /// projects to at most this many pixels (0: every chunk whole, the exact image).
     #[arg(long, default_value_t = 1.0, value_parser = dmu_app::units::number_in(0.0, 1e6))]
@@ -233,6 +240,7 @@ fn run(cli: &Cli, started: Instant) -> anyhow::Result<()> {
         script,
         vsync: !(cli.no_vsync || automated),
         compose: !cli.paint_whole,
+        panel_lag: std::time::Duration::from_millis(cli.panel_refresh_ms),
         cull_back_faces: !cli.no_cull_back_faces,
         lod_error_px: cli.lod_error_px,
         min_pixels: cli.min_pixels.unwrap_or(if cli.memory_budget.is_some() {

@@ -10,7 +10,9 @@ use glam::{DAffine3, DQuat, DVec3};
 use serde_json::{Value, json};
 
 use crate::support::{Palette, Viewport, can_run, count_pixels, dmu_status, image_path};
-use crate::xvfb::{first_look, no_overlays, path_str, plant_200k, run_script, run_script_on, step};
+use crate::xvfb::{
+    PLANT, first_look, no_overlays, path_str, plant_200k, run_script, run_script_on, step,
+};
 
 /// Colours of the scene's materials.
 fn palette(scene: &Scene) -> Palette {
@@ -343,8 +345,11 @@ fn four_panes_with_a_cells_view_under_xvfb() {
 /// whole paint of the same frame shows, pixel for pixel: after a pick (the
 /// panels change), a drag (the part moves under clash markers drawn over the
 /// view), a preset view and frames with only the 3D view changing. Most of
-/// those frames reuse the panels; painting whole, none does. (One run: the
-/// panels show timings, which differ from run to run.)
+/// those frames reuse the panels; painting whole, none does. While the part
+/// is dragged the panels may lag (`--panel-refresh-ms`, a minute here): the
+/// drag's frames copy the panels painted at the pick though its position
+/// changes, and the first frame after it shows them as they are. (One run:
+/// the panels show timings, which differ from run to run.)
 #[test]
 fn composed_frames_equal_whole_paints_under_xvfb() {
     if !can_run("composed_frames_equal_whole_paints_under_xvfb") {
@@ -354,12 +359,13 @@ fn composed_frames_equal_whole_paints_under_xvfb() {
     let (_, (px, py), _) = first_look(dir.path(), "viewer-compose");
     let [composed_png, whole_png] =
         ["composed", "whole"].map(|n| image_path(&format!("viewer-compose-{n}.png")));
-    let report = run_script(
+    let report = run_script_on(
         dir.path(),
+        &["--plant-triangles", PLANT, "--panel-refresh-ms", "60000"],
         &json!([
             {"overlays": {"stats": false, "clashes": true}},
             {"pick": [px, py]},
-            {"drag": {"by": [0.0, 0.0, -400.0], "steps": 4}},
+            {"drag": {"by": [0.0, 0.0, -400.0], "steps": 8}},
             {"view": "iso"},
             {"frames": 4},
             {"hover": [px, py]},
@@ -380,9 +386,33 @@ fn composed_frames_equal_whole_paints_under_xvfb() {
                 .expect("painted_whole per frame")
         })
         .collect();
-    // The 15 frames up to the first screenshot, then 4 painted whole.
+    // The 19 frames up to the first screenshot, then 4 painted whole.
     let (composing, painting) = whole.split_at(whole.len() - 4);
     assert!(painting.iter().all(|&w| w), "{whole:?}");
+    let frames = report["frames"].as_array().unwrap();
+    let stale: Vec<(&str, bool)> = frames
+        .iter()
+        .map(|f| {
+            let stale = f["panels_stale"].as_bool().expect("panels_stale per frame");
+            (f["action"].as_str().unwrap(), stale)
+        })
+        .collect();
+    let drag: Vec<bool> = (stale.iter())
+        .filter(|(a, _)| *a == "drag")
+        .map(|&(_, s)| s)
+        .collect();
+    assert_eq!(drag.len(), 8, "{stale:?}");
+    // The last step ends the drag, and a frame with a glyph new to egui's
+    // atlas is painted whole.
+    assert!(
+        drag.iter().filter(|&&s| s).count() >= 4,
+        "the drag's frames lag: {stale:?} {whole:?}"
+    );
+    let after = stale.iter().rposition(|(a, _)| *a == "drag").unwrap() + 1;
+    assert!(
+        stale[after..].iter().all(|&(_, s)| !s),
+        "no frame after the drag lags: {stale:?}"
+    );
     assert!(
         !composing.last().unwrap(),
         "the first screenshot's frame is composed: {whole:?}"
