@@ -55,6 +55,8 @@ pub struct Options {
     /// Compose frames from the panels as last painted where the surface
     /// allows (else paint the whole window every frame).
     pub compose: bool,
+    /// Show the stats overlay from the start.
+    pub stats: bool,
     /// While a part is dragged, how long the panels as last painted may
     /// stand for panels that changed ([`Gfx::panel_lag`]).
     pub panel_lag: std::time::Duration,
@@ -247,7 +249,8 @@ impl App {
         main.view.options.lod_error_px = options.lod_error_px;
         main.view.options.min_pixels = options.min_pixels;
         main.view.options.target_ms = options.target_ms;
-        let ui = UiState::new(review.source.as_deref());
+        let mut ui = UiState::new(review.source.as_deref());
+        ui.show_stats = options.stats;
         let runner = Runner {
             actions: options.script.clone(),
             ..Runner::default()

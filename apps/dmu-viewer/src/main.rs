@@ -110,6 +110,12 @@ struct Cli {
     /// view. 0: every frame.
     #[arg(long, default_value_t = 500, value_parser = clap::value_parser!(u64).range(0..=60_000))]
     panel_refresh_ms: u64,
+    /// Show the stats overlay (frame time and its split, triangles, culling,
+    /// memory) over the 3D view from the start; the top bar's "stats" box
+    /// toggles it. Off by default: painting its text over the view each
+    /// frame costs about 10 ms on a CPU rasterizer.
+    #[arg(long)]
+    stats: bool,
     /// Draw each chunk's coarsest simplified level whose estimated error
     /// projects to at most this many pixels (0: every chunk whole, the exact image).
     #[arg(long, default_value_t = 1.0, value_parser = dmu_app::units::number_in(0.0, 1e6))]
@@ -240,6 +246,7 @@ fn run(cli: &Cli, started: Instant) -> anyhow::Result<()> {
         script,
         vsync: !(cli.no_vsync || automated),
         compose: !cli.paint_whole,
+        stats: cli.stats,
         panel_lag: std::time::Duration::from_millis(cli.panel_refresh_ms),
         cull_back_faces: !cli.no_cull_back_faces,
         lod_error_px: cli.lod_error_px,

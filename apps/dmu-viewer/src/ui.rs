@@ -174,7 +174,7 @@ impl UiState {
             save_path,
             status: String::new(),
             reveal: None,
-            show_stats: true,
+            show_stats: false,
             show_clashes: true,
             show_tools: true,
         }

@@ -438,3 +438,56 @@ fn composed_frames_equal_whole_paints_under_xvfb() {
         differing.iter().max()
     );
 }
+
+/// The stats overlay is off at start and shows at the top of the view when
+/// turned on, from the top bar (script `overlays`) or with
+/// `--stats`; nothing else in the window changes.
+#[test]
+fn the_stats_overlay_is_off_unless_asked_for_under_xvfb() {
+    if !can_run("the_stats_overlay_is_off_unless_asked_for_under_xvfb") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let [plain, toggled, off, flagged] = ["plain", "toggled", "off", "flagged"]
+        .map(|n| image_path(&format!("viewer-stats-{n}.png")));
+    let report = run_script(
+        dir.path(),
+        &json!([
+            {"frames": 4},
+            {"screenshot": plain},
+            {"overlays": {"stats": true}},
+            {"frames": 2},
+            {"screenshot": toggled},
+            {"overlays": {"stats": false}},
+            {"frames": 2},
+            {"screenshot": off},
+        ]),
+    );
+    run_script_on(
+        dir.path(),
+        &["--plant-triangles", PLANT, "--stats"],
+        &json!([{"frames": 4}, {"screenshot": flagged}]),
+    );
+    let view = Viewport::from_json(&report["viewport"]);
+    let plain = image::open(&plain).unwrap().to_rgba8();
+    let off = image::open(&off).unwrap().to_rgba8();
+    assert!(plain == off, "the start shows the overlay");
+    for other in [toggled, flagged] {
+        let other = image::open(&other).unwrap().to_rgba8();
+        let differing: Vec<(u32, u32)> = (plain.enumerate_pixels())
+            .filter(|&(x, y, p)| p != other.get_pixel(x, y))
+            .map(|(x, y, _)| (x, y))
+            .collect();
+        assert!(differing.len() > 1000, "{} pixels differ", differing.len());
+        // The box is as wide as its longest line: at 680 pixels, the view's width.
+        let top = |&(x, y): &(u32, u32)| {
+            (view.x..view.x + view.width).contains(&x)
+                && (view.y..view.y + view.height / 2).contains(&y)
+        };
+        assert!(
+            differing.iter().all(top),
+            "pixels outside the view's upper half differ: {:?}",
+            differing.iter().find(|p| !top(p))
+        );
+    }
+}
