@@ -125,10 +125,6 @@ impl Launcher {
         };
         match result {
             Ok(loaded) => {
-                #[expect(unsafe_code, reason = "experiment")]
-                unsafe {
-                    libc::malloc_trim(0);
-                }
                 let options = self.options.take().expect("the viewer starts once");
                 let mut app = App::new(self.instance.clone(), loaded.review, options, loaded.facts);
                 app.proxies = loaded.proxies;
