@@ -241,7 +241,6 @@ impl Chunk {
 /// change, so the geometry invariants checked by [`Scene::validate`] hold for life.
 #[derive(Clone, Debug)]
 pub struct Scene {
-    name: String,
     nodes: Vec<AssemblyNode>,
     /// Every node's name, by node.
     names: Names,
@@ -254,7 +253,7 @@ pub struct Scene {
 impl Scene {
     /// The scene's name (the root node's name).
     pub fn name(&self) -> &str {
-        &self.name
+        self.node_name(NodeId(0))
     }
     /// Assembly nodes; index 0 is the root.
     pub fn nodes(&self) -> &[AssemblyNode] {
@@ -694,18 +693,16 @@ pub struct SceneBuilder {
 
 impl SceneBuilder {
     /// A scene with a root node named `name` at the identity transform.
-    pub fn new(name: impl Into<String>, chunk_triangles: u32) -> Self {
+    pub fn new(name: impl AsRef<str>, chunk_triangles: u32) -> Self {
         assert!(chunk_triangles > 0, "chunk_triangles must be positive");
-        let name = name.into();
         Self {
             scene: Scene {
                 nodes: vec![AssemblyNode::new(None, DAffine3::IDENTITY)],
                 names: {
                     let mut names = Names::default();
-                    names.push(&name);
+                    names.push(name.as_ref());
                     names
                 },
-                name,
                 parts: Vec::new(),
                 meshes: Vec::new(),
                 chunks: Vec::new(),
