@@ -24,25 +24,21 @@ struct Params {
 
 @group(0) @binding(0) var depth_in: texture_depth_2d;
 @group(0) @binding(1) var level0_out: texture_storage_2d<r32float, write>;
+// Nearest, clamped to the edge: the last pixel of a row or column stands for
+// the one past it (the least of a pixel and itself is the pixel).
+@group(0) @binding(2) var depth_sampler: sampler;
 
-// Level 0: the least depth of each 2x2 block of the depth target.
+// Level 0: the least depth of each 2x2 block of the depth target, gathered
+// in one fetch at the block's centre.
 @compute @workgroup_size(8, 8)
 fn reduce_depth(@builtin(global_invocation_id) id: vec3<u32>) {
     let dims = textureDimensions(level0_out);
     if id.x >= dims.x || id.y >= dims.y {
         return;
     }
-    let size = textureDimensions(depth_in);
-    var m = 1.0;
-    for (var dy = 0u; dy < 2u; dy++) {
-        for (var dx = 0u; dx < 2u; dx++) {
-            let p = id.xy * 2u + vec2(dx, dy);
-            if p.x < size.x && p.y < size.y {
-                m = min(m, textureLoad(depth_in, p, 0));
-            }
-        }
-    }
-    textureStore(level0_out, id.xy, vec4(m, 0.0, 0.0, 0.0));
+    let at = vec2<f32>(id.xy * 2u + 1u) / vec2<f32>(textureDimensions(depth_in));
+    let d = textureGather(depth_in, depth_sampler, at);
+    textureStore(level0_out, id.xy, vec4(min(min(d.x, d.y), min(d.z, d.w)), 0.0, 0.0, 0.0));
 }
 
 @group(0) @binding(0) var level_in: texture_2d<f32>;
@@ -113,35 +109,37 @@ struct DrawArgs {
 // dropped visible chunks on Mesa 22.3's llvmpipe (a miscompile; the tests
 // in crates/dmu-render/tests/hzb.rs caught it).
 fn box_visible(c: Candidate) -> bool {
-    let x = 0.5 * c.axis_x.xyz;
-    let y = 0.5 * c.axis_y.xyz;
-    let z = 0.5 * c.axis_z.xyz;
-    let o = c.center.xyz;
+    // Clip coordinates are linear in the point: the centre's, and each
+    // half-axis's as a direction, give every corner of the box and of its
+    // octants as sums.
+    let o = params.proj * vec4(c.center.xyz, 1.0);
+    let x = params.proj * vec4(c.axis_x.xyz, 0.0);
+    let y = params.proj * vec4(c.axis_y.xyz, 0.0);
+    let z = params.proj * vec4(c.axis_z.xyz, 0.0);
     // The whole box first: where it is hidden, so is every octant (an
     // octant's nearest depth is no nearer and its texels' farthest depth
     // no farther), and most boxes are hidden.
-    if !part_visible(o, c.axis_x.xyz, c.axis_y.xyz, c.axis_z.xyz) {
+    if !part_visible(o, x, y, z) {
         return false;
     }
-    return part_visible(o - x - y - z, x, y, z) || part_visible(o + x - y - z, x, y, z)
-        || part_visible(o - x + y - z, x, y, z) || part_visible(o + x + y - z, x, y, z)
-        || part_visible(o - x - y + z, x, y, z) || part_visible(o + x - y + z, x, y, z)
-        || part_visible(o - x + y + z, x, y, z) || part_visible(o + x + y + z, x, y, z);
+    let hx = 0.5 * x;
+    let hy = 0.5 * y;
+    let hz = 0.5 * z;
+    return part_visible(o - hx - hy - hz, hx, hy, hz) || part_visible(o + hx - hy - hz, hx, hy, hz)
+        || part_visible(o - hx + hy - hz, hx, hy, hz) || part_visible(o + hx + hy - hz, hx, hy, hz)
+        || part_visible(o - hx - hy + hz, hx, hy, hz) || part_visible(o + hx - hy + hz, hx, hy, hz)
+        || part_visible(o - hx + hy + hz, hx, hy, hz) || part_visible(o + hx + hy + hz, hx, hy, hz);
 }
 
-// Whether the box with this centre and half-axes (view space) may show.
-fn part_visible(center: vec3<f32>, axis_x: vec3<f32>, axis_y: vec3<f32>, axis_z: vec3<f32>) -> bool {
+// Whether the box with these clip coordinates of its centre and half-axes may
+// show.
+fn part_visible(center: vec4<f32>, axis_x: vec4<f32>, axis_y: vec4<f32>, axis_z: vec4<f32>) -> bool {
     var lo = vec2(1e30, 1e30);
     var hi = vec2(-1e30, -1e30);
     var nearest = 0.0;
     for (var k = 0u; k < 8u; k++) {
-        let s = vec3(
-            select(-1.0, 1.0, (k & 1u) != 0u),
-            select(-1.0, 1.0, (k & 2u) != 0u),
-            select(-1.0, 1.0, (k & 4u) != 0u),
-        );
-        let p = center + s.x * axis_x + s.y * axis_y + s.z * axis_z;
-        let clip = params.proj * vec4(p, 1.0);
+        let clip = center + select(-axis_x, axis_x, (k & 1u) != 0u)
+            + select(-axis_y, axis_y, (k & 2u) != 0u) + select(-axis_z, axis_z, (k & 4u) != 0u);
         // A corner at or behind the eye plane: the box reaches the eye.
         if clip.w <= 0.0 {
             return true;

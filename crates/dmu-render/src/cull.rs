@@ -345,7 +345,7 @@ impl Renderer {
                 }
             }
             stats.rounds = 1;
-            self.run_round(
+            let round = self.submit_round(
                 &mut gpu_state,
                 target,
                 Shading::Color,
@@ -361,8 +361,9 @@ impl Renderer {
                     frames: &frames,
                     tinted: &self.proxies_tinted(&self.hierarchy, tree, &proxy_nodes),
                 },
-            )
-            .map(|r| add_round(&mut stats, &r))
+            );
+            self.finish_round(&gpu_state, round)
+                .map(|r| add_round(&mut stats, &r))
         };
         view.gpu = Some(gpu_state);
         outcome?;
@@ -423,7 +424,7 @@ impl Renderer {
         let mut scratch = FrameStats::default();
         let mut draws = self.frustum_draws(scene, tree, &cull, &mut scratch);
         sort_draws(&self.hierarchy, &cell_distance, &mut draws);
-        let result = self.run_round(
+        let round = self.submit_round(
             &mut gpu_state,
             RoundTarget::single(capture.id_target()),
             Shading::Ids,
@@ -436,6 +437,7 @@ impl Renderer {
             None,
             ProxyRound::default(),
         );
+        let result = self.finish_round(&gpu_state, round);
         view.gpu = Some(gpu_state);
         result?;
         capture.read_ids(&self.device, &self.queue)
@@ -726,7 +728,7 @@ impl Renderer {
             .collect();
         let first_nodes: Vec<u32> = first_proxies.iter().map(|&k| proxy_nodes[k]).collect();
         let first_frames: Vec<QueryBox> = first_proxies.iter().map(|&k| frames[k]).collect();
-        let r = self.run_round(
+        let first = self.submit_round(
             gpu,
             target,
             Shading::Color,
@@ -742,9 +744,9 @@ impl Renderer {
                 frames: &first_frames,
                 tinted: &self.proxies_tinted(&self.hierarchy, tree, &first_nodes),
             },
-        )?;
-        add_round(stats, &r);
-        // Second pass: the pyramid, every candidate's test, the newly visible.
+        );
+        // Second pass: the pyramid, every candidate's test, the newly visible,
+        // prepared while the GPU draws the first.
         let second = self.hzb_second_pass(
             gpu,
             target.all(),
@@ -757,6 +759,8 @@ impl Renderer {
             &frames,
             cull.lod(),
         )?;
+        let r = self.finish_round(gpu, first)?;
+        add_round(stats, &r);
         stats.rounds = 2;
         stats.passes += 1;
         stats.draw_calls += second.draw_calls;
@@ -915,7 +919,7 @@ impl Renderer {
             let mut proxy_nodes = std::mem::take(&mut walk.proxy_draws);
             let frames = self.proxy_frames(&h, tree, &mut proxy_nodes, cull);
             let tinted = self.proxies_tinted(&h, tree, &proxy_nodes);
-            let r = match self.run_round(
+            let submitted = self.submit_round(
                 gpu,
                 target,
                 Shading::Color,
@@ -931,7 +935,8 @@ impl Renderer {
                     frames: &frames,
                     tinted: &tinted,
                 },
-            ) {
+            );
+            let r = match self.finish_round(gpu, submitted) {
                 Ok(r) => r,
                 Err(e) => {
                     result = Err(e);

@@ -34,6 +34,8 @@ pub(crate) struct HzbPipelines {
     reduce_depth: wgpu::ComputePipeline,
     reduce_level: wgpu::ComputePipeline,
     test: wgpu::ComputePipeline,
+    /// Nearest and clamped to the edge, for gathering 2x2 blocks of depth.
+    gather: wgpu::Sampler,
 }
 
 impl HzbPipelines {
@@ -56,6 +58,10 @@ impl HzbPipelines {
             reduce_depth: pipeline("reduce_depth"),
             reduce_level: pipeline("reduce_level"),
             test: pipeline("test_boxes"),
+            gather: device.create_sampler(&wgpu::SamplerDescriptor {
+                label: Some("dmu hzb gather"),
+                ..Default::default()
+            }),
         }
     }
 }
@@ -246,9 +252,10 @@ impl Renderer {
                 .contains(wgpu::TextureUsages::TEXTURE_BINDING)
     }
 
-    /// After the first pass drew into `target`: builds the pyramid from its
-    /// depth, tests `candidates` against it and draws those newly visible
-    /// (not drawn by the first pass) into `target`, in one submission. The
+    /// After the first pass was submitted to draw into `target` (the CPU
+    /// work here overlaps its drawing): builds the pyramid from its depth,
+    /// tests `candidates` against it and draws those newly visible (not
+    /// drawn by the first pass) into `target`, in one submission. The
     /// proxies' frames are `proxy_frames` (by place), the chunk levels picked
     /// with `lod`.
     #[expect(
@@ -573,7 +580,14 @@ impl Renderer {
             &p.reduce_depth,
             group(
                 &p.reduce_depth,
-                &[texture(0, depth), texture(1, &state.levels[0])],
+                &[
+                    texture(0, depth),
+                    texture(1, &state.levels[0]),
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: wgpu::BindingResource::Sampler(&p.gather),
+                    },
+                ],
             ),
         )];
         for l in 1..state.levels.len() {

@@ -272,6 +272,31 @@ pub(crate) struct RoundResult {
     pub gpu_draw_ms: f64,
 }
 
+/// A round given to the GPU ([`Renderer::submit_round`]), with what reading
+/// its results back needs ([`Renderer::finish_round`]).
+#[derive(Debug)]
+pub(crate) struct SubmittedRound {
+    /// All but the query results and times.
+    result: RoundResult,
+    passes: Vec<Pass>,
+    /// Per draw in recorded order: wrapped in a query.
+    queried: Vec<bool>,
+    /// Per draw in the given order: its place among the queried draws.
+    rank: Vec<usize>,
+    /// Per draw in recorded order: its place among the resident draws given.
+    order: Vec<usize>,
+    /// Per draw given: wrapped in a query, and resident.
+    draw_queried: Vec<bool>,
+    resident: Vec<bool>,
+    per_eye: usize,
+    queried_draws: usize,
+    /// Bytes of query results to read.
+    need: u64,
+    query_count: u32,
+    /// Passes with timestamps.
+    timed: usize,
+}
+
 /// A view's GPU resources, made on its first frame.
 #[derive(Debug)]
 pub(crate) struct ViewGpu {
@@ -589,7 +614,7 @@ impl Renderer {
             )
         });
         // Stereo pairs query each eye's layer in a pass of its own (see
-        // `run_round`), so the box pipeline is single-view only.
+        // `submit_round`), so the box pipeline is single-view only.
         let boxes_color = pipeline(
             "dmu query boxes",
             &module,
@@ -1104,7 +1129,9 @@ impl Renderer {
 
     /// One submission: draws (in the given order, some wrapped in queries), then
     /// box queries against the depth they leave, split into passes of at most
-    /// [`QUERIES_PER_PASS`] queries; then waits for the query results.
+    /// [`QUERIES_PER_PASS`] queries. [`Self::finish_round`] waits for it and
+    /// reads the query results back; the CPU may prepare more work in
+    /// between.
     ///
     /// A stereo pair's `boxes` hold one run per eye (eye-major), and a draw's
     /// or a box's samples are summed over the eyes. With multiview, geometry
@@ -1117,7 +1144,7 @@ impl Renderer {
         clippy::too_many_arguments,
         reason = "one call site per mode; a struct would only rename them"
     )]
-    pub(crate) fn run_round(
+    pub(crate) fn submit_round(
         &mut self,
         gpu: &mut ViewGpu,
         target: RoundTarget<'_>,
@@ -1130,7 +1157,7 @@ impl Renderer {
         boxes: &[QueryBox],
         lod: Option<LodPick>,
         proxies: ProxyRound<'_>,
-    ) -> Result<RoundResult, RenderError> {
+    ) -> SubmittedRound {
         assert!(
             !target.is_multiview() || (shading == Shading::Color && draws.iter().all(|d| !d.query)),
             "a multiview pass shades and carries no queries"
@@ -1467,30 +1494,54 @@ impl Renderer {
             encoder.copy_buffer_to_buffer(resolve, 0, readback, 0, 16 * timed as u64);
         }
         self.queue.submit([encoder.finish()]);
-
         result.passes = passes.len() as u32;
-        if query_count > 0 {
+        SubmittedRound {
+            result,
+            passes,
+            queried,
+            rank,
+            order,
+            draw_queried: draws.iter().map(|d| d.query).collect(),
+            resident,
+            per_eye,
+            queried_draws,
+            need,
+            query_count,
+            timed,
+        }
+    }
+
+    /// Waits for a round [`Self::submit_round`] gave the GPU and reads its
+    /// query results and times.
+    pub(crate) fn finish_round(
+        &self,
+        gpu: &ViewGpu,
+        round: SubmittedRound,
+    ) -> Result<RoundResult, RenderError> {
+        let mut result = round.result;
+        if round.query_count > 0 {
             let samples: Vec<u64> = map_read(
                 &self.device,
                 &gpu.readback,
-                need,
+                round.need,
                 "occlusion queries",
                 bytemuck::pod_collect_to_vec,
             )?;
             // Every eye's passes add to a queried draw's result.
-            result.draw_samples = vec![0; queried_draws];
-            result.box_samples = vec![0; per_eye];
+            result.draw_samples = vec![0; round.queried_draws];
+            result.box_samples = vec![0; round.per_eye];
             // Query q of pass p sits at p * QUERIES_PER_PASS + q, in item order.
-            for (p, pass_plan) in passes.iter().enumerate() {
+            for (p, pass_plan) in round.passes.iter().enumerate() {
                 let mut at = (p * QUERIES_PER_PASS as usize..).map(|i| samples[i]);
-                for j in pass_plan.draws.clone().filter(|&j| queried[j]) {
-                    result.draw_samples[rank[order[j]]] += at.next().expect("one slot per query");
+                for j in pass_plan.draws.clone().filter(|&j| round.queried[j]) {
+                    result.draw_samples[round.rank[round.order[j]]] +=
+                        at.next().expect("one slot per query");
                 }
                 for b in pass_plan.boxes.clone() {
-                    result.box_samples[b % per_eye] += at.next().expect("one slot per query");
+                    result.box_samples[b % round.per_eye] += at.next().expect("one slot per query");
                 }
             }
-        } else if !passes.is_empty() {
+        } else if !round.passes.is_empty() {
             // Nothing to read, but the caller's timing must include the work.
             self.device
                 .poll(wgpu::PollType::wait_indefinitely())
@@ -1503,10 +1554,11 @@ impl Renderer {
             // A queried draw whose geometry is not resident was not drawn: it
             // counts as visible, so it stays wanted and is drawn once it arrives.
             let mut drawn = std::mem::take(&mut result.draw_samples).into_iter();
-            result.draw_samples = draws
+            result.draw_samples = round
+                .draw_queried
                 .iter()
-                .zip(&resident)
-                .filter(|(d, _)| d.query)
+                .zip(&round.resident)
+                .filter(|&(&q, _)| q)
                 .map(|(_, &r)| {
                     if r {
                         drawn.next().expect("one result per drawn query")
@@ -1517,16 +1569,16 @@ impl Renderer {
                 .collect();
         }
         if let (Some((_, _, readback)), Some(period)) = (&gpu.timestamps, self.timestamp_period_ns)
-            && timed > 0
+            && round.timed > 0
         {
             let ticks: Vec<u64> = map_read(
                 &self.device,
                 readback,
-                16 * timed as u64,
+                16 * round.timed as u64,
                 "timestamps",
                 bytemuck::pod_collect_to_vec,
             )?;
-            for (p, pass_plan) in passes.iter().take(timed).enumerate() {
+            for (p, pass_plan) in round.passes.iter().take(round.timed).enumerate() {
                 let ms = ticks[2 * p + 1].saturating_sub(ticks[2 * p]) as f64 * period * 1e-6;
                 result.gpu_ms += ms;
                 if !pass_plan.draws.is_empty() {
