@@ -113,11 +113,16 @@ pub struct Args {
     /// where the eye will be this many ms ahead (extrapolated from its last
     /// two frames, turning as it turns) with the same occlusion culling, and
     /// requests what that view draws as visible, so that what comes into
-    /// view is loaded before it does. 0 turns it off.
+    /// view in numbers is loaded before it does. 0 turns it off.
     #[arg(long, default_value_t = 100.0, value_parser = number_in(0.0, 10_000.0), conflicts_with = "compare")]
     predict_ms: f64,
-    /// The predicted view's resolution as a share of --width and --height
-    /// (0.5: a quarter of the pixels, a cheaper view that misses what shows
+    /// With --render (not --compare): do not also draw the next frame's view
+    /// (extrapolated as --predict-ms's), which finds a part about to show
+    /// through a gap. Each predicted view costs about as much as the frame.
+    #[arg(long, conflicts_with = "compare")]
+    no_predict_next: bool,
+    /// The predicted views' resolution as a share of --width and --height
+    /// (0.5: a quarter of the pixels, cheaper views that miss what shows
     /// through gaps under two pixels wide).
     #[arg(long, default_value_t = 1.0, value_parser = number_in(0.05, 1.0), conflicts_with = "compare")]
     predict_resolution: f64,
@@ -306,6 +311,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                     culling_options,
                     stand_ins: args.stand_ins == "box",
                     predict_s: args.predict_ms * 1e-3,
+                    predict_next: !args.no_predict_next,
                     predict_scale: args.predict_resolution,
                     progress: true,
                 },
@@ -448,13 +454,14 @@ fn print_render(args: &Args, report: &serde_json::Value) -> anyhow::Result<()> {
         }
         let r = &report["render"];
         println!(
-            "  drawn: {} frames with a hole, {} with a stand-in ({} of {} warm; stand-ins: {}); predicted view {} ms ahead",
+            "  drawn: {} frames with a hole, {} with a stand-in ({} of {} warm; stand-ins: {}); predicted view {} ms ahead, next frame's view: {}",
             r["frames_with_hole"],
             r["frames_with_standin"],
             r["warm_frames_with_standin"],
             r["warm_frames"],
             r["stand_ins"].as_str().unwrap_or("?"),
             r["prediction"]["ahead_ms"],
+            r["prediction"]["next_frame"],
         );
     }
     if let Some(modes) = report["far_field"]["modes"].as_array() {

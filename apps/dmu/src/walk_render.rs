@@ -541,7 +541,9 @@ pub struct Resident {
     pub stand_ins: bool,
     /// Seconds ahead of the eye that the predicted view looks from (0: none).
     pub predict_s: f64,
-    /// The predicted view's resolution, as a share of the frame's per axis.
+    /// Also draw the next frame's view, extrapolated.
+    pub predict_next: bool,
+    /// The predicted views' resolution, as a share of the frame's per axis.
     pub predict_scale: f64,
     /// Show a progress bar.
     pub progress: bool,
@@ -552,10 +554,12 @@ pub struct Resident {
 /// of evicted chunks are dropped with them) and, with stand-ins, the boxes of
 /// what is not; what it drew is requested as visible next frame. With a
 /// prediction, each frame also draws the view from where the eye will be
-/// `predict_s` ahead (extrapolated from the last two frames) at
-/// `predict_scale` of the resolution, and requests what that view drew as
-/// visible too. A chunk instance the renderer wanted but could not draw (a
-/// hole) or drew as its box is a miss. The opening frames
+/// `predict_s` ahead and, with `predict_next`, the next frame's view (both
+/// extrapolated from the last two frames) at `predict_scale` of the
+/// resolution, and requests what they drew as visible too: the next frame's
+/// view finds what is about to show through a gap, the one further ahead
+/// what comes into view in numbers, early enough to load it. A chunk
+/// instance the renderer wanted but could not draw (a hole) or drew as its box is a miss. The opening frames
 /// (`options.opening_frames`) draw the first view, unrecorded and without a
 /// prediction, until one misses nothing or the view proves not to fit.
 /// Returns the walk's report and the renderer's per-frame stats.
@@ -579,13 +583,26 @@ pub fn run_resident(
         lod_options(&how.culling_options),
     );
     let capture = Capture::new(&device, size);
-    let ahead_capture = (how.predict_s > 0.0).then(|| Capture::new(&device, ahead_size));
+    // Each predicted view and how many frames ahead it looks.
+    let horizons: Vec<f64> = [
+        (how.predict_s > 0.0).then_some(how.predict_s * options.frame_rate_hz),
+        how.predict_next.then_some(1.0),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    // The predicted views, drawn one after the other into one target.
+    let ahead_capture = (!horizons.is_empty()).then(|| Capture::new(&device, ahead_size));
     let camera = |f: &CameraFrame| camera(f, tree);
     let mut view = View::new(camera(&path[0]), size, how.culling);
     view.options = how.culling_options;
-    let mut ahead = View::new(camera(&path[0]), ahead_size, how.culling);
-    ahead.options = how.culling_options;
-    let steps_ahead = how.predict_s * options.frame_rate_hz;
+    let mut ahead: Vec<(View, f64)> = (horizons.iter())
+        .map(|&steps| {
+            let mut v = View::new(camera(&path[0]), ahead_size, how.culling);
+            v.options = how.culling_options;
+            (v, steps)
+        })
+        .collect();
     let mut stand_ins = StandIns::new(scene.chunks().len());
     let mut rendered = Vec::with_capacity(path.len());
     let mut stats_all = Vec::with_capacity(path.len());
@@ -627,16 +644,17 @@ pub fn run_resident(
         let before = index.and_then(|i| i.checked_sub(1));
         if let (Some(target), Some(before)) = (&ahead_capture, before) {
             let start = Instant::now();
-            if before == 0 {
-                // Its first frame: from the main view's visibility, not from
-                // nothing (which would ask for every chunk in view at once).
-                ahead.inherit_visibility(&view);
+            for (predicted, steps) in &mut ahead {
+                if before == 0 {
+                    // Its first frame: from the main view's visibility, not
+                    // from nothing (which would ask for every chunk in view
+                    // at once).
+                    predicted.inherit_visibility(&view);
+                }
+                predicted.camera = view.camera.extrapolated(&camera(&path[before]), *steps);
+                renderer.render(predicted, scene, tree, source, target.frame_target())?;
+                visible.extend(drawn_chunks(predicted));
             }
-            ahead.camera = view
-                .camera
-                .extrapolated(&camera(&path[before]), steps_ahead);
-            renderer.render(&mut ahead, scene, tree, source, target.frame_target())?;
-            visible.extend(drawn_chunks(&ahead));
             ahead_ms = Some(start.elapsed().as_secs_f64() * 1e3);
         }
         if let Some(boxed) = boxed {
@@ -684,7 +702,8 @@ pub fn run_resident(
             "stand_ins_drawn": frames.iter().map(|f| f.stand_ins).sum::<u64>(),
             "prediction": {
                 "ahead_ms": how.predict_s * 1e3,
-                "resolution": (how.predict_s > 0.0).then_some(ahead_size),
+                "next_frame": how.predict_next,
+                "resolution": (!horizons.is_empty()).then_some(ahead_size),
                 "median_frame_ms": (!ahead_ms.is_empty()).then(|| percentile(&mut ahead_ms, 0.5)),
             },
             "per_frame": rendered,
@@ -701,6 +720,6 @@ struct ResidentFrame {
     holes: u64,
     /// Chunk instances drawn as their boxes.
     stand_ins: u64,
-    /// Time of the predicted view, ms.
+    /// Time of the predicted views, ms.
     ahead_ms: Option<f64>,
 }

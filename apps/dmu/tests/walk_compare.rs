@@ -58,8 +58,8 @@ fn walk_compare_reports_hzb_beside_the_other_modes_exact_at_every_frame() {
 /// start (`--opening-frames 0`) the first frames want chunks that are not
 /// resident. Without stand-ins they are holes; with them (the default) no
 /// frame has a hole and the cold frames draw boxes instead, while the
-/// residency keeps to its budget. The prediction (on by default) draws a
-/// second view every frame but the first. With the opening frames (the
+/// residency keeps to its budget. The prediction (on by default) draws two
+/// more views every frame but the first: 100 ms ahead and the next frame's. With the opening frames (the
 /// default), the walk starts from a first view that misses nothing.
 #[test]
 fn walk_within_a_budget_draws_stand_ins_not_holes() {
@@ -97,6 +97,7 @@ fn walk_within_a_budget_draws_stand_ins_not_holes() {
             "none",
             "--predict-ms",
             "0",
+            "--no-predict-next",
             "--opening-frames",
             "0",
         ],
@@ -137,7 +138,10 @@ fn walk_within_a_budget_draws_stand_ins_not_holes() {
         .map(|f| f["missing_chunks"].as_u64().unwrap())
         .sum();
     assert_eq!(missing, b["stand_ins_drawn"].as_u64().unwrap());
-    // The prediction ran on every frame after the first.
+    // The predicted views (100 ms ahead and the next frame's, the
+    // defaults) ran on every frame after the first.
+    assert_eq!(b["prediction"]["ahead_ms"], 100.0);
+    assert_eq!(b["prediction"]["next_frame"], true);
     assert_eq!(frames[0]["ahead_ms"], Value::Null);
     assert!(
         frames[1..]

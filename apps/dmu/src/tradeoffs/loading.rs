@@ -21,15 +21,21 @@ const ORDERS: &[(LoadOrder, &str)] = &[
 /// The budget the load orders are compared at, percent of the geometry.
 const ORDER_BUDGET: f64 = 10.0;
 
-/// How far ahead the rendered walk's predicted view looks, ms (0: none).
-const PREDICT_MS: &[f64] = &[0.0, 50.0, 100.0, 200.0];
+/// How far ahead the rendered walk's predicted view looks, ms (0: none),
+/// whether the next frame's view is drawn too, and the setting's label.
+const PREDICT: &[(f64, bool, &str)] = &[
+    (0.0, false, "none"),
+    (0.0, true, "next frame"),
+    (100.0, false, "100 ms"),
+    (100.0, true, "100 ms and next frame (the default)"),
+];
 /// Frames of the rendered walk (the path's first, from a cold start).
 const RENDERED_FRAMES: usize = 120;
 
 pub fn steps(quick: bool) -> u64 {
     (if quick { BUDGETS_QUICK } else { BUDGETS_FULL }).len() as u64
         + ORDERS.len() as u64
-        + PREDICT_MS.len() as u64
+        + PREDICT.len() as u64
 }
 
 /// The model as a store, its tree and the rendering section's path.
@@ -92,9 +98,8 @@ pub fn run_predicted(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
         LoadOrder::Visibility,
         ORDER_BUDGET,
     );
-    let points = PREDICT_MS
-        .iter()
-        .map(|&ms| {
+    let points = (PREDICT.iter().zip(0..))
+        .map(|(&(ms, next, label), i)| {
             let report = crate::walk_render::run_resident(
                 &store,
                 &tree,
@@ -105,6 +110,7 @@ pub fn run_predicted(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
                     culling_options: dmu_render::CullingOptions::default(),
                     stand_ins: true,
                     predict_s: ms * 1e-3,
+                    predict_next: next,
                     predict_scale: 1.0,
                     progress: false,
                 },
@@ -120,11 +126,12 @@ pub fn run_predicted(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
             let main = r["totals"]["mean_frame_ms"].as_f64().unwrap_or(f64::NAN);
             bench.progress.inc(1);
             Ok(Point::new(
-                ms,
+                f64::from(i),
                 main + ahead.iter().sum::<f64>() / ahead.len().max(1) as f64,
                 r["warm_frames_with_standin"].as_f64().unwrap_or(f64::NAN),
                 "warm frames drawing a stand-in",
             )
+            .label(label)
             .extra(
                 "stand-ins drawn",
                 r["stand_ins_drawn"].as_f64().unwrap_or(f64::NAN),
@@ -141,14 +148,14 @@ pub fn run_predicted(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
     Ok(vec![Knob {
         section: "loading",
         name: "predicted view".to_owned(),
-        unit: "ms".to_owned(),
+        unit: String::new(),
         note: format!(
-            "how far ahead of the eye `dmu walk --render` draws a second view to load what it sees (0: none); chc, box stand-ins, a {ORDER_BUDGET}% budget, the path's first {} frames at 60 Hz",
+            "the views `dmu walk --render` draws ahead of the eye to load what they see (`--predict-ms`, `--no-predict-next`); chc, box stand-ins, a {ORDER_BUDGET}% budget, the path's first {} frames at 60 Hz",
             path.len()
         ),
         reference: "every chunk the renderer draws resident when its frame is drawn (no stand-in)"
             .to_owned(),
-        time: "frame time, the predicted view's included".to_owned(),
+        time: "frame time, the predicted views' included".to_owned(),
         error_unit: "warm frames drawing a stand-in".to_owned(),
         exact_setting: None,
         log_x: false,
