@@ -559,9 +559,10 @@ pub struct Resident {
 /// resolution, and requests what they drew as visible too: the next frame's
 /// view finds what is about to show through a gap, the one further ahead
 /// what comes into view in numbers, early enough to load it. A chunk
-/// instance the renderer wanted but could not draw (a hole) or drew as its box is a miss. The opening frames
-/// (`options.opening_frames`) draw the first view, unrecorded and without a
-/// prediction, until one misses nothing or the view proves not to fit.
+/// instance the renderer wanted but could not draw (a hole) or drew as its
+/// box is a miss. The opening frames (`options.opening_frames`) draw the
+/// first view, unrecorded and without a prediction, until one misses
+/// nothing or the view proves not to fit.
 /// Returns the walk's report and the renderer's per-frame stats.
 pub fn run_resident(
     store: &Arc<Store>,
@@ -583,26 +584,24 @@ pub fn run_resident(
         lod_options(&how.culling_options),
     );
     let capture = Capture::new(&device, size);
+    let camera = |f: &CameraFrame| camera(f, tree);
+    let mut view = View::new(camera(&path[0]), size, how.culling);
+    view.options = how.culling_options;
     // Each predicted view and how many frames ahead it looks.
-    let horizons: Vec<f64> = [
+    let mut ahead: Vec<(View, f64)> = [
         (how.predict_s > 0.0).then_some(how.predict_s * options.frame_rate_hz),
         how.predict_next.then_some(1.0),
     ]
     .into_iter()
     .flatten()
+    .map(|steps| {
+        let mut v = View::new(camera(&path[0]), ahead_size, how.culling);
+        v.options = how.culling_options;
+        (v, steps)
+    })
     .collect();
     // The predicted views, drawn one after the other into one target.
-    let ahead_capture = (!horizons.is_empty()).then(|| Capture::new(&device, ahead_size));
-    let camera = |f: &CameraFrame| camera(f, tree);
-    let mut view = View::new(camera(&path[0]), size, how.culling);
-    view.options = how.culling_options;
-    let mut ahead: Vec<(View, f64)> = (horizons.iter())
-        .map(|&steps| {
-            let mut v = View::new(camera(&path[0]), ahead_size, how.culling);
-            v.options = how.culling_options;
-            (v, steps)
-        })
-        .collect();
+    let ahead_capture = (!ahead.is_empty()).then(|| Capture::new(&device, ahead_size));
     let mut stand_ins = StandIns::new(scene.chunks().len());
     let mut rendered = Vec::with_capacity(path.len());
     let mut stats_all = Vec::with_capacity(path.len());
@@ -703,7 +702,7 @@ pub fn run_resident(
             "prediction": {
                 "ahead_ms": how.predict_s * 1e3,
                 "next_frame": how.predict_next,
-                "resolution": (!horizons.is_empty()).then_some(ahead_size),
+                "resolution": (!ahead.is_empty()).then_some(ahead_size),
                 "median_frame_ms": (!ahead_ms.is_empty()).then(|| percentile(&mut ahead_ms, 0.5)),
             },
             "per_frame": rendered,

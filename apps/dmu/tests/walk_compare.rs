@@ -59,8 +59,9 @@ fn walk_compare_reports_hzb_beside_the_other_modes_exact_at_every_frame() {
 /// resident. Without stand-ins they are holes; with them (the default) no
 /// frame has a hole and the cold frames draw boxes instead, while the
 /// residency keeps to its budget. The prediction (on by default) draws two
-/// more views every frame but the first: 100 ms ahead and the next frame's. With the opening frames (the
-/// default), the walk starts from a first view that misses nothing.
+/// more views every frame but the first: 100 ms ahead and the next frame's.
+/// With the opening frames (the default), the walk starts from a first view
+/// that misses nothing.
 #[test]
 fn walk_within_a_budget_draws_stand_ins_not_holes() {
     let dir = tempfile::tempdir().unwrap();

@@ -285,9 +285,8 @@ pub(crate) struct SubmittedRound {
     rank: Vec<usize>,
     /// Per draw in recorded order: its place among the resident draws given.
     order: Vec<usize>,
-    /// Per draw given: wrapped in a query, and resident.
-    draw_queried: Vec<bool>,
-    resident: Vec<bool>,
+    /// Per queried draw given, in the given order: its geometry was resident.
+    queried_resident: Vec<bool>,
     per_eye: usize,
     queried_draws: usize,
     /// Bytes of query results to read.
@@ -1501,8 +1500,9 @@ impl Renderer {
             queried,
             rank,
             order,
-            draw_queried: draws.iter().map(|d| d.query).collect(),
-            resident,
+            queried_resident: (draws.iter().zip(resident))
+                .filter_map(|(d, r)| d.query.then_some(r))
+                .collect(),
             per_eye,
             queried_draws,
             need,
@@ -1554,12 +1554,8 @@ impl Renderer {
             // A queried draw whose geometry is not resident was not drawn: it
             // counts as visible, so it stays wanted and is drawn once it arrives.
             let mut drawn = std::mem::take(&mut result.draw_samples).into_iter();
-            result.draw_samples = round
-                .draw_queried
-                .iter()
-                .zip(&round.resident)
-                .filter(|&(&q, _)| q)
-                .map(|(_, &r)| {
+            result.draw_samples = (round.queried_resident.iter())
+                .map(|&r| {
                     if r {
                         drawn.next().expect("one result per drawn query")
                     } else {
