@@ -13,10 +13,11 @@ use crate::farfield::{FarCut, NearField};
 use crate::geometry::GeometrySource;
 use crate::gpu::QueryBox;
 use crate::hierarchy::{Hierarchy, NodeKind};
-use crate::hzb::{Candidate, CandidateKind};
+use crate::hzb::{Candidate, CandidateKind, ColorDraws, HzbVisible};
 use crate::proxy::proxy_fits;
 use crate::renderer::{
     Draw, FrameTarget, LodPick, ProxyRound, Renderer, RoundResult, RoundTarget, Shading,
+    SubmittedRound,
 };
 use crate::stereo::StereoCamera;
 use crate::view::{Culling, EntryState, FrameStats, View};
@@ -330,11 +331,11 @@ impl Renderer {
                 &mut stats,
             )
         } else {
-            let (draws, proxy_nodes, frames) = plain.expect("a frame without occlusion culling");
-            stats.proxies_drawn = proxy_nodes.len() as u64;
-            view.drawn.extend(draws.iter().map(|d| d.entry));
+            let plain = plain.expect("a frame without occlusion culling");
+            stats.proxies_drawn = plain.nodes.len() as u64;
+            view.drawn.extend(plain.draws.iter().map(|d| d.entry));
             // A proxy draws the chunk instances below it, approximated.
-            for &n in &proxy_nodes {
+            for &n in &plain.nodes {
                 self.hierarchy.leaves(n, &mut view.drawn);
             }
             if view.culling == Culling::Auto {
@@ -345,23 +346,8 @@ impl Renderer {
                 }
             }
             stats.rounds = 1;
-            let round = self.submit_round(
-                &mut gpu_state,
-                target,
-                Shading::Color,
-                true,
-                geometry,
-                scene,
-                tree,
-                &draws,
-                &[],
-                cull.lod(),
-                ProxyRound {
-                    nodes: &proxy_nodes,
-                    frames: &frames,
-                    tinted: &self.proxies_tinted(&self.hierarchy, tree, &proxy_nodes),
-                },
-            );
+            let round =
+                self.submit_color(&mut gpu_state, target, geometry, scene, tree, &cull, &plain);
             self.finish_round(&gpu_state, round)
                 .map(|r| add_round(&mut stats, &r))
         };
@@ -626,7 +612,7 @@ impl Renderer {
         target: RoundTarget<'_>,
         cell_distance: &[f64],
         stats: &mut FrameStats,
-    ) -> (Vec<Draw>, Vec<u32>, Vec<QueryBox>) {
+    ) -> ColorDraws {
         // Empty where no proxy may draw.
         let fit = match (culling, &cull.far) {
             (Culling::None, _) | (_, FarCut::Near(_) | FarCut::FarOnly(_)) => Vec::new(),
@@ -651,7 +637,11 @@ impl Renderer {
                 .sum();
         }
         let frames = self.proxy_frames(&self.hierarchy, tree, &mut proxy_nodes, cull);
-        (draws, proxy_nodes, frames)
+        ColorDraws {
+            draws,
+            nodes: proxy_nodes,
+            frames,
+        }
     }
 
     /// Two-pass hierarchical-Z occlusion culling ([`crate::hzb`]): the
@@ -677,7 +667,24 @@ impl Renderer {
         stats: &mut FrameStats,
     ) -> Result<(), RenderError> {
         let frame = view.frame;
-        let (draws, proxy_nodes, frames) = self.candidates(
+        // Last frame's visible set, where last frame was an `hzb` frame of
+        // this view: the first pass draws it before the tree is traversed,
+        // so the traversal runs while the GPU draws.
+        let last = std::mem::take(&mut view.hzb_visible);
+        let fit = self.proxy_fit(&self.hierarchy, tree, cull, target);
+        let early = (last.frame > 0
+            && last.frame + 1 == frame
+            && last.revision == Some(tree.revision())
+            && matches!(cull.far, FarCut::None))
+        .then(|| self.last_visible(scene, tree, cull, cell_distance, &fit, &last));
+        let early_round = early
+            .as_ref()
+            .map(|first| self.submit_color(gpu, target, geometry, scene, tree, cull, first));
+        let ColorDraws {
+            draws,
+            nodes: proxy_nodes,
+            frames,
+        } = self.candidates(
             Culling::Hzb,
             scene,
             tree,
@@ -700,51 +707,71 @@ impl Renderer {
             .iter()
             .map(|d| CandidateKind::Entry(d.entry))
             .chain((0..proxy_nodes.len() as u32).map(CandidateKind::Proxy));
+        // What the early first pass drew, sorted for lookups.
+        let drawn_early = early.as_ref().map(|first| {
+            let mut entries: Vec<u32> = first.draws.iter().map(|d| d.entry).collect();
+            let mut nodes = first.nodes.clone();
+            entries.sort_unstable();
+            nodes.sort_unstable();
+            (entries, nodes)
+        });
         let candidates: Vec<Candidate> = kinds
             .zip(boxes)
             .zip(&entry_bounds)
             .map(|((kind, bounds), b)| {
                 let forced = cull.eye_near(b);
-                let was = match kind {
-                    CandidateKind::Entry(e) => view.entries[e as usize].visible_frame,
-                    CandidateKind::Proxy(k) => view.proxy_visible[proxy_nodes[k as usize] as usize],
+                let drawn = match (&drawn_early, kind) {
+                    (Some((entries, _)), CandidateKind::Entry(e)) => {
+                        entries.binary_search(&e).is_ok()
+                    }
+                    (Some((_, nodes)), CandidateKind::Proxy(k)) => {
+                        nodes.binary_search(&proxy_nodes[k as usize]).is_ok()
+                    }
+                    (None, _) => {
+                        let was = match kind {
+                            CandidateKind::Entry(e) => view.entries[e as usize].visible_frame,
+                            CandidateKind::Proxy(k) => {
+                                view.proxy_visible[proxy_nodes[k as usize] as usize]
+                            }
+                        };
+                        forced || (was > 0 && was + 1 == frame)
+                    }
                 };
                 Candidate {
                     kind,
                     bounds,
-                    drawn: forced || (was > 0 && was + 1 == frame),
+                    drawn,
                     forced,
                 }
             })
             .collect();
-        // First pass: last frame's visible set.
-        let first_draws = crate::hzb::draw_list(&candidates);
-        let first_proxies: Vec<usize> = candidates
-            .iter()
-            .filter_map(|c| match c.kind {
-                CandidateKind::Proxy(k) if c.drawn => Some(k as usize),
-                _ => None,
-            })
-            .collect();
-        let first_nodes: Vec<u32> = first_proxies.iter().map(|&k| proxy_nodes[k]).collect();
-        let first_frames: Vec<QueryBox> = first_proxies.iter().map(|&k| frames[k]).collect();
-        let first = self.submit_round(
-            gpu,
-            target,
-            Shading::Color,
-            true,
-            geometry,
-            scene,
-            tree,
-            &first_draws,
-            &[],
-            cull.lod(),
-            ProxyRound {
-                nodes: &first_nodes,
-                frames: &first_frames,
-                tinted: &self.proxies_tinted(&self.hierarchy, tree, &first_nodes),
-            },
-        );
+        // First pass: last frame's visible set (with the candidates near the
+        // eye, where it was not drawn early).
+        let (first, first_draws) = match (early_round, early) {
+            (Some(round), Some(first)) => (round, first.draws),
+            _ => {
+                let draws = crate::hzb::draw_list(&candidates);
+                let nodes: Vec<u32> = (candidates.iter())
+                    .filter_map(|c| match c.kind {
+                        CandidateKind::Proxy(k) if c.drawn => Some(proxy_nodes[k as usize]),
+                        _ => None,
+                    })
+                    .collect();
+                let frames = (candidates.iter())
+                    .filter_map(|c| match c.kind {
+                        CandidateKind::Proxy(k) if c.drawn => Some(frames[k as usize]),
+                        _ => None,
+                    })
+                    .collect();
+                let first = ColorDraws {
+                    draws,
+                    nodes,
+                    frames,
+                };
+                let round = self.submit_color(gpu, target, geometry, scene, tree, cull, &first);
+                (round, first.draws)
+            }
+        };
         // Second pass: the pyramid, every candidate's test, the newly visible,
         // prepared while the GPU draws the first.
         let second = self.hzb_second_pass(
@@ -770,11 +797,18 @@ impl Renderer {
         stats.not_resident += second.missing.iter().filter(|&&m| m).count() as u64;
         view.drawn.extend(first_draws.iter().map(|d| d.entry));
         let h = &self.hierarchy;
+        let mut visible_now = HzbVisible {
+            frame,
+            revision: Some(tree.revision()),
+            fit,
+            ..HzbVisible::default()
+        };
         for ((c, &visible), &missing) in candidates.iter().zip(&second.visible).zip(&second.missing)
         {
             match c.kind {
                 CandidateKind::Entry(e) if visible => {
                     view.entries[e as usize].visible_frame = frame;
+                    visible_now.entries.push(e);
                     if !c.drawn {
                         // Not drawn for want of geometry: still wanted.
                         view.drawn.push(e);
@@ -791,6 +825,7 @@ impl Renderer {
                     let n = proxy_nodes[k as usize];
                     if visible {
                         view.proxy_visible[n as usize] = frame;
+                        visible_now.nodes.push(n);
                     }
                     if c.drawn || visible {
                         stats.proxies_drawn += 1;
@@ -800,7 +835,100 @@ impl Renderer {
                 }
             }
         }
+        view.hzb_visible = visible_now;
         Ok(())
+    }
+
+    /// The first pass of an `hzb` frame drawn from `last`, the set the
+    /// frame before found visible, as this frame's traversal would find it:
+    /// its chunk instances still in the frustum, not hidden, cut away or too
+    /// small, in canonical order, and its proxies still in the frustum whose
+    /// error still projects within the LOD error (`fit`, per mirror node),
+    /// front to back; less what is below a node whose proxy fits now and
+    /// did not then (its proxy stands for them now).
+    fn last_visible(
+        &self,
+        scene: &Scene,
+        tree: &Tree,
+        cull: &Cull,
+        cell_distance: &[f64],
+        fit: &[bool],
+        last: &HzbVisible,
+    ) -> ColorDraws {
+        let h = &self.hierarchy;
+        let fits = |n: u32| fit.get(n as usize).copied().unwrap_or(false);
+        let shown =
+            |b: &Aabb3d| cull.frustum.intersects_aabb(b) && !cull.cut_away(b) && !cull.too_small(b);
+        // What is in view below a proxy that fits now and did not then.
+        let mut covered = std::collections::HashSet::new();
+        let mut stack: Vec<u32> = (0..fit.len() as u32)
+            .filter(|&n| fits(n) && !last.fit.get(n as usize).copied().unwrap_or(false))
+            .collect();
+        while let Some(n) = stack.pop() {
+            for &c in h.children(n) {
+                if shown(h.bounds(tree, c)) {
+                    covered.insert(c);
+                    stack.push(c);
+                }
+            }
+        }
+        let mut draws: Vec<Draw> = (last.entries.iter())
+            .filter(|&&e| {
+                tree.entries().get(e as usize).is_some_and(|entry| {
+                    !scene.part(entry.part).hidden && !covered.contains(&e) && shown(&entry.bounds)
+                })
+            })
+            .map(|&entry| Draw {
+                entry,
+                query: false,
+            })
+            .collect();
+        sort_draws(h, cell_distance, &mut draws);
+        let mut nodes: Vec<u32> = (last.nodes.iter().copied())
+            .filter(|&n| fits(n) && !covered.contains(&n) && shown(h.bounds(tree, n)))
+            .collect();
+        let frames = self.proxy_frames(h, tree, &mut nodes, cull);
+        ColorDraws {
+            draws,
+            nodes,
+            frames,
+        }
+    }
+
+    /// Submits a colour round of `round`'s draws, which clears the target
+    /// (a frame without occlusion culling, or an `hzb` frame's first pass).
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "the frame's context, passed through once"
+    )]
+    fn submit_color(
+        &mut self,
+        gpu: &mut crate::renderer::ViewGpu,
+        target: RoundTarget<'_>,
+        geometry: &dyn GeometrySource,
+        scene: &Scene,
+        tree: &Tree,
+        cull: &Cull,
+        round: &ColorDraws,
+    ) -> SubmittedRound {
+        let tinted = self.proxies_tinted(&self.hierarchy, tree, &round.nodes);
+        self.submit_round(
+            gpu,
+            target,
+            Shading::Color,
+            true,
+            geometry,
+            scene,
+            tree,
+            &round.draws,
+            &[],
+            cull.lod(),
+            ProxyRound {
+                nodes: &round.nodes,
+                frames: &round.frames,
+                tinted: &tinted,
+            },
+        )
     }
 
     /// Coherent hierarchical culling (CHC, Bittner et al. 2004, with CHC++'s

@@ -202,6 +202,29 @@ enum GroupKey {
     Proxy(u32),
 }
 
+/// What an `hzb` frame found visible: chunk instances (entry ids) and
+/// proxies (mirror nodes); its frame number (0: none yet), the tree's
+/// revision then, and per mirror node whether its proxy fitted the LOD
+/// error.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct HzbVisible {
+    pub frame: u64,
+    pub revision: Option<dmu_tree::Revision>,
+    pub entries: Vec<u32>,
+    pub nodes: Vec<u32>,
+    pub fit: Vec<bool>,
+}
+
+/// What a colour round without queries draws (a frame without occlusion
+/// culling, or an `hzb` frame's first pass): chunk instances in canonical
+/// order, and proxies (mirror nodes) front to back with their frames.
+#[derive(Debug, Default)]
+pub(crate) struct ColorDraws {
+    pub draws: Vec<Draw>,
+    pub nodes: Vec<u32>,
+    pub frames: Vec<QueryBox>,
+}
+
 /// A candidate of the frame: a chunk instance or a proxy, its box and
 /// whether the first pass drew it.
 #[derive(Clone, Copy, Debug)]

@@ -307,6 +307,9 @@ pub struct View {
     /// Per mirror node: last frame its proxy tested visible in an `hzb`
     /// frame (0: never).
     pub(crate) proxy_visible: Vec<u64>,
+    /// What the last `hzb` frame found visible, which the next one draws
+    /// first.
+    pub(crate) hzb_visible: crate::hzb::HzbVisible,
     /// Chunk instances drawn in the last frame, in draw order.
     pub(crate) drawn: Vec<u32>,
     /// GPU resources, made by the renderer on the first frame.
@@ -343,6 +346,7 @@ impl View {
             knobs: None,
             auto: crate::adapt::AutoState::default(),
             proxy_visible: Vec::new(),
+            hzb_visible: Default::default(),
             drawn: Vec::new(),
             gpu: None,
         }
@@ -446,6 +450,7 @@ impl View {
         self.frame = other.frame;
         self.entries.clone_from(&other.entries);
         self.proxy_visible.clone_from(&other.proxy_visible);
+        self.hzb_visible.clone_from(&other.hzb_visible);
     }
 
     /// Forgets visibility (after a jump of the camera, say): the next frame
@@ -453,5 +458,6 @@ impl View {
     pub fn reset_visibility(&mut self) {
         self.entries.clear();
         self.proxy_visible.clear();
+        self.hzb_visible = Default::default();
     }
 }
