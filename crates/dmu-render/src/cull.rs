@@ -299,7 +299,7 @@ impl Renderer {
                 scene,
                 tree,
                 &cull,
-                target,
+                &self.frame_fit(culling, tree, &cull, target),
                 &cell_distance,
                 &mut stats,
             )
@@ -594,11 +594,28 @@ impl Renderer {
         cull.proxy_frames(&origins)
     }
 
+    /// Per mirror node, whether a frame under `culling` draws it as its
+    /// proxy where the walk reaches it (see `proxy_fit`); empty where no
+    /// proxy may draw.
+    fn frame_fit(
+        &self,
+        culling: Culling,
+        tree: &Tree,
+        cull: &Cull,
+        target: RoundTarget<'_>,
+    ) -> Vec<bool> {
+        match (culling, &cull.far) {
+            (Culling::None, _) | (_, FarCut::Near(_) | FarCut::FarOnly(_)) => Vec::new(),
+            _ => self.proxy_fit(&self.hierarchy, tree, cull, target),
+        }
+    }
+
     /// What a frame without queries draws under `culling`: the chunk
     /// instances in canonical order, and the proxies (mirror nodes, front
     /// to back) drawn instead of the rest with their frames in each eye's
     /// view space. `None` takes every chunk instance and no proxy; the other
-    /// modes take the frustum's, proxies where they fit (see `proxy_fit`).
+    /// modes take the frustum's, proxies where they fit (`fit`, from
+    /// `frame_fit`).
     #[expect(
         clippy::too_many_arguments,
         reason = "the frame's context, passed through once"
@@ -609,21 +626,16 @@ impl Renderer {
         scene: &Scene,
         tree: &Tree,
         cull: &Cull,
-        target: RoundTarget<'_>,
+        fit: &[bool],
         cell_distance: &[f64],
         stats: &mut FrameStats,
     ) -> ColorDraws {
-        // Empty where no proxy may draw.
-        let fit = match (culling, &cull.far) {
-            (Culling::None, _) | (_, FarCut::Near(_) | FarCut::FarOnly(_)) => Vec::new(),
-            _ => self.proxy_fit(&self.hierarchy, tree, cull, target),
-        };
         let mut proxy_nodes = Vec::new();
         let mut draws = match culling {
             _ if let FarCut::Near(near) = &cull.far => near_draws(scene, tree, cull, near, stats),
             Culling::None => self.all_draws(scene, tree, cull, stats),
             _ if !fit.is_empty() => {
-                let (draws, nodes) = self.proxy_draws(scene, tree, cull, &fit, stats);
+                let (draws, nodes) = self.proxy_draws(scene, tree, cull, fit, stats);
                 proxy_nodes = nodes;
                 draws
             }
@@ -671,9 +683,8 @@ impl Renderer {
         // this view: the first pass draws it before the tree is traversed,
         // so the traversal runs while the GPU draws.
         let last = std::mem::take(&mut view.hzb_visible);
-        let fit = self.proxy_fit(&self.hierarchy, tree, cull, target);
-        let early = (last.frame > 0
-            && last.frame + 1 == frame
+        let fit = self.frame_fit(Culling::Hzb, tree, cull, target);
+        let early = (last.frame + 1 == frame
             && last.revision == Some(tree.revision())
             && matches!(cull.far, FarCut::None))
         .then(|| self.last_visible(scene, tree, cull, cell_distance, &fit, &last));
@@ -684,15 +695,7 @@ impl Renderer {
             draws,
             nodes: proxy_nodes,
             frames,
-        } = self.candidates(
-            Culling::Hzb,
-            scene,
-            tree,
-            cull,
-            target,
-            cell_distance,
-            stats,
-        );
+        } = self.candidates(Culling::Hzb, scene, tree, cull, &fit, cell_distance, stats);
         let h = &self.hierarchy;
         if view.proxy_visible.len() != h.len() {
             view.proxy_visible = vec![0; h.len()];
@@ -751,18 +754,14 @@ impl Renderer {
             (Some(round), Some(first)) => (round, first.draws),
             _ => {
                 let draws = crate::hzb::draw_list(&candidates);
-                let nodes: Vec<u32> = (candidates.iter())
+                let (nodes, frames) = (candidates.iter())
                     .filter_map(|c| match c.kind {
-                        CandidateKind::Proxy(k) if c.drawn => Some(proxy_nodes[k as usize]),
+                        CandidateKind::Proxy(k) if c.drawn => {
+                            Some((proxy_nodes[k as usize], frames[k as usize]))
+                        }
                         _ => None,
                     })
-                    .collect();
-                let frames = (candidates.iter())
-                    .filter_map(|c| match c.kind {
-                        CandidateKind::Proxy(k) if c.drawn => Some(frames[k as usize]),
-                        _ => None,
-                    })
-                    .collect();
+                    .unzip();
                 let first = ColorDraws {
                     draws,
                     nodes,

@@ -203,9 +203,9 @@ enum GroupKey {
 }
 
 /// What an `hzb` frame found visible: chunk instances (entry ids) and
-/// proxies (mirror nodes); its frame number (0: none yet), the tree's
-/// revision then, and per mirror node whether its proxy fitted the LOD
-/// error.
+/// proxies (mirror nodes); its frame number, the tree's revision then
+/// (`None`: no frame yet), and per mirror node whether its proxy fitted the
+/// LOD error (`Renderer::frame_fit`).
 #[derive(Clone, Debug, Default)]
 pub(crate) struct HzbVisible {
     pub frame: u64,
