@@ -53,13 +53,24 @@ fn reduce_level(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let size = textureDimensions(level_in);
-    let first = id.xy * 2u;
-    let last = select(min(first + 1u, size - 1u), size - 1u, id.xy == dims - 1u);
-    var m = 1.0;
-    for (var y = first.y; y <= last.y; y++) {
-        for (var x = first.x; x <= last.x; x++) {
-            m = min(m, textureLoad(level_in, vec2(x, y), 0).x);
-        }
+    // Written out, not as loops over the block: loops with per-lane bounds
+    // cost a CPU rasterizer's compute more than the loads.
+    let p = id.xy * 2u;
+    let q = min(p + 1u, size - 1u);
+    var m = min(
+        min(textureLoad(level_in, p, 0).x, textureLoad(level_in, vec2(q.x, p.y), 0).x),
+        min(textureLoad(level_in, vec2(p.x, q.y), 0).x, textureLoad(level_in, q, 0).x),
+    );
+    // The last texel of a row or column also takes the odd one out.
+    let r = select(q, size - 1u, id.xy == dims - 1u);
+    if any(r != q) {
+        m = min(m, min(
+            min(textureLoad(level_in, vec2(r.x, p.y), 0).x, textureLoad(level_in, vec2(r.x, q.y), 0).x),
+            min(
+                min(textureLoad(level_in, vec2(p.x, r.y), 0).x, textureLoad(level_in, vec2(q.x, r.y), 0).x),
+                textureLoad(level_in, r, 0).x,
+            ),
+        ));
     }
     textureStore(level_out, id.xy, vec4(m, 0.0, 0.0, 0.0));
 }
@@ -167,8 +178,12 @@ fn part_visible(center: vec4<f32>, axis_x: vec4<f32>, axis_y: vec4<f32>, axis_z:
     var level = 0u;
     var a = vec2(0u);
     var b = vec2(0u);
+    // Each level's size from level 0's: Mesa 22.3's llvmpipe answers a size
+    // query at a level that differs between lanes with the first lane's
+    // (a coarser first test that asked it dropped visible chunks).
+    let base = textureDimensions(pyramid);
     loop {
-        let top = textureDimensions(pyramid, level) - 1u;
+        let top = max(base >> vec2(level), vec2(1u)) - 1u;
         a = min(p0 >> vec2(level + 1u), top);
         b = min(p1 >> vec2(level + 1u), top);
         if level + 1u >= params.levels || (b.x - a.x <= 7u && b.y - a.y <= 7u) {

@@ -247,6 +247,7 @@ fn stats_json(s: &FrameStats) -> serde_json::Value {
         "passes": s.passes,
         "chunks_drawn": s.chunks_drawn,
         "proxies_drawn": s.proxies_drawn,
+        "culled_clusters": s.culled_clusters,
         "proxies_stale": s.proxies_stale,
         "draw_calls": s.draw_calls,
         "upload_ms": s.upload_ms,

@@ -1,9 +1,10 @@
 //! A frame of a view: culling (none, frustum, coherent occlusion) and the
 //! rounds of drawing and querying it issues; the exact-visibility oracle.
 
+use std::collections::HashMap;
 use std::time::Instant;
 
-use dmu_geom::{Aabb3d, Coverage, Frustum, Plane};
+use dmu_geom::{Aabb3d, Aabb3f, Coverage, Frustum, Plane};
 use dmu_scene::Scene;
 use dmu_tree::{EntryVisibility, Tree};
 use glam::{DAffine3, DVec3};
@@ -653,6 +654,7 @@ impl Renderer {
             draws,
             nodes: proxy_nodes,
             frames,
+            clusters: Vec::new(),
         }
     }
 
@@ -661,7 +663,9 @@ impl Renderer {
     /// or with an eye near their box, are drawn first in canonical order;
     /// every candidate is then tested against the depth pyramid of that
     /// pass and the newly visible are drawn in the same frame. A candidate
-    /// visible in this frame's test is drawn first next frame.
+    /// visible in this frame's test is drawn first next frame; a proxy the
+    /// first pass draws is tested cluster by cluster, and only its clusters
+    /// found visible are drawn first next frame.
     #[expect(
         clippy::too_many_arguments,
         reason = "the frame's context, passed through once"
@@ -695,57 +699,86 @@ impl Renderer {
             draws,
             nodes: proxy_nodes,
             frames,
+            ..
         } = self.candidates(Culling::Hzb, scene, tree, cull, &fit, cell_distance, stats);
         let h = &self.hierarchy;
         if view.proxy_visible.len() != h.len() {
             view.proxy_visible = vec![0; h.len()];
         }
-        let entry_bounds: Vec<Aabb3d> = draws
-            .iter()
-            .map(|d| tree.entries()[d.entry as usize].bounds)
-            .chain(proxy_nodes.iter().map(|&n| *h.bounds(tree, n)))
-            .collect();
-        let boxes = cull.query_boxes(&entry_bounds);
-        let kinds = draws
-            .iter()
-            .map(|d| CandidateKind::Entry(d.entry))
-            .chain((0..proxy_nodes.len() as u32).map(CandidateKind::Proxy));
-        // What the early first pass drew, sorted for lookups.
+        // What the early first pass drew, for lookups: its chunk instances
+        // (sorted), its proxies with the clusters of each drawn.
         let drawn_early = early.as_ref().map(|first| {
             let mut entries: Vec<u32> = first.draws.iter().map(|d| d.entry).collect();
-            let mut nodes = first.nodes.clone();
             entries.sort_unstable();
-            nodes.sort_unstable();
+            let nodes: HashMap<u32, u64> = (first.nodes.iter().copied())
+                .zip(first.clusters.iter().copied())
+                .collect();
             (entries, nodes)
         });
-        let candidates: Vec<Candidate> = kinds
-            .zip(boxes)
-            .zip(&entry_bounds)
-            .map(|((kind, bounds), b)| {
-                let forced = cull.eye_near(b);
-                let drawn = match (&drawn_early, kind) {
-                    (Some((entries, _)), CandidateKind::Entry(e)) => {
-                        entries.binary_search(&e).is_ok()
+        // Per proxy, the clusters the first pass draws (0: not drawn): where
+        // it was not drawn early, every one of a proxy visible last frame or
+        // with the eye near its box.
+        let proxy_drawn: Vec<u64> = (proxy_nodes.iter())
+            .map(|&n| match &drawn_early {
+                Some((_, nodes)) => nodes.get(&n).copied().unwrap_or(0),
+                None => {
+                    let was = view.proxy_visible[n as usize];
+                    let near = cull.eye_near(h.bounds(tree, n));
+                    if near || (was > 0 && was + 1 == frame) {
+                        u64::MAX
+                    } else {
+                        0
                     }
-                    (Some((_, nodes)), CandidateKind::Proxy(k)) => {
-                        nodes.binary_search(&proxy_nodes[k as usize]).is_ok()
-                    }
-                    (None, _) => {
-                        let was = match kind {
-                            CandidateKind::Entry(e) => view.entries[e as usize].visible_frame,
-                            CandidateKind::Proxy(k) => {
-                                view.proxy_visible[proxy_nodes[k as usize] as usize]
-                            }
-                        };
-                        forced || (was > 0 && was + 1 == frame)
-                    }
-                };
-                Candidate {
-                    kind,
-                    bounds,
-                    drawn,
-                    forced,
                 }
+            })
+            .collect();
+        // The candidates, their world boxes and whether the first pass draws
+        // them: chunk instances, then proxies, each tested cluster by cluster
+        // where the first pass draws it (so that the next frame's first pass
+        // draws only its clusters that showed), else whole.
+        let mut listed: Vec<(CandidateKind, Aabb3d, bool)> =
+            Vec::with_capacity(draws.len() + proxy_nodes.len());
+        for d in &draws {
+            let b = tree.entries()[d.entry as usize].bounds;
+            let drawn = match &drawn_early {
+                Some((entries, _)) => entries.binary_search(&d.entry).is_ok(),
+                None => {
+                    let was = view.entries[d.entry as usize].visible_frame;
+                    cull.eye_near(&b) || (was > 0 && was + 1 == frame)
+                }
+            };
+            listed.push((CandidateKind::Entry(d.entry), b, drawn));
+        }
+        // A proxy tested whole is tested by its triangles' box, which is
+        // tighter than its node's.
+        let cpu_proxies = self.proxies.as_ref().map(|p| &p.cpu);
+        let world = |b: Aabb3f, origin: DVec3| {
+            let b = b.as_dvec();
+            Aabb3d::new(origin + b.min, origin + b.max)
+        };
+        for (k, (&n, &mask)) in (0..).zip(proxy_nodes.iter().zip(&proxy_drawn)) {
+            match cpu_proxies.and_then(|p| p.nodes[n as usize].as_deref()) {
+                Some(p) if mask != 0 && p.clusters.len() > 1 => {
+                    for (c, cluster) in (0..).zip(&p.clusters) {
+                        let b = world(cluster.bounds, p.origin);
+                        let drawn = mask & (1 << c) != 0;
+                        listed.push((CandidateKind::ProxyCluster(k, c), b, drawn));
+                    }
+                }
+                Some(p) if !p.clusters.is_empty() => {
+                    let bounds = (p.clusters.iter()).fold(Aabb3f::EMPTY, |b, c| b.union(c.bounds));
+                    listed.push((CandidateKind::Proxy(k), world(bounds, p.origin), mask != 0));
+                }
+                _ => listed.push((CandidateKind::Proxy(k), *h.bounds(tree, n), mask != 0)),
+            }
+        }
+        let world: Vec<Aabb3d> = listed.iter().map(|&(_, b, _)| b).collect();
+        let candidates: Vec<Candidate> = (listed.iter().zip(cull.query_boxes(&world)))
+            .map(|(&(kind, b, drawn), bounds)| Candidate {
+                kind,
+                bounds,
+                drawn,
+                forced: cull.eye_near(&b),
             })
             .collect();
         // First pass: last frame's visible set (with the candidates near the
@@ -753,20 +786,17 @@ impl Renderer {
         let (first, first_draws) = match (early_round, early) {
             (Some(round), Some(first)) => (round, first.draws),
             _ => {
-                let draws = crate::hzb::draw_list(&candidates);
-                let (nodes, frames) = (candidates.iter())
-                    .filter_map(|c| match c.kind {
-                        CandidateKind::Proxy(k) if c.drawn => {
-                            Some((proxy_nodes[k as usize], frames[k as usize]))
-                        }
-                        _ => None,
-                    })
-                    .unzip();
-                let first = ColorDraws {
-                    draws,
-                    nodes,
-                    frames,
+                let mut first = ColorDraws {
+                    draws: crate::hzb::draw_list(&candidates),
+                    ..ColorDraws::default()
                 };
+                for ((&n, &mask), frame) in proxy_nodes.iter().zip(&proxy_drawn).zip(&frames) {
+                    if mask != 0 {
+                        first.nodes.push(n);
+                        first.frames.push(*frame);
+                        first.clusters.push(mask);
+                    }
+                }
                 let round = self.submit_color(gpu, target, geometry, scene, tree, cull, &first);
                 (round, first.draws)
             }
@@ -802,6 +832,10 @@ impl Renderer {
             fit,
             ..HzbVisible::default()
         };
+        // Per proxy, the clusters that showed (all where tested whole), and
+        // whether it showed whole without being drawn first.
+        let mut proxy_seen = vec![0u64; proxy_nodes.len()];
+        let mut proxy_new = vec![false; proxy_nodes.len()];
         for ((c, &visible), &missing) in candidates.iter().zip(&second.visible).zip(&second.missing)
         {
             match c.kind {
@@ -821,18 +855,31 @@ impl Renderer {
                     }
                 }
                 CandidateKind::Proxy(k) => {
-                    let n = proxy_nodes[k as usize];
                     if visible {
-                        view.proxy_visible[n as usize] = frame;
-                        visible_now.nodes.push(n);
+                        proxy_seen[k as usize] = u64::MAX;
                     }
-                    if c.drawn || visible {
-                        stats.proxies_drawn += 1;
-                        h.leaves(n, &mut view.drawn);
+                    proxy_new[k as usize] = visible && !c.drawn;
+                }
+                CandidateKind::ProxyCluster(k, cluster) => {
+                    if visible {
+                        proxy_seen[k as usize] |= 1 << cluster;
                     }
-                    stats.newly_visible += u64::from(visible && !c.drawn);
+                    stats.culled_clusters += u64::from(!visible && !c.drawn);
                 }
             }
+        }
+        for (k, &n) in proxy_nodes.iter().enumerate() {
+            let seen = proxy_seen[k];
+            if seen != 0 {
+                view.proxy_visible[n as usize] = frame;
+                visible_now.nodes.push(n);
+                visible_now.clusters.push(seen);
+            }
+            if proxy_drawn[k] != 0 || seen != 0 {
+                stats.proxies_drawn += 1;
+                h.leaves(n, &mut view.drawn);
+            }
+            stats.newly_visible += u64::from(proxy_new[k]);
         }
         view.hzb_visible = visible_now;
         Ok(())
@@ -887,10 +934,18 @@ impl Renderer {
             .filter(|&n| fits(n) && !covered.contains(&n) && shown(h.bounds(tree, n)))
             .collect();
         let frames = self.proxy_frames(h, tree, &mut nodes, cull);
+        let mask: HashMap<u32, u64> = last
+            .nodes
+            .iter()
+            .copied()
+            .zip(last.clusters.iter().copied())
+            .collect();
+        let clusters = nodes.iter().map(|n| mask[n]).collect();
         ColorDraws {
             draws,
             nodes,
             frames,
+            clusters,
         }
     }
 
@@ -926,6 +981,7 @@ impl Renderer {
                 nodes: &round.nodes,
                 frames: &round.frames,
                 tinted: &tinted,
+                clusters: &round.clusters,
             },
         )
     }
@@ -1061,6 +1117,7 @@ impl Renderer {
                     nodes: &proxy_nodes,
                     frames: &frames,
                     tinted: &tinted,
+                    clusters: &[],
                 },
             );
             let r = match self.finish_round(gpu, submitted) {

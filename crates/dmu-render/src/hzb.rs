@@ -212,6 +212,9 @@ pub(crate) struct HzbVisible {
     pub revision: Option<dmu_tree::Revision>,
     pub entries: Vec<u32>,
     pub nodes: Vec<u32>,
+    /// Per node of `nodes`, its proxy's clusters found visible (bit c:
+    /// cluster c; all bits where the proxy was tested whole).
+    pub clusters: Vec<u64>,
     pub fit: Vec<bool>,
 }
 
@@ -223,6 +226,9 @@ pub(crate) struct ColorDraws {
     pub draws: Vec<Draw>,
     pub nodes: Vec<u32>,
     pub frames: Vec<QueryBox>,
+    /// Per node, the clusters of its proxy drawn (bit c: cluster c); empty:
+    /// every proxy whole.
+    pub clusters: Vec<u64>,
 }
 
 /// A candidate of the frame: a chunk instance or a proxy, its box and
@@ -235,11 +241,13 @@ pub(crate) struct Candidate {
     pub forced: bool,
 }
 
-/// A chunk instance (entry id), or a proxy (its place in the frame's proxies).
+/// A chunk instance (entry id), a proxy (its place in the frame's proxies),
+/// or one cluster of a proxy (its place, the cluster).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum CandidateKind {
     Entry(u32),
     Proxy(u32),
+    ProxyCluster(u32, u32),
 }
 
 /// The outcome of the second submission.
@@ -316,19 +324,27 @@ impl Renderer {
         let mut group_of: HashMap<GroupKey, u32> = HashMap::new();
         let mut gpu_candidates = Vec::with_capacity(candidates.len());
         let mut triangles_of = Vec::with_capacity(candidates.len());
-        let (proxy_counts, proxy_faces): (Vec<u32>, Vec<Faces>) = match &self.proxies {
-            Some(p) => proxy_nodes
-                .iter()
-                .map(|&n| {
-                    let proxy = p.cpu.nodes[n as usize].as_ref();
-                    (
-                        proxy.map_or(0, |x| x.indices.len() as u32),
-                        self.faces(gpu, proxy.is_some_and(|x| x.solid)),
-                    )
-                })
-                .unzip(),
-            None => (Vec::new(), Vec::new()),
-        };
+        // Per proxy candidate: its index range (first, count), the whole
+        // proxy's or a cluster's.
+        let proxy_of = |n: u32| self.proxies.as_ref()?.cpu.nodes[n as usize].as_deref();
+        let proxy_faces: Vec<Faces> = (proxy_nodes.iter())
+            .map(|&n| self.faces(gpu, proxy_of(n).is_some_and(|x| x.solid)))
+            .collect();
+        let proxy_ranges: Vec<(u32, u32)> = (candidates.iter())
+            .map(|c| match c.kind {
+                CandidateKind::Entry(_) => (0, 0),
+                CandidateKind::Proxy(k) => (
+                    0,
+                    proxy_of(proxy_nodes[k as usize]).map_or(0, |p| p.indices.len() as u32),
+                ),
+                CandidateKind::ProxyCluster(k, cl) => {
+                    proxy_of(proxy_nodes[k as usize]).map_or((0, 0), |p| {
+                        let cluster = p.clusters[cl as usize];
+                        (cluster.first_index, cluster.index_count)
+                    })
+                }
+            })
+            .collect();
         let tinted = self.proxies_tinted(&self.hierarchy, tree, proxy_nodes);
         out.missing = vec![false; candidates.len()];
         // Candidate i's draw is instance i.
@@ -366,8 +382,8 @@ impl Renderer {
                             None
                         }
                     },
-                    CandidateKind::Proxy(k) => {
-                        g.index_count = proxy_counts[k as usize];
+                    CandidateKind::Proxy(k) | CandidateKind::ProxyCluster(k, _) => {
+                        (g.first_index, g.index_count) = proxy_ranges[i];
                         g.first_instance = k;
                         triangles = g.index_count / 3;
                         Some(GroupKey::Proxy(k))

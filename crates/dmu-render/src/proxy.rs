@@ -26,7 +26,7 @@
 use std::time::{Duration, Instant};
 
 use bytemuck::{Pod, Zeroable};
-use dmu_geom::Aabb3d;
+use dmu_geom::{Aabb3d, Aabb3f};
 use dmu_scene::Scene;
 use dmu_tree::Tree;
 use glam::{DVec3, Vec3};
@@ -106,6 +106,88 @@ pub(crate) struct Proxy {
     /// ([`dmu_scene::is_solid`]; so never where it holds an open mesh or a
     /// mirrored part): its back faces may be culled.
     pub solid: bool,
+    /// Its triangles in spatially compact runs, which cover `indices` in
+    /// order: `hzb` frames test each run's box and draw only those that may
+    /// show (at most [`MAX_CLUSTERS`]).
+    pub clusters: Vec<Cluster>,
+}
+
+/// A run of a proxy's triangles close together ([`Proxy::clusters`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Cluster {
+    /// Its indices: `first_index..first_index + index_count` of the proxy's.
+    pub first_index: u32,
+    pub index_count: u32,
+    /// Its vertices' box, relative to the proxy's origin.
+    pub bounds: Aabb3f,
+}
+
+/// Triangles a proxy's cluster holds at most, where the proxy has at most
+/// 32 times as many: about what a chunk at its level holds.
+const CLUSTER_TRIANGLES: usize = 128;
+
+/// Clusters a proxy has at most: the bits of a visibility mask.
+pub(crate) const MAX_CLUSTERS: usize = 64;
+
+/// Reorders a proxy's triangles (`indices` into `vertices`) into spatially
+/// compact clusters ([`dmu_scene::spatial_runs`]), each in its source order,
+/// and its vertices in the order the clusters first use them (reordered
+/// triangles alone made frustum frames of the 10M plant 4 % slower); the
+/// vertices, the indices and the clusters.
+fn cluster(
+    vertices: &[ProxyVertex],
+    indices: &[u32],
+) -> (Vec<ProxyVertex>, Vec<u32>, Vec<Cluster>) {
+    let p = |i: u32| Vec3::from(vertices[i as usize].position);
+    let mut items: Vec<(u32, Vec3)> = (indices.chunks_exact(3).zip(0..))
+        .map(|(t, k)| (k, (p(t[0]) + p(t[1]) + p(t[2])) / 3.0))
+        .collect();
+    // Runs of at least half the bound: at most MAX_CLUSTERS of them.
+    let max = CLUSTER_TRIANGLES.max(items.len().div_ceil(MAX_CLUSTERS / 2));
+    let mut runs = dmu_scene::spatial_runs(&mut items, max);
+    for run in &runs {
+        items[run.clone()].sort_unstable_by_key(|&(k, _)| k);
+    }
+    // Runs in the order their first triangles come.
+    runs.sort_unstable_by_key(|run| items[run.start].0);
+    let mut ordered = Vec::with_capacity(indices.len());
+    let clusters = runs
+        .into_iter()
+        .map(|run| {
+            let run = &items[run];
+            let first_index = ordered.len() as u32;
+            let mut bounds = Aabb3f::EMPTY;
+            for &(k, _) in run.iter() {
+                for &i in &indices[3 * k as usize..3 * k as usize + 3] {
+                    ordered.push(i);
+                    bounds = bounds.grown(p(i));
+                }
+            }
+            Cluster {
+                first_index,
+                index_count: ordered.len() as u32 - first_index,
+                bounds,
+            }
+        })
+        .collect();
+    (first_use_order(vertices, &mut ordered), ordered, clusters)
+}
+
+/// The index ranges that draw the clusters of `clusters` in `mask` (bit c:
+/// cluster c), neighbours merged.
+pub(crate) fn cluster_ranges(clusters: &[Cluster], mask: u64) -> Vec<std::ops::Range<u32>> {
+    let mut ranges: Vec<std::ops::Range<u32>> = Vec::new();
+    for (c, cluster) in clusters.iter().enumerate() {
+        if mask & (1 << c) == 0 {
+            continue;
+        }
+        let range = cluster.first_index..cluster.first_index + cluster.index_count;
+        match ranges.last_mut() {
+            Some(last) if last.end == range.start => last.end = range.end,
+            _ => ranges.push(range),
+        }
+    }
+    ranges
 }
 
 impl Proxy {
@@ -388,6 +470,7 @@ impl Proxies {
         let (vertices, indices, error) = simplify(merged.vertices, &merged.indices, target);
         let positions: Vec<Vec3> = vertices.iter().map(|v| Vec3::from(v.position)).collect();
         let solid = dmu_scene::is_solid(&positions, &indices);
+        let (vertices, indices, clusters) = cluster(&vertices, &indices);
         self.nodes[n as usize] = Some(Box::new(Proxy {
             solid,
             origin: merged.origin,
@@ -396,6 +479,7 @@ impl Proxies {
             error: merged.error + ERROR_MARGIN * error,
             signature: self.signature[n as usize],
             source_triangles: merged.source_triangles,
+            clusters,
         }));
         self.dirty.push(n);
         true
@@ -568,8 +652,6 @@ fn simplify(
     let (simplified, error) =
         dmu_scene::simplify_to_error(&positions, &welded, target_error as f32);
     // Back to real vertices, keeping only those used, in first-use order.
-    let mut remap = vec![u32::MAX; vertices.len()];
-    let mut kept = Vec::new();
     let mut out = Vec::with_capacity(simplified.len());
     for t in simplified.chunks_exact(3) {
         let p = |c: u32| Vec3::from(positions[c as usize]);
@@ -589,15 +671,27 @@ fn simplify(
                         .total_cmp(&face.dot(normal(b)).abs())
                 })
                 .expect("a canonical vertex welds at least one");
-            let slot = &mut remap[best as usize];
-            if *slot == u32::MAX {
-                *slot = kept.len() as u32;
-                kept.push(vertices[best as usize]);
-            }
-            out.push(*slot);
+            out.push(best);
         }
     }
-    (kept, out, f64::from(error))
+    (first_use_order(&vertices, &mut out), out, f64::from(error))
+}
+
+/// The vertices `indices` use, in the order first used, with `indices`
+/// renumbered to match: a CPU rasterizer's vertex cache hits most where a
+/// draw's indices stay close together.
+fn first_use_order(vertices: &[ProxyVertex], indices: &mut [u32]) -> Vec<ProxyVertex> {
+    let mut remap = vec![u32::MAX; vertices.len()];
+    let mut kept = Vec::new();
+    for i in indices {
+        let slot = &mut remap[*i as usize];
+        if *slot == u32::MAX {
+            *slot = kept.len() as u32;
+            kept.push(vertices[*i as usize]);
+        }
+        *i = *slot;
+    }
+    kept
 }
 
 /// Whether `bounds` is drawn by its proxy of `error` world units at
@@ -625,12 +719,23 @@ mod tests {
         Proxies::build(scene, tree, scene, ProxyOptions::default(), &mut |_, _| {})
     }
 
+    /// A plant of 250,000 triangles and its tree.
+    fn plant_250k() -> (Scene, Tree) {
+        let scene = plant(&PlantOptions {
+            triangles: 250_000,
+            ..Default::default()
+        });
+        let tree = Tree::build(&scene, TreeOptions::default());
+        (scene, tree)
+    }
+
     fn same(a: &Proxy, b: &Proxy) -> bool {
         a.origin == b.origin
             && a.vertices == b.vertices
             && a.indices == b.indices
             && a.error == b.error
             && a.source_triangles == b.source_triangles
+            && a.clusters == b.clusters
     }
 
     /// Kept current through random moves, hides and frames, every proxy the
@@ -709,11 +814,7 @@ mod tests {
     /// of their subtree's.
     #[test]
     fn proxies_simplify_within_their_claim_and_keep_entries() {
-        let scene = plant(&PlantOptions {
-            triangles: 250_000,
-            ..Default::default()
-        });
-        let tree = Tree::build(&scene, TreeOptions::default());
+        let (scene, tree) = plant_250k();
         let mut h = Hierarchy::default();
         h.sync(&tree);
         let proxies = fresh(&scene, &tree);
@@ -752,5 +853,71 @@ mod tests {
             );
             assert!(p.triangles() <= p.source_triangles, "node {n}");
         }
+    }
+
+    /// Every proxy's clusters cover its indices in order, each a whole
+    /// number of triangles inside its box, at most `MAX_CLUSTERS` of them,
+    /// more than one where the proxy holds more than a cluster's bound; the
+    /// clustering only reorders triangles; a mask's ranges draw exactly its
+    /// clusters' indices.
+    #[test]
+    fn proxy_clusters_partition_the_triangles_within_their_boxes() {
+        let (scene, tree) = plant_250k();
+        let proxies = fresh(&scene, &tree);
+        let mut rng = Rng::new(7);
+        let mut split = 0;
+        for p in proxies.nodes.iter().flatten() {
+            assert!(p.clusters.len() <= MAX_CLUSTERS);
+            let mut next = 0;
+            for c in &p.clusters {
+                assert_eq!(c.first_index, next);
+                assert!(c.index_count > 0 && c.index_count % 3 == 0);
+                next += c.index_count;
+                for &i in &p.indices[c.first_index as usize..next as usize] {
+                    let v = Vec3::from(p.vertices[i as usize].position);
+                    assert!(c.bounds.min.cmple(v).all() && v.cmple(c.bounds.max).all());
+                }
+            }
+            assert_eq!(next as usize, p.indices.len());
+            if p.triangles() > CLUSTER_TRIANGLES as u64 {
+                assert!(p.clusters.len() > 1, "{} triangles", p.triangles());
+                split += 1;
+            }
+            // Clustering again finds the same triangles (as their corners'
+            // vertices), as a set, and numbers vertices in first use.
+            let (vertices, again, _) = cluster(&p.vertices, &p.indices);
+            let triangles = |vertices: &[ProxyVertex], indices: &[u32]| {
+                let mut t: Vec<Vec<[u32; 8]>> = (indices.chunks_exact(3))
+                    .map(|t| {
+                        t.iter()
+                            .map(|&i| bytemuck::cast(vertices[i as usize]))
+                            .collect()
+                    })
+                    .collect();
+                t.sort_unstable();
+                t
+            };
+            assert_eq!(
+                triangles(&vertices, &again),
+                triangles(&p.vertices, &p.indices)
+            );
+            let mut seen = 0;
+            for &i in &again {
+                assert!(i <= seen);
+                seen = seen.max(i + 1);
+            }
+            assert_eq!(seen as usize, vertices.len());
+            // A random mask draws its clusters' indices, in order, merged.
+            let mask = rng.next_u64();
+            let ranges = cluster_ranges(&p.clusters, mask);
+            let drawn: Vec<u32> = ranges.iter().flat_map(|r| r.clone()).collect();
+            let expected: Vec<u32> = (p.clusters.iter().enumerate())
+                .filter(|&(c, _)| mask & (1 << c) != 0)
+                .flat_map(|(_, c)| c.first_index..c.first_index + c.index_count)
+                .collect();
+            assert_eq!(drawn, expected);
+            assert!(ranges.windows(2).all(|w| w[0].end < w[1].start));
+        }
+        assert!(split > 0, "some proxy must hold several clusters");
     }
 }

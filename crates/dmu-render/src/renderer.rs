@@ -386,13 +386,15 @@ pub(crate) struct ProxyGpu {
 }
 
 /// A round's proxies: mirror nodes, each one's frame in each eye's view
-/// space (eye-major), as [`crate::gpu::QueryBox`]es, and whether each is
-/// drawn tinted ([`Renderer::proxies_tinted`]).
+/// space (eye-major), as [`crate::gpu::QueryBox`]es, whether each is drawn
+/// tinted ([`Renderer::proxies_tinted`]), and which of each one's clusters
+/// are drawn (bit c: cluster c; empty: every proxy whole).
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct ProxyRound<'a> {
     pub nodes: &'a [u32],
     pub frames: &'a [QueryBox],
     pub tinted: &'a [bool],
+    pub clusters: &'a [u64],
 }
 
 impl Renderer {
@@ -1230,11 +1232,12 @@ impl Renderer {
                     let proxy = p.cpu.nodes[n as usize].as_ref()?;
                     let (v, i) = p.buffers.get(n as usize)?.as_ref()?;
                     let faces = self.faces(gpu, proxy.solid);
+                    let mask = proxies.clusters.get(k).copied().unwrap_or(u64::MAX);
                     Some((
                         k as u32,
                         v,
                         i,
-                        proxy.indices.len() as u32,
+                        crate::proxy::cluster_ranges(&proxy.clusters, mask),
                         (proxies.tinted[k], faces),
                     ))
                 })
@@ -1443,18 +1446,20 @@ impl Renderer {
                 let first_frame = (boxes.len() + eye * proxies.nodes.len()) as u32;
                 pass.set_vertex_buffer(1, gpu.boxes.slice(..));
                 let mut bound_pipeline = None;
-                for &(k, vertices, indices, count, (tinted, faces)) in &proxy_buffers {
-                    if bound_pipeline != Some((tinted, faces)) {
-                        pass.set_pipeline(self.proxy_pipeline(tinted, faces));
-                        bound_pipeline = Some((tinted, faces));
+                for (k, vertices, indices, ranges, (tinted, faces)) in &proxy_buffers {
+                    if bound_pipeline != Some((*tinted, *faces)) {
+                        pass.set_pipeline(self.proxy_pipeline(*tinted, *faces));
+                        bound_pipeline = Some((*tinted, *faces));
                     }
                     pass.set_vertex_buffer(0, vertices.slice(..));
                     pass.set_index_buffer(indices.slice(..), wgpu::IndexFormat::Uint32);
                     let frame = first_frame + k;
-                    pass.draw_indexed(0..count, 0, frame..frame + 1);
-                    result.draw_calls += 1;
-                    if eye == 0 {
-                        result.triangles += u64::from(count / 3);
+                    for range in ranges {
+                        pass.draw_indexed(range.clone(), 0, frame..frame + 1);
+                        result.draw_calls += 1;
+                        if eye == 0 {
+                            result.triangles += u64::from(range.len() as u32 / 3);
+                        }
                     }
                 }
             }

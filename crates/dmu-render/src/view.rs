@@ -175,6 +175,9 @@ pub struct FrameStats {
     /// Proxies drawn, each instead of a subtree's chunk instances
     /// ([`crate::Proxies`]; their triangles are in `triangles_drawn`).
     pub proxies_drawn: u64,
+    /// Clusters of proxies drawn in part that `hzb` left out, their boxes
+    /// hidden behind the first pass's depth ([`crate::Proxies`]).
+    pub culled_clusters: u64,
     /// Proxies stale after this frame (their subtree changed; they are
     /// remade once it is calm and meanwhile not drawn).
     pub proxies_stale: u64,

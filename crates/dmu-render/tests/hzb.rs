@@ -133,9 +133,10 @@ fn rig_with_proxies(
     Some(rig)
 }
 
-/// With proxies, `hzb` tests and draws them as any candidate: its frames
-/// show what frustum culling with the same proxies shows, with fewer
-/// triangles inside the plant.
+/// With proxies, `hzb` tests and draws them as any candidate, and a proxy
+/// the first pass draws cluster by cluster: its frames show what frustum
+/// culling with the same proxies shows, with fewer triangles inside the
+/// plant, some proxies drawn only in part.
 #[test]
 fn hzb_draws_proxies_and_matches_the_frustum_image() {
     let (scene, tree) = small_plant();
@@ -144,7 +145,7 @@ fn hzb_draws_proxies_and_matches_the_frustum_image() {
         return;
     };
     let pixels = f64::from(size.0 * size.1);
-    let (mut drew_proxies, mut culled) = (false, false);
+    let (mut drew_proxies, mut culled, mut clusters) = (false, false, 0);
     for (i, cam) in viewpoints().into_iter().enumerate() {
         let mut frustum = View::new(cam, size, Culling::Frustum);
         frustum.options.lod_error_px = 1.0;
@@ -157,17 +158,23 @@ fn hzb_draws_proxies_and_matches_the_frustum_image() {
         let last = rig.frame(&mut hzb, &scene, &tree);
         let (any, surface) = count_differing(reference.as_raw(), rig.image().as_raw());
         println!(
-            "view {i}: hzb {} proxies {} triangles; frustum {} proxies {} triangles; {any} differ, {surface} another surface",
-            last.proxies_drawn, last.triangles_drawn, f.proxies_drawn, f.triangles_drawn
+            "view {i}: hzb {} proxies ({} clusters left out) {} triangles; frustum {} proxies {} triangles; {any} differ, {surface} another surface",
+            last.proxies_drawn,
+            last.culled_clusters,
+            last.triangles_drawn,
+            f.proxies_drawn,
+            f.triangles_drawn
         );
         assert!(last.triangles_drawn <= f.triangles_drawn, "view {i}");
         // Depth ties between touching pieces may resolve differently.
         assert!(surface as f64 <= 0.001 * pixels, "view {i}: {surface}");
         drew_proxies |= last.proxies_drawn > 0;
         culled |= last.triangles_drawn < f.triangles_drawn;
+        clusters += last.culled_clusters;
     }
     assert!(drew_proxies, "hzb drew proxies somewhere");
     assert!(culled, "hzb culled something");
+    assert!(clusters > 0, "hzb left out clusters of some proxy");
 }
 
 /// Flying into the plant with proxies and back out: each `hzb` frame draws

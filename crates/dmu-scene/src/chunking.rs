@@ -210,6 +210,18 @@ pub fn chunk_mesh(mesh: &MeshData, chunk_triangles: u32) -> ChunkedMesh {
     out
 }
 
+/// Orders `items` (an id and a point each) into spatially compact runs of at
+/// most `max` (`max` > 0), as chunks are cut: recursive median splits on the
+/// longest axis of the points' box. The runs' ranges, in order; where
+/// `items` holds more than `max`, each run holds at least half of `max`
+/// (rounded up), so there are at most `items.len() / max.div_ceil(2)`.
+pub fn spatial_runs(items: &mut [(u32, Vec3)], max: usize) -> Vec<Range<usize>> {
+    assert!(max > 0, "a run holds at least one item");
+    let mut runs = Vec::new();
+    split(items, 0, max, &mut runs);
+    runs
+}
+
 /// Recursive median split of `items[..]` (triangle id, centroid) on the longest
 /// axis of the centroids' box; appends the leaf ranges (offset by `base`).
 fn split(items: &mut [(u32, Vec3)], base: usize, max: usize, leaves: &mut Vec<Range<usize>>) {

@@ -45,7 +45,9 @@ mod solid;
 mod structure;
 
 pub use atomic::{AtomicFile, open_regular_file, read_regular_file, write_file_atomically};
-pub use chunking::{ChunkData, ChunkedMesh, MeshData, MeshGroup, chunk_mesh, compute_normals};
+pub use chunking::{
+    ChunkData, ChunkedMesh, MeshData, MeshGroup, chunk_mesh, compute_normals, spatial_runs,
+};
 pub use error::{ExportError, ImportError, SceneError};
 pub use gltf_export::export_gltf;
 pub use gltf_import::{

@@ -5,4 +5,5 @@ mod fuzz_replay;
 mod import;
 mod nodes;
 mod real_models;
+mod runs;
 mod support;
