@@ -599,8 +599,10 @@ impl App {
     fn pointer_drag_to(&mut self, at: ViewPoint, delta: ViewPoint, free: bool) {
         match self.pointer_drag {
             Some(PointerDrag::Gizmo(drag)) => {
-                if let Some(delta) = drag.delta(&self.ray_at(at), self.snap(free)) {
-                    self.review.drag_by(delta);
+                if let Some(delta) = drag.delta(&self.ray_at(at), self.snap(free))
+                    && let Err(e) = self.review.drag_by(delta)
+                {
+                    self.ui.status = format!("{e:#}");
                 }
             }
             Some(PointerDrag::Section {
@@ -627,8 +629,12 @@ impl App {
             }) => {
                 if let Some(s) = axis_offset(origin, axis, &self.ray_at(at)) {
                     let step = if free { 0.0 } else { snap };
-                    self.review
-                        .drag_to(axis * crate::gizmo::snap_to(s - start, step));
+                    if let Err(e) = self
+                        .review
+                        .drag_to(axis * crate::gizmo::snap_to(s - start, step))
+                    {
+                        self.ui.status = format!("{e:#}");
+                    }
                 }
             }
             None => {}
@@ -751,7 +757,7 @@ impl App {
                 }
                 let steps = d.steps.max(1);
                 let t = f64::from(step + 1) / f64::from(steps);
-                self.review.drag_to(DVec3::from_array(d.by) * t);
+                self.review.drag_to(DVec3::from_array(d.by) * t)?;
                 if step + 1 == steps {
                     self.review.end_drag();
                     result = Some(self.selection_facts());
@@ -900,7 +906,7 @@ impl App {
                 )?);
             }
             Action::ExportBcf(path) => {
-                let topics = self.start_export(path.clone());
+                let topics = self.start_export(path.clone())?;
                 result = Some(json!({ "path": path, "topics": topics }));
             }
             Action::ImportBcf(path) => result = Some(self.import_bcf(path)?),
@@ -1032,8 +1038,10 @@ impl App {
         let path = PathBuf::from(&self.ui.tools.bcf_path);
         match request {
             crate::tools_ui::BcfRequest::Export if self.export.is_none() => {
-                let n = self.start_export(path);
-                self.ui.status = format!("writing {n} issues…");
+                self.ui.status = match self.start_export(path) {
+                    Ok(n) => format!("writing {n} issues…"),
+                    Err(e) => format!("{e:#}"),
+                };
             }
             crate::tools_ui::BcfRequest::Export => {}
             crate::tools_ui::BcfRequest::Import => {
@@ -1047,8 +1055,11 @@ impl App {
     /// Starts writing the review's issues (listed clashes, saved viewpoints)
     /// to a BCF file at `path`: each issue's view is shown for a frame or a
     /// few, its snapshot taken, then the file written and the view restored.
-    /// How many topics it will hold.
-    pub fn start_export(&mut self, path: PathBuf) -> usize {
+    /// How many topics it will hold. A name not ending in `.bcfzip` is
+    /// refused before anything is shown (the export wrote over the model it
+    /// had open).
+    pub fn start_export(&mut self, path: PathBuf) -> anyhow::Result<usize> {
+        dmu_app::bcf::check_output_name(&path)?;
         let nav = &self.panes[self.active].nav;
         let issues = crate::issues::issues(
             &self.review,
@@ -1067,7 +1078,7 @@ impl App {
             overlays: (self.ui.show_stats, self.ui.show_clashes, self.ui.show_tools),
         });
         (self.ui.show_stats, self.ui.show_clashes, self.ui.show_tools) = (false, false, false);
-        n
+        Ok(n)
     }
 
     /// Shows the view of the issue being exported (its first frame), or ends
@@ -1116,7 +1127,7 @@ impl App {
         let view = image::imageops::crop_imm(window, x, y, w, h).to_image();
         let png = dmu_render::encode_png(&view)?;
         if let Some(v) = e.issues[e.next].topic.viewpoints.first_mut() {
-            v.snapshot = Some(png);
+            v.snapshot = Some(png.into());
         }
         e.next += 1;
         e.frames = 0;

@@ -274,10 +274,40 @@ pub struct Snap {
     pub degrees: f64,
 }
 
-/// `value` rounded to a multiple of `step` (unchanged for a step of 0).
+impl Snap {
+    /// Offset steps other than 0 (free): a step below this snaps to nothing a
+    /// person can see, and one of 1e-320 turned every offset into infinity.
+    pub const STEPS: std::ops::RangeInclusive<f64> = 1e-9..=1e12;
+    /// Turn steps other than 0 (free), degrees.
+    pub const DEGREES: std::ops::RangeInclusive<f64> = 1e-6..=360.0;
+
+    /// Refuses steps that are neither 0 (free) nor in [`Snap::STEPS`] and
+    /// [`Snap::DEGREES`]; `None` leaves a step as it is.
+    pub fn check(step: Option<f64>, degrees: Option<f64>) -> anyhow::Result<()> {
+        for (value, range, unit) in [
+            (step, Self::STEPS, "model units"),
+            (degrees, Self::DEGREES, "degrees"),
+        ] {
+            if let Some(v) = value {
+                anyhow::ensure!(
+                    v == 0.0 || range.contains(&v),
+                    "snap step {} {unit}: give 0 (free) or {} to {}",
+                    dmu_geom::Short(v),
+                    dmu_geom::Short(*range.start()),
+                    dmu_geom::Short(*range.end())
+                );
+            }
+        }
+        Ok(())
+    }
+}
+
+/// `value` rounded to a multiple of `step` (unchanged for a step of 0, and
+/// where the multiple is not a finite number).
 pub fn snap_to(value: f64, step: f64) -> f64 {
-    if step > 0.0 {
-        (value / step).round() * step
+    let snapped = (value / step).round() * step;
+    if step > 0.0 && snapped.is_finite() {
+        snapped
     } else {
         value
     }

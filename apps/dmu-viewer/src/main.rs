@@ -489,7 +489,11 @@ fn main() -> ExitCode {
     match run(&cli, started) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("dmu-viewer: error: {e:#}");
+            let message = format!("{e:#}");
+            eprintln!(
+                "dmu-viewer: error: {}",
+                dmu_app::text::printable(&message, dmu_app::text::MESSAGE_CHARS)
+            );
             ExitCode::from(2)
         }
     }

@@ -231,9 +231,12 @@ impl Navigator {
     /// Puts the eye at `eye` looking along `forward` (any length; roll is not
     /// kept: the view stays upright, its pitch short of the vertical), the
     /// pivot `pivot_distance` ahead. `false` (nothing changed) for a forward
-    /// that is zero or not finite.
+    /// that is zero or not finite, or an eye outside the world
+    /// (±[`dmu_scene::MAX_WORLD_COORDINATE`]).
     pub fn look_along(&mut self, eye: DVec3, forward: DVec3, pivot_distance: f64) -> bool {
-        let Some(f) = forward.try_normalize().filter(|_| eye.is_finite()) else {
+        let Some(f) = dmu_geom::unit_vector(forward)
+            .filter(|_| dmu_geom::is_within(eye, dmu_scene::MAX_WORLD_COORDINATE))
+        else {
             return false;
         };
         self.eye = eye;

@@ -337,10 +337,8 @@ impl Review {
     /// nothing is selected, an error (and moves nothing) when the result would
     /// leave the world (±1e15 model units). Panics on a zero or non-finite axis.
     pub fn rotate_selection(&mut self, axis: DVec3, degrees: f64) -> anyhow::Result<bool> {
-        assert!(
-            axis.is_finite() && axis.length_squared() > 0.0,
-            "rotation axis {axis} must be finite and not zero"
-        );
+        let axis = dmu_geom::unit_vector(axis)
+            .unwrap_or_else(|| panic!("rotation axis {axis} must be finite and not zero"));
         let Some(part) = self.selected else {
             return Ok(false);
         };
@@ -348,10 +346,7 @@ impl Review {
         let before = self.scene.part_world(part);
         let centre = self.scene.part_world_bounds(part).center();
         let turn = DAffine3::from_translation(centre)
-            * DAffine3::from_quat(DQuat::from_axis_angle(
-                axis.normalize(),
-                degrees.to_radians(),
-            ))
+            * DAffine3::from_quat(DQuat::from_axis_angle(axis, degrees.to_radians()))
             * DAffine3::from_translation(-centre);
         self.apply(Edit {
             part,
@@ -395,22 +390,31 @@ impl Review {
     }
 
     /// One drag step: the dragged part at its start translated by `offset`
-    /// (world units); the tree is updated and collisions checked.
-    pub fn drag_to(&mut self, offset: DVec3) {
-        self.drag_by(DAffine3::from_translation(offset));
+    /// (world units); the tree is updated and collisions checked. A step out
+    /// of the world is refused (see [`Review::drag_by`]).
+    pub fn drag_to(&mut self, offset: DVec3) -> anyhow::Result<()> {
+        self.drag_by(DAffine3::from_translation(offset))
     }
 
     /// One drag step: the dragged part at `delta` applied (in world space) to
-    /// where the drag started.
-    pub fn drag_by(&mut self, delta: DAffine3) {
+    /// where the drag started. A step that would take the part out of the
+    /// world (±[`dmu_scene::MAX_WORLD_COORDINATE`], or not finite) is not
+    /// taken and is an error saying so: the part stays where the last step
+    /// left it (a drag by 1e300 did nothing, silently).
+    pub fn drag_by(&mut self, delta: DAffine3) -> anyhow::Result<()> {
         let Some(drag) = self.drag else {
-            return;
+            return Ok(());
         };
         let world = delta * drag.start;
-        // A step out of the world is not taken: the part stays where it was.
-        if self.scene.is_valid_world(drag.part, &world) {
-            self.place(drag.part, world);
-        }
+        anyhow::ensure!(
+            self.scene.is_valid_world(drag.part, &world),
+            "{}: the drag step by {} would take the part beyond ±{:e} model units; it stays where it was",
+            self.scene.part_name(drag.part),
+            dmu_geom::Short(world.translation - drag.start.translation),
+            dmu_scene::MAX_WORLD_COORDINATE
+        );
+        self.place(drag.part, world);
+        Ok(())
     }
 
     /// Ends the drag: what it did becomes one undoable edit.
@@ -502,7 +506,8 @@ mod tests {
         r.select(Some(part));
         assert!(r.begin_drag());
         for i in 1..=10 {
-            r.drag_to(DVec3::new(0.37 * f64::from(i), 0.0, 0.0));
+            r.drag_to(DVec3::new(0.37 * f64::from(i), 0.0, 0.0))
+                .unwrap();
         }
         r.end_drag();
         assert!(r.translate_selection(DVec3::new(0.0, 0.0, 100.0)).unwrap());
@@ -589,7 +594,12 @@ mod tests {
         assert_eq!(r.scene.part_world(part), far);
         assert_eq!(r.history(), (1, 0));
         r.begin_drag();
-        r.drag_to(DVec3::new(1e300, 0.0, 0.0));
+        // Issue 48: refused out loud (it did nothing, silently).
+        let err = r.drag_to(DVec3::new(1e300, 0.0, 0.0)).unwrap_err();
+        assert!(
+            err.to_string().contains("1e300") && err.to_string().len() < 200,
+            "{err}"
+        );
         assert_eq!(r.scene.part_world(part), far);
         r.end_drag();
         r.tree.validate_against(&r.scene).unwrap();

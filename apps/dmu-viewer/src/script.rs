@@ -43,7 +43,10 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
+use dmu_geom::Short;
 use dmu_render::Culling;
+use dmu_scene::MAX_WORLD_COORDINATE;
+use glam::DVec3;
 use serde::Deserialize;
 
 /// A world axis for constrained drags.
@@ -381,32 +384,15 @@ pub fn parse(text: &str) -> anyhow::Result<Vec<Action>> {
         "the script is an empty list: give at least one action (e.g. [{{\"frames\": 1}}])"
     );
     for (i, a) in actions.iter().enumerate() {
+        check_ranges(a).with_context(|| format!("action {i} ({})", a.name()))?;
         let finite = match a {
             Action::Pick(p) | Action::Hover(p) | Action::SectionFace(p) => {
                 p.iter().all(|v| v.is_finite())
             }
             Action::GizmoDrag(d) => d.from.iter().flatten().chain(&d.by).all(|v| v.is_finite()),
-            Action::Snap(s) => {
-                for v in [s.step, s.degrees].into_iter().flatten() {
-                    anyhow::ensure!(
-                        v.is_finite() && v >= 0.0,
-                        "action {i} (snap): {v} must be finite and not negative"
-                    );
-                }
-                true
-            }
-            Action::SectionPlane(p) => p.point.iter().chain(&p.normal).all(|v| v.is_finite()),
-            Action::SectionBox(b) => b.min.iter().chain(&b.max).all(|v| v.is_finite()),
             Action::Measure(m) => m.at.iter().flatten().all(|v| v.is_finite()),
             Action::SectionDrag(d) => d.by.iter().all(|v| v.is_finite()),
             Action::Rotate(r) => r.degrees.is_finite(),
-            Action::Camera(c) => {
-                anyhow::ensure!(
-                    c.forward.iter().any(|&v| v != 0.0),
-                    "action {i} (camera): the forward direction is zero"
-                );
-                c.eye.iter().chain(&c.forward).all(|v| v.is_finite())
-            }
             Action::Clearance(c) => {
                 anyhow::ensure!(
                     c.is_finite() && *c >= 0.0,
@@ -414,8 +400,6 @@ pub fn parse(text: &str) -> anyhow::Result<Vec<Action>> {
                 );
                 true
             }
-            Action::Move(d) => d.iter().all(|v| v.is_finite()),
-            Action::Drag(d) => d.by.iter().all(|v| v.is_finite()),
             Action::MouseDrag(d) => d.from.iter().chain(&d.to).all(|v| v.is_finite()),
             Action::Culling(c) => {
                 culling_from_name(c).with_context(|| format!("action {i}"))?;
@@ -443,6 +427,49 @@ pub fn parse(text: &str) -> anyhow::Result<Vec<Action>> {
     Ok(actions)
 }
 
+/// World positions and offsets within ±[`MAX_WORLD_COORDINATE`] (a drag by
+/// 1e300 was taken, then did nothing, silently), directions not zero, snap
+/// steps free (0) or in their ranges ([`crate::gizmo::Snap::check`]: a step
+/// of 1e-320 did nothing either). Pixel coordinates need only be finite.
+fn check_ranges(a: &Action) -> anyhow::Result<()> {
+    let world = |v: [f64; 3], what: &str| {
+        let v = DVec3::from_array(v);
+        anyhow::ensure!(
+            dmu_geom::is_within(v, MAX_WORLD_COORDINATE),
+            "{what} {} must be finite and within ±{MAX_WORLD_COORDINATE:e} model units",
+            Short(v)
+        );
+        Ok(())
+    };
+    let direction = |v: [f64; 3], what: &str| {
+        let v = DVec3::from_array(v);
+        anyhow::ensure!(
+            dmu_geom::unit_vector(v).is_some(),
+            "{what} {} must be finite and not zero",
+            Short(v)
+        );
+        Ok(())
+    };
+    match a {
+        Action::Move(by) => world(*by, "the offset"),
+        Action::Drag(d) => world(d.by, "the offset"),
+        Action::SectionPlane(p) => {
+            world(p.point, "the point")?;
+            direction(p.normal, "the normal")
+        }
+        Action::SectionBox(b) => {
+            world(b.min, "min")?;
+            world(b.max, "max")
+        }
+        Action::Camera(c) => {
+            world(c.eye, "the eye")?;
+            direction(c.forward, "the forward direction")
+        }
+        Action::Snap(s) => crate::gizmo::Snap::check(s.step, s.degrees),
+        _ => Ok(()),
+    }
+}
+
 /// The culling mode called `none`, `frustum`, `chc` or `hzb`.
 pub fn culling_from_name(name: &str) -> anyhow::Result<Culling> {
     name.parse().map_err(anyhow::Error::msg)
@@ -460,6 +487,50 @@ pub fn read(path: &Path) -> anyhow::Result<Vec<Action>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Issue 48: a drag by 1e300 and a snap step of 1e-320 were taken and
+    /// then did nothing, silently; section boxes and cameras beyond ±1e15
+    /// were taken and then exported to BCF files the reader refuses; a plane
+    /// normal of length 1e300 panicked. Each is refused here, in one short
+    /// line naming the action, and a huge normal is a direction.
+    #[test]
+    fn issue_48_world_vectors_and_snap_steps_are_in_range() {
+        for (script, names) in [
+            (r#"[{"drag": {"by": [1e300, 0, 0]}}]"#, "action 0 (drag)"),
+            (r#"[{"move": [0, -2e15, 0]}]"#, "action 0 (move)"),
+            (r#"[{"snap": {"step": 1e-320}}]"#, "action 0 (snap)"),
+            (r#"[{"snap": {"degrees": 1e300}}]"#, "action 0 (snap)"),
+            (
+                r#"[{"frames": 1}, {"section_box": {"min": [-1e16, 0, 0], "max": [1, 1, 1]}}]"#,
+                "action 1 (section_box)",
+            ),
+            (
+                r#"[{"section_plane": {"point": [0, 0, 1e300], "normal": [0, 0, 1]}}]"#,
+                "action 0 (section_plane)",
+            ),
+            (
+                r#"[{"section_plane": {"point": [0, 0, 0], "normal": [0, 0, 0]}}]"#,
+                "action 0 (section_plane)",
+            ),
+        ] {
+            let err = format!("{:#}", parse(script).unwrap_err());
+            assert!(err.starts_with(names), "{script}: {err}");
+            assert!(
+                err.len() < 200 && !err.contains("00000000000"),
+                "{script}: a short message: {err}"
+            );
+        }
+        for fine in [
+            r#"[{"section_plane": {"point": [0, 0, 1e15], "normal": [1e300, 0, 0]}}]"#,
+            r#"[{"snap": {"step": 0, "degrees": 0}}]"#,
+            r#"[{"snap": {"step": 0.5, "degrees": 15}}]"#,
+            r#"[{"drag": {"by": [1e14, 0, 0]}}]"#,
+        ] {
+            parse(fine).unwrap_or_else(|e| panic!("{fine}: {e:#}"));
+        }
+        assert_eq!(crate::gizmo::snap_to(12.0, 1e-320), 12.0);
+        assert_eq!(crate::gizmo::snap_to(12.0, 5.0), 10.0);
+    }
 
     /// An empty script is refused (the viewer waited for actions forever), a
     /// byte-order mark is skipped, and frame counts have a limit.
@@ -536,7 +607,7 @@ mod tests {
         assert!(parse(r#"[{"gizmo_drag": {"handle": "w", "by": [1, 2]}}]"#).is_err());
         assert!(parse(r#"[{"measure": {"mode": "volume", "at": [[1, 2], [3, 4]]}}]"#).is_err());
         let zero = r#"[{"camera": {"eye": [1, 2, 3], "forward": [0, 0, 0]}}]"#;
-        assert!(parse(zero).unwrap_err().to_string().contains("zero"));
+        assert!(format!("{:#}", parse(zero).unwrap_err()).contains("zero"));
         assert!(parse(r#"[{"camera": {"eye": [1, 2], "forward": [1, 0, 0]}}]"#).is_err());
     }
 

@@ -3,8 +3,10 @@
 //! point to); the renderer cuts and caps with them and culls what they cut
 //! away wholly, and picks see through what is cut away.
 
-use dmu_geom::{Aabb3d, Plane};
+use anyhow::Context as _;
+use dmu_geom::{Aabb3d, Plane, Short};
 use dmu_render::MAX_SECTION_PLANES;
+use dmu_scene::MAX_WORLD_COORDINATE;
 use glam::DVec3;
 
 /// What cuts the model open.
@@ -36,14 +38,21 @@ impl Section {
     }
 
     /// Adds a plane (a box gives way to the plane alone). Refused beyond
-    /// [`MAX_SECTION_PLANES`] planes or for a normal that is zero or not
-    /// finite, or a point that is not finite.
+    /// [`MAX_SECTION_PLANES`] planes, for a normal that is zero or not
+    /// finite (any finite length is one: `[1e300, 0, 0]` faces `+X`), or a
+    /// point outside the world (±[`MAX_WORLD_COORDINATE`]), which a BCF
+    /// file could not hold.
     pub fn add_plane(&mut self, point: DVec3, normal: DVec3) -> anyhow::Result<()> {
-        anyhow::ensure!(
-            point.is_finite() && normal.is_finite() && normal.length_squared() > 0.0,
-            "section plane through {point} with normal {normal}: both must be finite and the normal not zero"
-        );
-        let plane = Plane::from_point_normal(point, normal);
+        let plane = dmu_geom::is_within(point, MAX_WORLD_COORDINATE)
+            .then(|| Plane::try_from_point_normal(point, normal))
+            .flatten()
+            .with_context(|| {
+                format!(
+                    "section plane through {} with normal {}: the point must be within ±{MAX_WORLD_COORDINATE:e} and the normal finite and not zero",
+                    Short(point),
+                    Short(normal)
+                )
+            })?;
         match self {
             Self::Planes(p) => {
                 anyhow::ensure!(
@@ -57,11 +66,16 @@ impl Section {
         Ok(())
     }
 
-    /// A section box; refused when it is empty or not finite.
+    /// A section box; refused when it is empty, or not within the world
+    /// (±[`MAX_WORLD_COORDINATE`]), which a BCF file could not hold.
     pub fn set_box(&mut self, min: DVec3, max: DVec3) -> anyhow::Result<()> {
         anyhow::ensure!(
-            min.is_finite() && max.is_finite() && min.cmplt(max).all(),
-            "section box {min} .. {max}: min must be below max on every axis, both finite"
+            dmu_geom::is_within(min, MAX_WORLD_COORDINATE)
+                && dmu_geom::is_within(max, MAX_WORLD_COORDINATE)
+                && min.cmplt(max).all(),
+            "section box {} .. {}: min must be below max on every axis, both within ±{MAX_WORLD_COORDINATE:e}",
+            Short(min),
+            Short(max)
         );
         *self = Self::Box(Aabb3d::new(min, max));
         Ok(())
@@ -91,22 +105,25 @@ impl Section {
     }
 
     /// This section with handle `index` ([`Section::handles`]) slid by `by`
-    /// along its direction (a box face stops at the opposite face).
+    /// along its direction (a box face stops at the opposite face, and
+    /// anything at the world's edge, ±[`MAX_WORLD_COORDINATE`]).
     pub fn slid(&self, index: usize, by: f64) -> Self {
         let mut out = self.clone();
         match &mut out {
             Self::Off => {}
+            // Kept within the world, as every section is (a BCF file holds it).
             Self::Planes(p) => {
                 if let Some(pl) = p.get_mut(index) {
-                    pl.d -= by;
+                    pl.d = (pl.d - by).clamp(-MAX_WORLD_COORDINATE, MAX_WORLD_COORDINATE);
                 }
             }
             Self::Box(b) => {
                 let axis = index / 2;
+                let world = |x: f64| x.clamp(-MAX_WORLD_COORDINATE, MAX_WORLD_COORDINATE);
                 if index.is_multiple_of(2) {
-                    b.min[axis] = (b.min[axis] - by).min(b.max[axis]);
+                    b.min[axis] = world(b.min[axis] - by).min(b.max[axis]);
                 } else {
-                    b.max[axis] = (b.max[axis] + by).max(b.min[axis]);
+                    b.max[axis] = world(b.max[axis] + by).max(b.min[axis]);
                 }
             }
         }
@@ -147,7 +164,7 @@ impl Section {
         match self {
             Self::Off => "no section".to_owned(),
             Self::Planes(p) => format!("{} section plane(s)", p.len()),
-            Self::Box(b) => format!("section box {} .. {}", b.min, b.max),
+            Self::Box(b) => format!("section box {} .. {}", Short(b.min), Short(b.max)),
         }
     }
 }
@@ -171,6 +188,46 @@ pub fn box_planes(b: &Aabb3d) -> [Plane; 6] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Issue 48: a normal of `[1e300, 0, 0]` passed the old check (its
+    /// squared length is infinite, so "greater than zero") and panicked in
+    /// `Plane::from_point_normal`; boxes and planes beyond ±1e15 were kept and
+    /// exported to BCF files the reader refuses.
+    #[test]
+    fn issue_48_sections_are_finite_and_in_the_world() {
+        let mut s = Section::Off;
+        s.add_plane(DVec3::new(0.0, 0.0, 2.0), DVec3::new(1e300, 0.0, 0.0))
+            .unwrap();
+        assert_eq!(s.planes()[0].normal, DVec3::X);
+        s.add_plane(DVec3::ZERO, DVec3::new(0.0, 1e-320, 0.0))
+            .unwrap();
+        assert_eq!(s.planes()[1].normal, DVec3::Y);
+        for (point, normal) in [
+            (DVec3::ZERO, DVec3::ZERO),
+            (DVec3::ZERO, DVec3::new(f64::INFINITY, 0.0, 0.0)),
+            (DVec3::new(2e15, 0.0, 0.0), DVec3::X),
+            (DVec3::new(f64::NAN, 0.0, 0.0), DVec3::X),
+        ] {
+            let err = s.add_plane(point, normal).unwrap_err().to_string();
+            assert!(err.len() < 200, "a short message: {err}");
+        }
+        assert_eq!(s.planes().len(), 2, "refusals change nothing");
+        let err = s
+            .set_box(DVec3::splat(-1e300), DVec3::splat(1.0))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("-1e300") && err.len() < 200, "{err}");
+        s.set_box(DVec3::splat(-1.0), DVec3::splat(1.0)).unwrap();
+        for i in 0..6 {
+            for by in [1e300, -1e300] {
+                let b = s.slid(i, by).planes();
+                assert!(b.iter().all(|p| p.d.abs() <= MAX_WORLD_COORDINATE), "{b:?}");
+            }
+        }
+        let mut p = Section::Off;
+        p.add_plane(DVec3::ZERO, DVec3::Z).unwrap();
+        assert_eq!(p.slid(0, 1e300).planes()[0].d, -MAX_WORLD_COORDINATE);
+    }
 
     /// A box keeps exactly the points inside it (faces included).
     #[test]

@@ -2,6 +2,7 @@
 //! what they draw over the 3D view (the gizmo, section planes and box, the
 //! measurement).
 
+use dmu_scene::MAX_WORLD_COORDINATE;
 use egui::{Color32, Pos2, Rect, Stroke};
 use glam::{DMat4, DVec2, DVec3};
 use serde_json::{Value, json};
@@ -157,7 +158,12 @@ fn section_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) {
                         crate::ui::vec_text(p.normal)
                     ));
                     // d moves the plane along its normal: drag to slide it.
-                    ui.add(egui::DragValue::new(&mut p.d).speed(step).prefix("d "));
+                    ui.add(
+                        egui::DragValue::new(&mut p.d)
+                            .speed(step)
+                            .range(-MAX_WORLD_COORDINATE..=MAX_WORLD_COORDINATE)
+                            .prefix("d "),
+                    );
                     if ui.small_button("x").clicked() {
                         remove = Some(i);
                     }
@@ -175,7 +181,11 @@ fn section_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) {
                 ui.horizontal(|ui| {
                     ui.label(label);
                     for c in 0..3 {
-                        ui.add(egui::DragValue::new(&mut corner[c]).speed(step));
+                        ui.add(
+                            egui::DragValue::new(&mut corner[c])
+                                .speed(step)
+                                .range(-MAX_WORLD_COORDINATE..=MAX_WORLD_COORDINATE),
+                        );
                     }
                 });
             }

@@ -635,7 +635,7 @@ fn properties_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review)
                 .on_hover_text("arrows move along an axis, squares in a plane, rings turn");
             ui.add(
                 egui::DragValue::new(&mut state.snap)
-                    .range(0.0..=f64::MAX)
+                    .range(0.0..=*crate::gizmo::Snap::STEPS.end())
                     .prefix("snap ")
                     .suffix(" mm"),
             );

@@ -571,6 +571,9 @@ fn log_event(log: &mut Log, session: &XrSession, review: &Review, frame: u64, ev
                     "offset": offset.to_array() })
         }
         Event::Undo { part } => json!({ "event": "undo", "part": part.map(name) }),
+        Event::Refused { hand, reason } => {
+            json!({ "event": "refused", "hand": hand.as_str(), "reason": reason })
+        }
         Event::HardClash { hand, part, other } => {
             let result = session.haptic_pulse(hand, CLASH_PULSE_S, CLASH_PULSE_AMPLITUDE);
             let pulse = json!({

@@ -67,7 +67,7 @@ struct Grab {
 }
 
 /// What happened in a frame, for the report and the runtime.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum Event {
     /// The trigger grabbed a part.
     Grab {
@@ -93,6 +93,14 @@ pub enum Event {
         part: PartId,
         /// What it clashes with.
         other: PartId,
+    },
+    /// The grabbed part did not follow the hand: the step would have taken
+    /// it out of the world (the reason says where).
+    Refused {
+        /// The grabbing hand.
+        hand: Hand,
+        /// Why, in one line.
+        reason: String,
     },
     /// The undo button undid an edit of `part` (`None`: nothing to undo).
     Undo {
@@ -147,7 +155,12 @@ impl Interaction {
             && let Some(ray) = aim_ray(grab.hand)
         {
             grab.offset = ray.origin - grab.start;
-            review.drag_to(grab.offset);
+            if let Err(e) = review.drag_to(grab.offset) {
+                events.push(Event::Refused {
+                    hand: grab.hand,
+                    reason: format!("{e:#}"),
+                });
+            }
             let hard = review
                 .report
                 .clashes

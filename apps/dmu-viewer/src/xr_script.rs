@@ -199,24 +199,25 @@ pub fn parse(text: &str) -> anyhow::Result<XrScript> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let script: XrScript = serde_json::from_str(text)?;
     let world = dmu_scene::MAX_WORLD_COORDINATE;
-    let in_world = |p: &[f64; 3]| p.iter().all(|v| v.is_finite() && v.abs() <= world);
+    let in_world = |p: &[f64; 3]| dmu_geom::is_within(glam::DVec3::from_array(*p), world);
     if let Some(o) = &script.origin {
         anyhow::ensure!(
             in_world(o),
-            "origin {o:?}: coordinates must be finite and within ±{world:e}"
+            "origin {}: coordinates must be finite and within ±{world:e}",
+            dmu_geom::Short(*o)
         );
     }
     anyhow::ensure!(
         script.heading_deg.is_finite(),
         "heading_deg: {} must be finite",
-        script.heading_deg
+        dmu_geom::Short(script.heading_deg)
     );
     anyhow::ensure!(
         script.units_per_metre.is_finite()
             && script.units_per_metre > 0.0
             && script.units_per_metre <= 1e9,
         "units_per_metre: {} must be in (0, 1e9]",
-        script.units_per_metre
+        dmu_geom::Short(script.units_per_metre)
     );
     for (i, a) in script.actions.iter().enumerate() {
         let ok = match a {

@@ -6,6 +6,7 @@ mod far_field;
 mod fuzz_replay;
 #[path = "../../../fuzz/bodies/script_parse.rs"]
 mod fuzz_script_parse;
+mod kill;
 mod review_tools;
 mod session;
 mod support;

@@ -4,7 +4,9 @@
 use std::path::PathBuf;
 
 use dmu_app::bcf::{Camera, Component, Projection, Topic, Viewpoint, read_bcfzip};
+use dmu_app::text::{MESSAGE_CHARS, printable};
 use dmu_app::units::LengthUnit;
+use dmu_geom::Short;
 use glam::DVec3;
 use serde_json::{Value, json};
 
@@ -52,22 +54,30 @@ fn run_show(args: &ShowArgs) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&out)?);
         return Ok(());
     }
-    println!("{}: {} topics", args.file.display(), topics.len());
+    // Every line is escaped as a whole: titles, names and GUIDs are the
+    // file's text, which must neither reach the terminal as control codes
+    // nor start lines of their own.
+    let line = |text: String| println!("{}", printable(&text, MESSAGE_CHARS));
+    line(format!("{}: {} topics", args.file.display(), topics.len()));
     for t in &topics {
         let state: Vec<&str> = [t.topic_type.as_str(), t.topic_status.as_str()]
             .into_iter()
             .filter(|s| !s.is_empty())
             .collect();
-        println!(
+        line(format!(
             "{} {} [{}] by {} on {}",
             t.guid,
             t.title,
             state.join(", "),
             t.author,
             t.creation_date
-        );
+        ));
         for v in &t.viewpoints {
-            println!("  viewpoint {}: {}", v.guid, viewpoint_line(v, args.unit));
+            line(format!(
+                "  viewpoint {}: {}",
+                v.guid,
+                viewpoint_line(v, args.unit)
+            ));
         }
     }
     Ok(())
@@ -173,7 +183,7 @@ fn viewpoint_line(v: &Viewpoint, unit: LengthUnit) -> String {
         let projection = match c.projection {
             Projection::Perspective { fov_y_deg } => format!("fov {fov_y_deg:.1}°"),
             Projection::Orthogonal { view_height } => {
-                format!("orthogonal, {view_height} {} high", unit.name())
+                format!("orthogonal, {} {} high", Short(view_height), unit.name())
             }
         };
         parts.push(format!(

@@ -129,6 +129,7 @@ fn bench_tree(args: &TreeArgs) -> anyhow::Result<()> {
         plant_triangles: args.triangles,
     };
     let mut loaded = load(&model)?;
+    loaded.require_triangles("benchmark")?;
     let scene = &mut loaded.scene;
     let options = TreeOptions {
         cell_triangles: args.cell_triangles,

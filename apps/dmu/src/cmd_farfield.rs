@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use anyhow::Context as _;
-use dmu_app::far_fields::{BuildOptions, all_cells, build, cells_along};
+use dmu_app::far_fields::{BuildOptions, all_cells, build, cells_along, max_cells};
 use dmu_app::units::number_in;
 use dmu_render::{FAR_FIELD_RESOLUTIONS, FarFieldOptions, Renderer, RendererOptions};
 use dmu_store::Store;
@@ -82,6 +82,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let scene = store
         .load_scene()
         .with_context(|| format!("loading {}", args.file.display()))?;
+    anyhow::ensure!(
+        scene.triangle_count() > 0,
+        "{}: the model has no triangles: no far field to build",
+        args.file.display()
+    );
     let tree = Tree::build(&scene, TreeOptions::default());
     let cell_size = args
         .cell_size
@@ -90,7 +95,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         let path = crate::cmd_walk::camera_path(args.path.as_deref(), args.fps, args.range, &tree)?;
         cells_along(&tree, cell_size, path.iter().map(|f| f.eye))
     } else {
-        all_cells(&tree, cell_size)
+        // Where the kernel does not say, 4 GiB is taken to be there.
+        let memory = dmu_app::progress::available_memory_bytes().unwrap_or(4 << 30);
+        all_cells(&tree, cell_size, max_cells(memory, args.resolution))?
     };
     let (device, queue, adapter) = dmu_render::headless_device().context("opening a GPU device")?;
     let mut renderer = Renderer::new(

@@ -278,11 +278,17 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         bail!("--eye and --target must differ");
     }
     if !(args.fov > 0.0 && args.fov < 180.0) {
-        bail!("--fov {}: must be in (0, 180) degrees", args.fov);
+        bail!(
+            "--fov {}: must be in (0, 180) degrees",
+            dmu_geom::Short(args.fov)
+        );
     }
     let culling: Culling = args.culling.parse().map_err(anyhow::Error::msg)?;
     if args.stereo && !(args.ipd >= 0.0 && args.ipd.is_finite()) {
-        bail!("--ipd {}: must be finite and not negative", args.ipd);
+        bail!(
+            "--ipd {}: must be finite and not negative",
+            dmu_geom::Short(args.ipd)
+        );
     }
     let eye_fovs = args
         .eye_fov

@@ -59,6 +59,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         plant_triangles: scale.plant_triangles,
     };
     let loaded = load(&model_args)?;
+    loaded.require_triangles("measure")?;
     let model = match &loaded.source {
         Some(p) => p.display().to_string(),
         None => format!(

@@ -67,7 +67,7 @@ pub fn first_clashes(findings: &[Finding<'_>]) -> Vec<PairClash> {
                 pairs.push(PairClash {
                     a_id: f.a_id,
                     b_id: f.b_id,
-                    kind: f.kind,
+                    kind: f.kind.as_str(),
                     step: f.step,
                     t: f.t,
                     distance: f.distance,
@@ -303,7 +303,7 @@ fn topic(
         viewpoints: vec![Viewpoint {
             camera: Some(bcf::Camera::perspective(&camera)),
             selected: vec![Component::part(a), Component::part(b)],
-            snapshot,
+            snapshot: snapshot.map(Into::into),
             ..Viewpoint::new()
         }],
         ..Topic::new(title, "dmu collide")

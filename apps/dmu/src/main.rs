@@ -95,7 +95,12 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("dmu: error: {e:#}");
+            // One line, whatever the file or flag it quotes held.
+            let message = format!("{e:#}");
+            eprintln!(
+                "dmu: error: {}",
+                dmu_app::text::printable(&message, dmu_app::text::MESSAGE_CHARS)
+            );
             ExitCode::from(2)
         }
     }

@@ -243,3 +243,74 @@ fn bcf_show_refuses_hostile_files_in_one_line() {
         );
     }
 }
+
+/// A zip of `(name, bytes)` entries, stored.
+fn zip_of(entries: &[(&str, &[u8])]) -> Vec<u8> {
+    use std::io::Write as _;
+    let mut zip = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+    for (name, bytes) in entries {
+        zip.start_file(*name, zip::write::SimpleFileOptions::default())
+            .unwrap();
+        zip.write_all(bytes).unwrap();
+    }
+    zip.finish().unwrap().into_inner()
+}
+
+/// Issue 48: `dmu bcf show` printed untrusted titles raw (terminal escape
+/// codes, and a newline that forged a `dmu: error:` line), and a NUL byte of
+/// an entry name reached the terminal through the error. Both are escaped:
+/// nothing the file holds becomes a control character on the terminal or a
+/// line of its own.
+#[test]
+fn issue_48_bcf_show_escapes_what_the_file_says() {
+    let dir = tempfile::tempdir().unwrap();
+    let markup = "<Markup><Topic Guid=\"t1\"><Title>pump&#10;dmu: error: forged \u{9b}2J \u{202e}x</Title>\
+        <CreationAuthor>a&#13;b&#9;c</CreationAuthor></Topic></Markup>";
+    let file = path(dir.path(), "hostile.bcfzip");
+    std::fs::write(
+        &file,
+        zip_of(&[
+            ("bcf.version", br#"<Version VersionId="2.1"/>"#),
+            ("t1/markup.bcf", markup.as_bytes()),
+        ]),
+    )
+    .unwrap();
+    let out = dmu(&["bcf", "show", &file]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(
+        text.lines().count(),
+        2,
+        "a line for the file, one for the topic:\n{text}"
+    );
+    assert!(
+        !text.lines().any(|l| l.starts_with("dmu: error")),
+        "a forged line:\n{text}"
+    );
+    assert!(
+        !text.chars().any(|c| c.is_control() && c != '\n'),
+        "a control character reached the terminal:\n{text:?}"
+    );
+    assert!(
+        text.contains("pump\\ndmu: error: forged \\u{9b}2J \\u{202e}x"),
+        "{text}"
+    );
+    // The JSON keeps the text as it is (JSON escapes it itself).
+    let v = json(&dmu(&["bcf", "show", &file, "--json"]));
+    assert_eq!(v["topics"][0]["author"], "a\rb\tc");
+
+    let nul = path(dir.path(), "nul.bcfzip");
+    std::fs::write(&nul, zip_of(&[("t1/mark\0up.bcf", b"<Markup/>")])).unwrap();
+    let out = dmu(&["bcf", "show", &nul]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(err.lines().count(), 1, "{err:?}");
+    assert!(
+        !err.contains('\0') && err.contains("mark\\0up.bcf"),
+        "{err:?}"
+    );
+}

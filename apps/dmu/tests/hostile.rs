@@ -636,3 +636,93 @@ fn a_streamed_import_names_the_broken_element() {
     let file = write_gltf(dir.path(), "good.gltf", &good);
     json(&dmu(&["import", &file, "-o", &store, "--json"]));
 }
+
+/// Issue 48: an empty glTF (no nodes) panicked `dmu tradeoffs`, `dmu
+/// farfield build` (a near plane of infinity) and `dmu bench tree`
+/// (`below(0)`). Every command on it answers or refuses in one line, exit 0
+/// or 2, never a panic; those that need triangles say so.
+#[test]
+fn issue_48_an_empty_model_is_refused_where_triangles_are_needed() {
+    let dir = tempfile::tempdir().unwrap();
+    let empty = write_gltf(
+        dir.path(),
+        "empty.gltf",
+        &json!({"asset": {"version": "2.0"}}),
+    );
+    let store = path(dir.path(), "empty.dmu");
+    json(&dmu(&["import", &empty, "-o", &store]));
+    let out_dir = path(dir.path(), "tradeoffs");
+    for (args, needs) in [
+        (
+            vec!["tradeoffs", &empty, "--quick", "--out", &out_dir],
+            true,
+        ),
+        (vec!["bench", "tree", "--file", &empty], true),
+        (vec!["farfield", "build", &store], true),
+        (vec!["info", &store], false),
+        (vec!["pick", &empty, "--ray", "0,0,0,1,0,0"], false),
+    ] {
+        let out = dmu(&args);
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        if needs {
+            let err = refused(&out, "no triangles");
+            assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+        } else {
+            assert!(
+                out.status.code() == Some(0) || out.status.code() == Some(2),
+                "{args:?}: {:?} {err}",
+                out.status
+            );
+        }
+    }
+}
+
+/// Issue 48: `dmu farfield build --cell-size` within its documented range
+/// listed every grid cell with no cap (7.5 GB in 15 s at 1e-9): refused at
+/// once, saying which cell size would do.
+#[test]
+fn issue_48_a_tiny_far_field_cell_is_refused_at_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = super::generated_plant(dir.path(), "10k");
+    let started = std::time::Instant::now();
+    let out = dmu(&["farfield", "build", &store, "--cell-size", "1e-9"]);
+    let err = refused(&out, "larger cell size");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(started.elapsed().as_secs() < 60, "{:?}", started.elapsed());
+}
+
+/// Issue 48: errors printed numbers in full (`1e300` as 301 digits); every
+/// number in a message has at most six significant digits.
+#[test]
+fn issue_48_numbers_in_errors_are_short() {
+    let dir = tempfile::tempdir().unwrap();
+    let grid = grid(dir.path(), 2, "grid.glb");
+    let record = path(dir.path(), "far.jsonl");
+    std::fs::write(
+        &record,
+        "{\"t\": 0, \"part\": \"box_0_0_0\", \"translation\": [0, 0, 0], \"rotation\": [1e300, 0, 0, 1]}\n",
+    )
+    .unwrap();
+    for args in [
+        vec!["collide", &grid, "--record", &record],
+        vec![
+            "collide",
+            &grid,
+            "--record",
+            &record,
+            "--clearance",
+            "1e300",
+        ],
+    ] {
+        let out = dmu(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        let digits = err
+            .split(|c: char| !c.is_ascii_digit())
+            .map(str::len)
+            .max()
+            .unwrap_or(0);
+        assert!(digits <= 12, "{args:?}: a {digits}-digit number: {err}");
+    }
+}

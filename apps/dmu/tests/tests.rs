@@ -6,6 +6,7 @@ mod collide;
 mod explain;
 mod far_field;
 mod hostile;
+mod kill;
 mod pick_rays;
 mod stereo_far;
 mod tradeoffs;

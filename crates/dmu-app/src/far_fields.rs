@@ -22,7 +22,7 @@ use std::sync::mpsc::{Receiver, Sender, channel};
 use std::sync::{Arc, Mutex};
 
 use anyhow::{Context as _, bail};
-use dmu_geom::Aabb3d;
+use dmu_geom::{Aabb3d, Short};
 use dmu_render::{FarField, FarFieldOptions};
 use dmu_scene::Scene;
 use dmu_store::Store;
@@ -518,18 +518,46 @@ pub fn cells_along(
         .collect()
 }
 
-/// Every cell of the grid over `tree`'s bounds.
-pub fn all_cells(tree: &Tree, cell_size: f64) -> Vec<[i64; 3]> {
-    let n = (tree.bounds().extent() / cell_size).ceil();
-    let mut cells = Vec::new();
-    for z in 0..n.z.max(1.0) as i64 {
-        for y in 0..n.y.max(1.0) as i64 {
-            for x in 0..n.x.max(1.0) as i64 {
+/// Bytes a cell's far field is taken to hold while a build keeps it (every
+/// encoded far field is held until the store is written): an eighth of a
+/// byte per face pixel, below the 247-267 kB measured at 512 px faces
+/// (docs/measurements.md, "Far fields"), so the cap errs towards allowing.
+pub fn far_field_bytes_estimate(resolution: u32) -> u64 {
+    (6 * u64::from(resolution).pow(2) / 8).max(4096)
+}
+
+/// Most cells a build may list with `memory_bytes` to hold their far fields
+/// of `resolution` pixels a face ([`far_field_bytes_estimate`]).
+pub fn max_cells(memory_bytes: u64, resolution: u32) -> u64 {
+    (memory_bytes / far_field_bytes_estimate(resolution)).max(1)
+}
+
+/// Every cell of the grid over `tree`'s bounds; refused, before anything is
+/// listed, when there are more than `max_cells` of them ([`max_cells`]): a
+/// `--cell-size` of 1e-9 listed cells until 7.5 GB were used.
+pub fn all_cells(tree: &Tree, cell_size: f64, max_cells: u64) -> anyhow::Result<Vec<[i64; 3]>> {
+    let n = (tree.bounds().extent() / cell_size).ceil().max(DVec3::ONE);
+    // In f64, which neither overflows nor wraps (n is finite: cell_size > 0).
+    let count = n.x * n.y * n.z;
+    anyhow::ensure!(
+        count <= max_cells as f64,
+        "cells {} wide give {} far fields ({} x {} x {}), more than the {max_cells} the memory there is holds while they are built; give a larger cell size (at least {})",
+        Short(cell_size),
+        Short(count),
+        Short(n.x),
+        Short(n.y),
+        Short(n.z),
+        Short(cell_size * (count / max_cells as f64).cbrt() * (1.0 + 1e-6))
+    );
+    let mut cells = Vec::with_capacity(count as usize);
+    for z in 0..n.z as i64 {
+        for y in 0..n.y as i64 {
+            for x in 0..n.x as i64 {
                 cells.push([x, y, z]);
             }
         }
     }
-    cells
+    Ok(cells)
 }
 
 /// The box of the cell at grid coordinates `g` (as [`cells_along`] and
@@ -611,6 +639,31 @@ pub fn build(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Issue 48: `dmu farfield build --cell-size 1e-9` listed every grid
+    /// cell with no cap (7.5 GB in 15 s). The count is now checked in f64
+    /// before anything is listed, against the cells whose far fields fit.
+    #[test]
+    fn issue_48_the_grid_is_capped_before_it_is_listed() {
+        let scene = dmu_samples::grid(2, 10.0, 4.0, 64);
+        let tree = Tree::build(&scene, Default::default());
+        let extent = tree.bounds().extent();
+        let cells = all_cells(&tree, extent.max_element() / 2.0, 1_000).unwrap();
+        let n = (extent / (extent.max_element() / 2.0))
+            .ceil()
+            .max(DVec3::ONE);
+        assert_eq!(cells.len() as f64, n.x * n.y * n.z, "every cell, once");
+        let err = all_cells(&tree, 1e-9, max_cells(8 << 30, 512))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("larger cell size") && err.len() < 300, "{err}");
+        // At the cap exactly: allowed.
+        let at_cap = cells.len() as u64;
+        assert!(all_cells(&tree, extent.max_element() / 2.0, at_cap).is_ok());
+        assert!(all_cells(&tree, extent.max_element() / 2.0, at_cap - 1).is_err());
+        // 8 GiB hold tens of thousands of 512 px far fields, not billions.
+        assert!((10_000..100_000).contains(&max_cells(8 << 30, 512)));
+    }
 
     /// A far field of the grid cell `cell` showing `seen`: blank images, no
     /// meshes (enough for the set's bookkeeping; no GPU needed).

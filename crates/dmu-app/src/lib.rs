@@ -36,6 +36,7 @@ pub mod hits;
 pub mod load;
 pub mod progress;
 pub mod resident;
+pub mod text;
 pub mod units;
 
 /// Turns off Mesa's device-select Vulkan layer unless the user set it up: the

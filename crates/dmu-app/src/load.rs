@@ -19,6 +19,24 @@ pub struct Loaded {
     pub load_ms: f64,
 }
 
+impl Loaded {
+    /// Refuses a model with no triangles for work that needs some (sweeps,
+    /// far fields, benchmarks): an empty glTF (no nodes) panicked in each of
+    /// them, on a sample drawn from nothing or a view of nothing.
+    pub fn require_triangles(&self, work: &str) -> anyhow::Result<()> {
+        anyhow::ensure!(
+            self.scene.triangle_count() > 0,
+            "{}: the model has no triangles ({} parts): nothing to {work}",
+            self.source.as_ref().map_or_else(
+                || "the built-in plant".to_owned(),
+                |p| p.display().to_string()
+            ),
+            self.scene.parts().len()
+        );
+        Ok(())
+    }
+}
+
 /// Shared clap arguments for commands that open a model.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ModelArgs {

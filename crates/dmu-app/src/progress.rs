@@ -42,12 +42,23 @@ pub fn rss_bytes() -> Option<u64> {
     status_bytes("VmRSS:")
 }
 
+/// The memory the system can give without swapping, in bytes (Linux
+/// `MemAvailable`), or `None` where the kernel does not report it.
+pub fn available_memory_bytes() -> Option<u64> {
+    kib_line("/proc/meminfo", "MemAvailable:")
+}
+
 /// A `/proc/self/status` line in KiB, as bytes.
 fn status_bytes(key: &str) -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with(key))?;
+    kib_line("/proc/self/status", key)
+}
+
+/// The line of `file` starting with `key`, its number in KiB, as bytes.
+fn kib_line(file: &str, key: &str) -> Option<u64> {
+    let text = std::fs::read_to_string(file).ok()?;
+    let line = text.lines().find(|l| l.starts_with(key))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024)
+    kib.checked_mul(1024)
 }
 
 /// Makes the proxies of every subtree of `tree` (`dmu_render::Proxies`) from

@@ -80,7 +80,11 @@ pub fn number_in(
             .parse()
             .with_context(|| format!("{s:?} is not a number"))?;
         if !(v.is_finite() && (min..=max).contains(&v)) {
-            bail!("{s:?} is out of range: give a number from {min} to {max}");
+            bail!(
+                "{s:?} is out of range: give a number from {} to {}",
+                dmu_geom::Short(min),
+                dmu_geom::Short(max)
+            );
         }
         Ok(v)
     }

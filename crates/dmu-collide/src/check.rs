@@ -113,11 +113,7 @@ pub enum ClashKind {
 impl ClashKind {
     /// `hard`, `contact` or `soft`.
     pub fn as_str(self) -> &'static str {
-        match self {
-            Self::Hard => "hard",
-            Self::Contact => "contact",
-            Self::Soft => "soft",
-        }
+        crate::FindingKind::from(self).as_str()
     }
 }
 

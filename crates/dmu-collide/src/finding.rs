@@ -1,8 +1,55 @@
 //! A replayed step's clashes and impacts, flat and named, as reports print them.
 
-use serde::Serialize;
+use std::fmt;
 
-use crate::StepOutcome;
+use serde::{Deserialize, Serialize};
+
+use crate::{ClashKind, StepOutcome};
+
+/// What a finding is: a clash of one of [`ClashKind`]'s kinds, or an impact
+/// found by a sweep. Written and read as `hard`, `contact`, `soft`,
+/// `impact` (the one place these names are spelled); a report with any other
+/// kind is refused when read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FindingKind {
+    /// The parts interpenetrate.
+    Hard,
+    /// The surfaces touch without penetrating.
+    Contact,
+    /// Apart, but closer than the clearance.
+    Soft,
+    /// A swept move hits the other part on the way.
+    Impact,
+}
+
+impl FindingKind {
+    /// `hard`, `contact`, `soft` or `impact`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Hard => "hard",
+            Self::Contact => "contact",
+            Self::Soft => "soft",
+            Self::Impact => "impact",
+        }
+    }
+}
+
+impl From<ClashKind> for FindingKind {
+    fn from(kind: ClashKind) -> Self {
+        match kind {
+            ClashKind::Hard => Self::Hard,
+            ClashKind::Contact => Self::Contact,
+            ClashKind::Soft => Self::Soft,
+        }
+    }
+}
+
+impl fmt::Display for FindingKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
 
 /// One clash or impact of a replayed step with everything a report needs: the
 /// one definition of the fields of `dmu collide --json` and of the Python
@@ -13,8 +60,8 @@ pub struct Finding<'a> {
     pub step: usize,
     /// The step's time.
     pub t: f64,
-    /// `hard`, `contact`, `soft` or `impact`.
-    pub kind: &'static str,
+    /// A clash's kind, or an impact.
+    pub kind: FindingKind,
     /// The first part's name (a moved part).
     pub a: &'a str,
     /// The second part's name.
@@ -41,7 +88,7 @@ impl<'a> StepOutcome<'a> {
         let clashes = report.clashes.iter().map(move |c| Finding {
             step: index,
             t,
-            kind: c.kind.as_str(),
+            kind: c.kind.into(),
             a: scene.part_name(c.a),
             b: scene.part_name(c.b),
             a_id: c.a.0,
@@ -54,7 +101,7 @@ impl<'a> StepOutcome<'a> {
         let impacts = report.impacts.iter().map(move |i| Finding {
             step: index,
             t,
-            kind: "impact",
+            kind: FindingKind::Impact,
             a: scene.part_name(i.a),
             b: scene.part_name(i.b),
             a_id: i.a.0,

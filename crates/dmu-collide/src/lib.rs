@@ -103,7 +103,7 @@ pub use check::{
     AllowList, Checker, Clash, ClashKind, DEFAULT_CONTACT_TOLERANCE, Impact, Report, Separation,
     Settings,
 };
-pub use finding::Finding;
+pub use finding::{Finding, FindingKind};
 pub use record::{
     RecordError, RecordLine, RecordedMove, Step, StepOutcome, Summary, parse_record, read_record,
     record_part_name, replay, write_record,

@@ -50,7 +50,7 @@ pub enum RecordError {
         cause: SceneError,
     },
     /// One part moves twice at the same time.
-    #[error("line {line}: part {part:?} already moves at t = {t}")]
+    #[error("line {line}: part {part:?} already moves at t = {}", dmu_geom::Short(*t))]
     DuplicatePart {
         /// Line number of the second move.
         line: usize,
@@ -60,7 +60,11 @@ pub enum RecordError {
         t: f64,
     },
     /// Time goes backwards.
-    #[error("line {line}: t = {t} comes after t = {previous}; lines must be in time order")]
+    #[error(
+        "line {line}: t = {} comes after t = {}; lines must be in time order",
+        dmu_geom::Short(*t),
+        dmu_geom::Short(*previous)
+    )]
     OutOfOrder {
         /// Line number.
         line: usize,
@@ -197,9 +201,9 @@ pub fn parse_record(text: &str, scene: &Scene) -> Result<Vec<Step>, RecordError>
         let q = DQuat::from_array(parsed.rotation);
         if (q.length() - 1.0).abs() > UNIT_SLACK {
             return Err(malformed(format!(
-                "rotation {:?} is not a unit quaternion [x, y, z, w] (length {})",
-                parsed.rotation,
-                q.length()
+                "rotation {} is not a unit quaternion [x, y, z, w] (length {})",
+                dmu_geom::Short(&parsed.rotation[..]),
+                dmu_geom::Short(q.length())
             )));
         }
         let part = scene

@@ -48,7 +48,7 @@ fn errors_name_the_line_and_what_is_wrong() {
         (r#"{"t": 0, "part": "box_0_0_0", "translation": [1, 2], "rotation": [0, 0, 0, 1]}"#.into(), "line 2: invalid length 2"),
         (r#"{"t": 0, "part": "box_0_0_0", "rotation": [0, 0, 0, 1]}"#.into(), "line 2: missing field `translation`"),
         (r#"{"t": 0, "part": "box_0_0_0", "translate": [0, 0, 0], "translation": [0, 0, 0], "rotation": [0, 0, 0, 1]}"#.into(), "line 2: unknown field `translate`"),
-        (r#"{"t": 0, "part": "box_0_0_0", "translation": [0, 0, 0], "rotation": [0, 0, 0, 2]}"#.into(), "line 2: rotation [0.0, 0.0, 0.0, 2.0] is not a unit quaternion"),
+        (r#"{"t": 0, "part": "box_0_0_0", "translation": [0, 0, 0], "rotation": [0, 0, 0, 2]}"#.into(), "line 2: rotation [0, 0, 0, 2] is not a unit quaternion"),
         (r#"{"t": "now", "part": "box_0_0_0", "translation": [0, 0, 0], "rotation": [0, 0, 0, 1]}"#.into(), "line 2: invalid type: string \"now\""),
         (line(0.0, "pump_7", 0.0), "line 2: unknown part \"pump_7\""),
         (line(0.0, "box_0_0_0", 5.0), "line 2: part \"box_0_0_0\" already moves at t = 0"),

@@ -56,7 +56,9 @@ mod frustum;
 mod plane;
 mod ray;
 mod ray_box;
+mod short;
 mod triangle;
+mod vector;
 
 pub use aabb::{Aabb3d, Aabb3f};
 pub use camera::{Camera, Coverage, look_at, reverse_z_perspective};
@@ -66,7 +68,9 @@ pub use glam;
 pub use plane::Plane;
 pub use ray::{Ray3d, Ray3f};
 pub use ray_box::{RayBoxTest3d, RayBoxTest3f};
+pub use short::Short;
 pub use triangle::{
     RayTriTest3d, RayTriTest3f, TriHit, closest_point_on_triangle, is_degenerate, triangle_area,
     triangle_normal,
 };
+pub use vector::{is_within, unit_vector};

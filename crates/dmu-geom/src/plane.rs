@@ -2,7 +2,7 @@
 
 use glam::{DVec3, DVec4};
 
-use crate::Aabb3d;
+use crate::{Aabb3d, unit_vector};
 
 /// The plane of points `p` with `normal · p + d = 0`; the side the normal points to
 /// has positive signed distance. `normal` is unit length, except in
@@ -24,18 +24,24 @@ impl Plane {
         d: 1.0,
     };
 
-    /// The plane through `point` facing `normal` (any non-zero length).
+    /// The plane through `point` facing `normal` (any non-zero finite length,
+    /// normalised by [`unit_vector`], so `[1e300, 0, 0]` and `[1e-320, 0, 0]`
+    /// face `+X`).
     ///
     /// # Panics
-    /// When `normal` is zero or not finite.
+    /// When `normal` is zero or not finite; [`Plane::try_from_point_normal`]
+    /// answers `None` instead.
     pub fn from_point_normal(point: DVec3, normal: DVec3) -> Plane {
-        let normal = normal
-            .try_normalize()
-            .expect("plane normal must be non-zero and finite");
-        Plane {
-            normal,
-            d: -normal.dot(point),
-        }
+        Self::try_from_point_normal(point, normal)
+            .expect("plane normal must be non-zero and finite, and the point finite")
+    }
+
+    /// The plane through `point` facing `normal`; `None` when `normal` is zero
+    /// or anything is not finite, or the plane's offset overflows.
+    pub fn try_from_point_normal(point: DVec3, normal: DVec3) -> Option<Plane> {
+        let normal = unit_vector(normal)?;
+        let d = -normal.dot(point);
+        d.is_finite().then_some(Plane { normal, d })
     }
 
     /// The plane `n · p + d = 0` for `coefficients = (n, d)` of any scale, rescaled to

@@ -6,3 +6,4 @@ mod fov;
 mod frustum;
 mod ray_box;
 mod triangle;
+mod vector;

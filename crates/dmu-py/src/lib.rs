@@ -21,6 +21,12 @@
 //!   one model each give what `dmu collide FILE --record R` gives.
 //! - Errors are `dmu.DmuError` (a `ValueError`) carrying the one-line message
 //!   of the command line, naming the file and the element at fault.
+//! - A model is shared by Python threads: it is a frozen class whose state
+//!   sits behind a read-write lock, so picks run side by side and a move or
+//!   a replay waits for them (two threads got `RuntimeError: Already
+//!   borrowed` from PyO3's borrow flag). The lock is taken only with the GIL
+//!   released, and nothing takes the GIL while holding it, so neither can
+//!   wait for the other.
 //!
 //! Conventions: world coordinates are f64 model units (millimetres for the
 //! built-in plant); a pose is a 4×4 matrix acting on column vectors
@@ -36,6 +42,7 @@
 //! ```
 
 use std::path::PathBuf;
+use std::sync::{PoisonError, RwLock};
 
 use dmu_collide::{
     AllowList, Checker, Settings, Step, SweepMode, parse_record, read_record, replay,
@@ -49,7 +56,7 @@ use numpy::{AllowTypeChange, IntoPyArray as _, PyArray1, PyArray2, PyArrayLike2}
 use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PyString};
+use pyo3::types::{PyByteArray, PyBytes, PyDict, PyList, PyString};
 use rayon::prelude::*;
 
 create_exception!(
@@ -68,43 +75,80 @@ fn dmu_error(e: impl Into<anyhow::Error>) -> PyErr {
 /// Plant sizes accepted, as on the command line (`--plant-triangles`).
 const PLANT_TRIANGLES: std::ops::RangeInclusive<u64> = MIN_PLANT_TRIANGLES..=MAX_TRIANGLES;
 
-/// A model in memory: its scene, its cell tree, and the collision checker's
-/// caches (built on the first `collide`).
-#[pyclass(module = "dmu")]
+/// A model in memory, shared by Python threads (see the crate's design
+/// choices): its state behind a read-write lock.
+#[pyclass(module = "dmu", frozen)]
 struct Model {
+    state: RwLock<State>,
+    /// The file it was opened from (`None` for the built-in plant).
+    source: Option<PathBuf>,
+}
+
+/// A model's scene, its cell tree, and the collision checker's caches
+/// (built on the first `collide`).
+struct State {
     scene: Scene,
     tree: Tree,
     checker: Option<Checker>,
-    /// The file it was opened from (`None` for the built-in plant).
-    source: Option<PathBuf>,
+}
+
+/// A key naming a part, read from Python before the model's lock is taken.
+enum PartKey {
+    Id(i64),
+    Name(String),
+}
+
+impl PartKey {
+    fn extract(key: &Bound<'_, PyAny>) -> PyResult<Self> {
+        if let Ok(id) = key.extract::<i64>() {
+            return Ok(Self::Id(id));
+        }
+        key.extract()
+            .map(Self::Name)
+            .map_err(|_| DmuError::new_err("part: give a name, a path, \"#id\" or an int id"))
+    }
+
+    /// The part: an integer id, a name, a full path or `#id`.
+    fn resolve(&self, scene: &Scene) -> PyResult<PartId> {
+        match self {
+            Self::Id(id) => {
+                let count = scene.parts().len();
+                match u32::try_from(*id) {
+                    Ok(i) if (i as usize) < count => Ok(PartId(i)),
+                    _ => Err(DmuError::new_err(format!(
+                        "part {id}: no such part id (the model has {count} parts)"
+                    ))),
+                }
+            }
+            Self::Name(name) => scene.find_part(name).map_err(dmu_error),
+        }
+    }
 }
 
 impl Model {
     fn new(scene: Scene, source: Option<PathBuf>) -> Self {
         let tree = Tree::build(&scene, TreeOptions::default());
         Self {
-            scene,
-            tree,
-            checker: None,
+            state: RwLock::new(State {
+                scene,
+                tree,
+                checker: None,
+            }),
             source,
         }
     }
 
-    /// A part named by its integer id, name, full path or `#id`.
-    fn part(&self, key: &Bound<'_, PyAny>) -> PyResult<PartId> {
-        if let Ok(id) = key.extract::<i64>() {
-            let count = self.scene.parts().len();
-            return match u32::try_from(id) {
-                Ok(i) if (i as usize) < count => Ok(PartId(i)),
-                _ => Err(DmuError::new_err(format!(
-                    "part {id}: no such part id (the model has {count} parts)"
-                ))),
-            };
-        }
-        let name: String = key
-            .extract()
-            .map_err(|_| DmuError::new_err("part: give a name, a path, \"#id\" or an int id"))?;
-        self.scene.find_part(&name).map_err(dmu_error)
+    /// `f` on the state to read, run without the GIL (so the lock is waited
+    /// for, and held, only while Python runs on). A call that panicked while
+    /// holding the lock (a bug) left nothing half-written that a reader
+    /// trusts, so a poisoned lock is taken as it is.
+    fn reading<T: Send>(&self, py: Python<'_>, f: impl FnOnce(&State) -> T + Send) -> T {
+        py.detach(|| f(&self.state.read().unwrap_or_else(PoisonError::into_inner)))
+    }
+
+    /// `f` on the state to change, run without the GIL.
+    fn writing<T: Send>(&self, py: Python<'_>, f: impl FnOnce(&mut State) -> T + Send) -> T {
+        py.detach(|| f(&mut self.state.write().unwrap_or_else(PoisonError::into_inner)))
     }
 }
 
@@ -142,16 +186,31 @@ fn from_json<'py>(py: Python<'py>, json: &str) -> PyResult<Bound<'py, PyAny>> {
 impl Model {
     /// Every part as a dict: `id`, `name`, `path`, `triangles`, `hidden`.
     fn parts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
-        let scene = &self.scene;
+        let parts: Vec<(String, String, u64, bool)> = self.reading(py, |st| {
+            let scene = &st.scene;
+            scene
+                .parts()
+                .iter()
+                .enumerate()
+                .map(|(i, part)| {
+                    let id = PartId(i as u32);
+                    (
+                        scene.part_name(id).to_owned(),
+                        scene.part_path(id),
+                        scene.mesh(part.mesh).triangle_count(),
+                        part.hidden,
+                    )
+                })
+                .collect()
+        });
         let list = PyList::empty(py);
-        for (i, part) in scene.parts().iter().enumerate() {
-            let id = PartId(i as u32);
+        for (i, (name, path, triangles, hidden)) in parts.into_iter().enumerate() {
             let d = PyDict::new(py);
-            d.set_item("id", id.0)?;
-            d.set_item("name", scene.part_name(id))?;
-            d.set_item("path", scene.part_path(id))?;
-            d.set_item("triangles", scene.mesh(part.mesh).triangle_count())?;
-            d.set_item("hidden", part.hidden)?;
+            d.set_item("id", i)?;
+            d.set_item("name", name)?;
+            d.set_item("path", path)?;
+            d.set_item("triangles", triangles)?;
+            d.set_item("hidden", hidden)?;
             list.append(d)?;
         }
         Ok(list)
@@ -168,10 +227,9 @@ impl Model {
         direction: [f64; 3],
     ) -> PyResult<Option<Bound<'py, PyAny>>> {
         let ray = ray("pick", origin, direction)?;
-        let (scene, tree) = (&self.scene, &self.tree);
-        let report = py.detach(|| {
-            tree.pick(scene, &ray).map(|hit| {
-                serde_json::to_string(&HitReport::new(scene, &hit, ray.dir.length()))
+        let report = self.reading(py, |st| {
+            st.tree.pick(&st.scene, &ray).map(|hit| {
+                serde_json::to_string(&HitReport::new(&st.scene, &hit, ray.dir.length()))
                     .expect("a hit report serializes")
             })
         });
@@ -211,10 +269,9 @@ impl Model {
             .enumerate()
             .map(|(i, (&o, &d))| ray(&format!("ray {i}"), o, d))
             .collect::<PyResult<Vec<_>>>()?;
-        let (scene, tree) = (&self.scene, &self.tree);
-        let hits: Vec<_> = py.detach(|| {
+        let hits: Vec<_> = self.reading(py, |st| {
             rays.par_iter()
-                .map(|ray| tree.pick(scene, ray).map(|h| (h, ray.dir.length())))
+                .map(|ray| st.tree.pick(&st.scene, ray).map(|h| (h, ray.dir.length())))
                 .collect()
         });
         let n = hits.len();
@@ -250,7 +307,10 @@ impl Model {
         py: Python<'py>,
         part: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let world = self.scene.part_world(self.part(part)?);
+        let key = PartKey::extract(part)?;
+        let world = self.reading(py, |st| {
+            key.resolve(&st.scene).map(|id| st.scene.part_world(id))
+        })?;
         let m = glam::DMat4::from(world).transpose().to_cols_array();
         Ok(numpy::ndarray::Array2::from_shape_vec((4, 4), m.to_vec())
             .expect("sixteen numbers")
@@ -261,41 +321,44 @@ impl Model {
     /// `matrix` (4×4, last row `0 0 0 1`), updating the cell tree.
     #[pyo3(name = "move")]
     fn move_part(
-        &mut self,
+        &self,
         py: Python<'_>,
         part: &Bound<'_, PyAny>,
         matrix: PyArrayLike2<'_, f64, AllowTypeChange>,
     ) -> PyResult<()> {
-        let id = self.part(part)?;
+        let key = PartKey::extract(part)?;
         let m = matrix.as_array();
-        if m.shape() != [4, 4] {
-            return Err(DmuError::new_err(format!(
-                "move {}: expected a 4x4 matrix, got shape {:?}",
-                self.scene.part_name(id),
-                m.shape()
-            )));
-        }
-        if [m[[3, 0]], m[[3, 1]], m[[3, 2]], m[[3, 3]]] != [0.0, 0.0, 0.0, 1.0] {
-            return Err(DmuError::new_err(format!(
-                "move {}: the matrix's last row must be 0 0 0 1 (an affine pose)",
-                self.scene.part_name(id)
-            )));
-        }
+        let shape = m.shape().to_vec();
+        let affine =
+            shape == [4, 4] && [m[[3, 0]], m[[3, 1]], m[[3, 2]], m[[3, 3]]] == [0.0, 0.0, 0.0, 1.0];
         let col = |c: usize| DVec3::new(m[[0, c]], m[[1, c]], m[[2, c]]);
-        let world = DAffine3 {
+        let world = affine.then(|| DAffine3 {
             matrix3: DMat3::from_cols(col(0), col(1), col(2)),
             translation: col(3),
-        };
-        if !self.scene.is_valid_world(id, &world) {
-            return Err(DmuError::new_err(format!(
-                "move {}: the pose is not finite or reaches beyond ±{:e} model units",
-                self.scene.part_name(id),
-                dmu_scene::MAX_WORLD_COORDINATE
-            )));
-        }
-        let (scene, tree) = (&mut self.scene, &mut self.tree);
-        py.detach(|| tree.move_part(scene, id, world));
-        Ok(())
+        });
+        self.writing(py, |st| {
+            let id = key.resolve(&st.scene)?;
+            let name = st.scene.part_name(id);
+            if shape != [4, 4] {
+                return Err(DmuError::new_err(format!(
+                    "move {name}: expected a 4x4 matrix, got shape {shape:?}"
+                )));
+            }
+            let Some(world) = world else {
+                return Err(DmuError::new_err(format!(
+                    "move {name}: the matrix's last row must be 0 0 0 1 (an affine pose)"
+                )));
+            };
+            if !st.scene.is_valid_world(id, &world) {
+                return Err(DmuError::new_err(format!(
+                    "move {name}: the pose is not finite or reaches beyond ±{:e} model units",
+                    dmu_scene::MAX_WORLD_COORDINATE
+                )));
+            }
+            let State { scene, tree, .. } = st;
+            tree.move_part(scene, id, world);
+            Ok(())
+        })
     }
 
     /// Replays a record of part poses and returns its clashes and impacts as
@@ -310,7 +373,7 @@ impl Model {
     /// the record moved is put back afterwards.
     #[pyo3(signature = (record, clearance = 5.0, continuous = false, allow = Vec::new()))]
     fn collide<'py>(
-        &mut self,
+        &self,
         py: Python<'py>,
         record: &Bound<'py, PyAny>,
         clearance: f64,
@@ -319,33 +382,38 @@ impl Model {
     ) -> PyResult<Bound<'py, PyAny>> {
         if !(0.0..=MAX_LENGTH).contains(&clearance) {
             return Err(DmuError::new_err(format!(
-                "clearance {clearance}: expected a number from 0 to {MAX_LENGTH:e}"
+                "clearance {}: expected a number from 0 to {MAX_LENGTH:e}",
+                dmu_geom::Short(clearance)
             )));
         }
-        let mut list = AllowList::default();
-        for (a, b) in &allow {
-            let (a, b) = (self.part(a)?, self.part(b)?);
-            if a == b {
-                return Err(DmuError::new_err(format!(
-                    "allow: names {} twice (a part never clashes with itself)",
-                    self.scene.part_name(a)
-                )));
+        let allow = allow
+            .iter()
+            .map(|(a, b)| Ok((PartKey::extract(a)?, PartKey::extract(b)?)))
+            .collect::<PyResult<Vec<_>>>()?;
+        let record = RecordSource::extract(py, record)?;
+        let findings = self.writing(py, |st| {
+            let mut list = AllowList::default();
+            for (a, b) in &allow {
+                let (a, b) = (a.resolve(&st.scene)?, b.resolve(&st.scene)?);
+                if a == b {
+                    return Err(DmuError::new_err(format!(
+                        "allow: names {} twice (a part never clashes with itself)",
+                        st.scene.part_name(a)
+                    )));
+                }
+                list.allow(a, b);
             }
-            list.allow(a, b);
-        }
-        let settings = Settings {
-            clearance,
-            allow: list,
-            ..Settings::default()
-        };
-        let steps = self.steps(py, record)?;
-        let Self {
-            scene,
-            tree,
-            checker,
-            ..
-        } = self;
-        let findings = py.detach(|| {
+            let settings = Settings {
+                clearance,
+                allow: list,
+                ..Settings::default()
+            };
+            let steps = record.steps(&st.scene)?;
+            let State {
+                scene,
+                tree,
+                checker,
+            } = st;
             let checker = checker.get_or_insert_with(|| Checker::new(scene));
             let mut before: Vec<(PartId, DAffine3)> = Vec::new();
             for m in steps.iter().flat_map(|s| &s.moves) {
@@ -369,8 +437,8 @@ impl Model {
             for (part, world) in before {
                 tree.move_part(scene, part, world);
             }
-            serde_json::to_string(&findings).expect("findings serialize")
-        });
+            Ok(serde_json::to_string(&findings).expect("findings serialize"))
+        })?;
         from_json(py, &findings)
     }
 
@@ -378,44 +446,56 @@ impl Model {
     /// synced, renamed into place). Saving onto the store it was opened from
     /// writes the edits only.
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
-        let (scene, source) = (&self.scene, self.source.as_deref());
-        py.detach(|| dmu_store::save_scene(scene, source, &path))
+        let source = self.source.as_deref();
+        self.reading(py, |st| dmu_store::save_scene(&st.scene, source, &path))
             .map(|_| ())
             .map_err(dmu_error)
     }
 
     /// Triangles, instances counted.
     #[getter]
-    fn triangles(&self) -> u64 {
-        self.scene.triangle_count()
+    fn triangles(&self, py: Python<'_>) -> u64 {
+        self.reading(py, |st| st.scene.triangle_count())
     }
 
-    fn __len__(&self) -> usize {
-        self.scene.parts().len()
+    fn __len__(&self, py: Python<'_>) -> usize {
+        self.reading(py, |st| st.scene.parts().len())
     }
 
-    fn __repr__(&self) -> String {
+    fn __repr__(&self, py: Python<'_>) -> String {
         let source = self
             .source
             .as_ref()
             .map_or_else(|| "built-in plant".to_owned(), |p| p.display().to_string());
-        format!(
-            "<dmu.Model {source}: {} parts, {} triangles>",
-            self.scene.parts().len(),
-            self.scene.triangle_count()
-        )
+        let (parts, triangles) =
+            self.reading(py, |st| (st.scene.parts().len(), st.scene.triangle_count()));
+        format!("<dmu.Model {source}: {parts} parts, {triangles} triangles>")
     }
 }
 
-impl Model {
-    /// A record's steps from a path or from a list of line dicts.
-    fn steps(&self, py: Python<'_>, record: &Bound<'_, PyAny>) -> PyResult<Vec<Step>> {
+/// A record as `collide` was given it, read from Python before the model's
+/// lock is taken: a path, or the lines of a list of dicts.
+enum RecordSource {
+    Path(PathBuf),
+    Lines(String),
+}
+
+impl RecordSource {
+    fn extract(py: Python<'_>, record: &Bound<'_, PyAny>) -> PyResult<Self> {
+        // Bytes iterate as integers, which read as record lines of numbers.
+        if record.is_instance_of::<PyBytes>() || record.is_instance_of::<PyByteArray>() {
+            return Err(DmuError::new_err(
+                "record: give a path (str or os.PathLike) or a list of line dicts, not bytes \
+                 (decode them, or write them to a file)",
+            ));
+        }
         if record.is_instance_of::<PyString>() || record.hasattr("__fspath__")? {
-            let path: PathBuf = record.extract()?;
-            let scene = &self.scene;
-            return py.detach(|| read_record(&path, scene)).map_err(|e| {
-                dmu_error(anyhow::Error::from(e).context(format!("record {}", path.display())))
-            });
+            return Ok(Self::Path(record.extract()?));
+        }
+        if record.is_instance_of::<PyDict>() {
+            return Err(DmuError::new_err(
+                "record: give a list of line dicts, not one dict",
+            ));
         }
         let dumps = py.import("json")?.getattr("dumps")?;
         let mut text = String::new();
@@ -427,8 +507,18 @@ impl Model {
             text.push_str(&json);
             text.push('\n');
         }
-        parse_record(&text, &self.scene)
-            .map_err(|e| dmu_error(anyhow::Error::from(e).context("steps")))
+        Ok(Self::Lines(text))
+    }
+
+    /// The record's steps, parts found in `scene`.
+    fn steps(&self, scene: &Scene) -> PyResult<Vec<Step>> {
+        match self {
+            Self::Path(path) => read_record(path, scene).map_err(|e| {
+                dmu_error(anyhow::Error::from(e).context(format!("record {}", path.display())))
+            }),
+            Self::Lines(text) => parse_record(text, scene)
+                .map_err(|e| dmu_error(anyhow::Error::from(e).context("steps"))),
+        }
     }
 }
 

@@ -192,3 +192,59 @@ def test_bad_input_raises_naming_what(tmp_path, grid_glb):
     raises(lambda: m.collide([], allow=[("box_0_0_0", "box_0_0_0")]), "twice")
     # Nothing was moved by the failed calls.
     assert np.array_equal(m.world("box_0_0_0"), np.eye(4))
+
+
+def test_issue_48_threads_share_a_model(grid_glb):
+    """Two Python threads on one model got `RuntimeError: Already borrowed`
+    (a pick holding PyO3's borrow while a move wanted it). Now picks and moves
+    from several threads interleave; every pick sees a whole move (the part at
+    one of its two poses, never between) and the last move wins."""
+    m = dmu.open(grid_glb)
+    home = m.world("box_0_1_2")
+    lifted = home.copy()
+    lifted[2, 3] += 100.0
+    origins = np.tile([-5.0, 10.0, 20.0], (200, 1))
+    directions = np.tile([1.0, 0.0, 0.0], (200, 1))
+    errors = []
+    seen = set()
+
+    def picker():
+        try:
+            for _ in range(100):
+                ids, _, _ = m.pick_many(origins, directions)
+                seen.update(ids.tolist())
+                assert len(set(ids.tolist())) == 1, "one pose for the whole call"
+                m.parts()
+                len(m)
+        except Exception as e:  # noqa: BLE001 - reported below
+            errors.append(e)
+
+    def mover():
+        try:
+            for i in range(200):
+                m.move("box_0_1_2", lifted if i % 2 == 0 else home)
+        except Exception as e:  # noqa: BLE001 - reported below
+            errors.append(e)
+
+    threads = [threading.Thread(target=picker) for _ in range(2)] + [threading.Thread(target=mover)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert errors == []
+    names = {p["id"]: p["name"] for p in m.parts()}
+    # The ray meets box_0_1_2 at home and box_1_1_2 behind it when lifted.
+    assert {names[i] for i in seen} <= {"box_0_1_2", "box_1_1_2"}
+    assert np.array_equal(m.world("box_0_1_2"), home)  # 200 moves: the last one home
+
+
+def test_issue_48_collide_refuses_bytes(grid_glb):
+    """`collide(b"...")` iterated the bytes as integers and read them as
+    record lines; bytes and a lone dict are refused, naming what to give."""
+    m = dmu.open(grid_glb)
+    line = b'{"t": 0, "part": "box_0_0_0", "translation": [0, 0, 0], "rotation": [0, 0, 0, 1]}\n'
+    for bad in (line, bytearray(line)):
+        with pytest.raises(dmu.DmuError, match="not bytes"):
+            m.collide(bad)
+    with pytest.raises(dmu.DmuError, match="not one dict"):
+        m.collide({"t": 0, "part": "box_0_0_0", "translation": [0, 0, 0], "rotation": [0, 0, 0, 1]})

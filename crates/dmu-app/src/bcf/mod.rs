@@ -62,11 +62,12 @@ mod write;
 mod xml;
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use glam::DVec3;
 
 pub use read::read_bcfzip;
-pub use write::write_bcfzip;
+pub use write::{check_output_name, write_bcfzip};
 
 /// Most entries an archive may hold (a topic is a few: markup, viewpoints,
 /// snapshots).
@@ -78,6 +79,10 @@ pub const MAX_SNAPSHOT_BYTES: u64 = 64 << 20;
 pub const MAX_XML_BYTES: u64 = 16 << 20;
 /// Most bytes read from one archive in all, uncompressed.
 pub const MAX_TOTAL_BYTES: u64 = 2 << 30;
+/// Largest position coordinate written or read, model units: the world's
+/// ([`dmu_scene::MAX_WORLD_COORDINATE`]). The writer refuses what the reader
+/// would, so a file dmu writes is a file dmu reads.
+pub const POSITION_LIMIT: f64 = dmu_scene::MAX_WORLD_COORDINATE;
 /// What `OriginatingSystem` says for the parts dmu names.
 pub const ORIGINATING_SYSTEM: &str = "dmu";
 
@@ -140,8 +145,9 @@ pub struct Viewpoint {
     /// Section planes, each hiding what lies on its direction's side.
     pub clipping_planes: Vec<ClippingPlane>,
     /// The picture of the view: PNG as dmu writes it, PNG or JPEG as other
-    /// tools may (the first bytes say which).
-    pub snapshot: Option<Vec<u8>>,
+    /// tools may (the first bytes say which). Shared: viewpoints of a file
+    /// read that name the same snapshot hold one copy.
+    pub snapshot: Option<Arc<[u8]>>,
 }
 
 impl Viewpoint {
@@ -261,8 +267,8 @@ impl Camera {
         };
         let view = dmu_geom::Camera {
             eye: self.eye,
-            target: self.eye + self.direction.normalize_or_zero() * distance,
-            up: self.up,
+            target: self.eye + dmu_geom::unit_vector(self.direction)? * distance,
+            up: dmu_geom::unit_vector(self.up)?,
             fov_y_rad: fov_y_deg.to_radians(),
             near,
         };
@@ -316,6 +322,14 @@ pub enum BcfError {
         entry: String,
         /// What is wrong, naming the element.
         reason: String,
+    },
+    /// The name to write does not end in `.bcfzip`: a BCF file never
+    /// replaces a model, a store or an image (the viewer's export wrote over
+    /// the `.dmu` it had open).
+    #[error("{}: a BCF file is written only to a name ending in .bcfzip", path.display())]
+    Name {
+        /// The name refused.
+        path: PathBuf,
     },
     /// A topic cannot be written as given.
     #[error("{}: topic {topic:?}: {reason}", path.display())]

@@ -5,11 +5,12 @@ use std::collections::HashSet;
 use std::io::Write as _;
 use std::path::Path;
 
+use dmu_geom::Short;
 use glam::DVec3;
 use zip::write::SimpleFileOptions;
 
 use super::xml::XmlWriter;
-use super::{BcfError, Camera, Component, Projection, Topic, Viewpoint};
+use super::{BcfError, Camera, Component, POSITION_LIMIT, Projection, Topic, Viewpoint};
 
 /// Writes `topics` to a BCF 2.1 archive at `path`, streamed into a temporary
 /// file renamed into place ([`dmu_scene::AtomicFile`]). Positions are divided
@@ -17,9 +18,14 @@ use super::{BcfError, Camera, Component, Projection, Topic, Viewpoint};
 /// metres. `project_name`, when given, goes into `project.bcfp` with a fresh
 /// project GUID.
 ///
-/// Fails, writing nothing, when a topic or viewpoint GUID is not a safe folder
+/// Fails, writing nothing, when the name does not end in `.bcfzip`
+/// ([`check_output_name`]), when a topic or viewpoint GUID is not a safe folder
 /// or file name (letters, digits, `-`), when two topics (or two viewpoints of
-/// a topic) share a GUID, or when a number is not finite.
+/// a topic) share a GUID, or when a number is one [`read_bcfzip`] would
+/// refuse (not finite, a position beyond ±[`POSITION_LIMIT`], a zero
+/// direction): what dmu writes, dmu reads.
+///
+/// [`read_bcfzip`]: super::read_bcfzip
 ///
 /// # Panics
 /// When `model_units_per_metre` is not finite and positive (a caller's bug).
@@ -33,6 +39,7 @@ pub fn write_bcfzip(
         model_units_per_metre.is_finite() && model_units_per_metre > 0.0,
         "model_units_per_metre must be finite and positive, not {model_units_per_metre}"
     );
+    check_output_name(path)?;
     check(topics).map_err(|(topic, reason)| BcfError::Topic {
         path: path.to_owned(),
         topic,
@@ -54,6 +61,22 @@ pub fn write_bcfzip(
     file.commit().map_err(io)
 }
 
+/// Refuses a name to write that does not end in `.bcfzip` (any case), as
+/// [`write_bcfzip`] does: callers that take frames to gather topics (the
+/// viewer's snapshots) ask first.
+pub fn check_output_name(path: &Path) -> Result<(), BcfError> {
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("bcfzip"))
+    {
+        Ok(())
+    } else {
+        Err(BcfError::Name {
+            path: path.to_owned(),
+        })
+    }
+}
+
 /// Why a topic cannot be written: its GUID and the reason.
 type Refusal = (String, String);
 
@@ -73,7 +96,7 @@ fn check(topics: &[Topic]) -> Result<(), Refusal> {
             if !viewpoints.insert(v.guid.to_ascii_lowercase()) {
                 return Err(fail(format!("two viewpoints have the GUID {:?}", v.guid)));
             }
-            check_finite(v).map_err(|r| fail(format!("viewpoint {}: {r}", v.guid)))?;
+            check_readable(v).map_err(|r| fail(format!("viewpoint {}: {r}", v.guid)))?;
         }
     }
     Ok(())
@@ -149,24 +172,52 @@ fn check_guid(guid: &str) -> Result<(), String> {
     }
 }
 
-/// Whether every number of a viewpoint is finite (XML has no NaN a reader
-/// would take).
-fn check_finite(v: &Viewpoint) -> Result<(), String> {
+/// Whether the reader would take every number of a viewpoint
+/// ([`read_bcfzip`](super::read_bcfzip)'s rules): positions within
+/// ±[`POSITION_LIMIT`] model units, directions finite and not zero, a field
+/// of view in (0, 180) degrees, an orthogonal view's height positive (XML has
+/// no NaN a reader would take, and the viewer exported sections beyond ±1e15
+/// that its own reader refused).
+fn check_readable(v: &Viewpoint) -> Result<(), String> {
+    let position = |p: DVec3, what: &str| {
+        if dmu_geom::is_within(p, POSITION_LIMIT) {
+            Ok(())
+        } else {
+            Err(format!(
+                "{what} {} is not finite or beyond ±{POSITION_LIMIT:e} model units",
+                Short(p)
+            ))
+        }
+    };
+    let direction = |d: DVec3, what: &str| match dmu_geom::unit_vector(d) {
+        Some(_) => Ok(()),
+        None => Err(format!("{what} {} is no direction", Short(d))),
+    };
     if let Some(c) = &v.camera {
-        let scalar = match c.projection {
-            Projection::Perspective { fov_y_deg } => fov_y_deg,
-            Projection::Orthogonal { view_height } => view_height,
-        };
-        if !(c.eye.is_finite() && c.direction.is_finite() && c.up.is_finite() && scalar.is_finite())
-        {
-            return Err("the camera has a number that is not finite".to_owned());
+        position(c.eye, "the camera's eye")?;
+        direction(c.direction, "the camera's direction")?;
+        direction(c.up, "the camera's up")?;
+        match c.projection {
+            Projection::Perspective { fov_y_deg } if !(fov_y_deg > 0.0 && fov_y_deg < 180.0) => {
+                return Err(format!(
+                    "the field of view {} is not in (0, 180) degrees",
+                    Short(fov_y_deg)
+                ));
+            }
+            Projection::Orthogonal { view_height }
+                if !(view_height > 0.0 && view_height.is_finite()) =>
+            {
+                return Err(format!(
+                    "the view height {} is not a positive size",
+                    Short(view_height)
+                ));
+            }
+            _ => {}
         }
     }
-    if v.clipping_planes
-        .iter()
-        .any(|p| !(p.location.is_finite() && p.direction.is_finite()))
-    {
-        return Err("a clipping plane has a number that is not finite".to_owned());
+    for p in &v.clipping_planes {
+        position(p.location, "a clipping plane's location")?;
+        direction(p.direction, "a clipping plane's direction")?;
     }
     Ok(())
 }
