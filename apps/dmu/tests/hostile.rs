@@ -650,14 +650,14 @@ fn issue_48_an_empty_model_is_refused_where_triangles_are_needed() {
         &json!({"asset": {"version": "2.0"}}),
     );
     let store = path(dir.path(), "empty.dmu");
-    json(&dmu(&["import", &empty, "-o", &store]));
+    assert!(dmu(&["import", &empty, "-o", &store]).status.success());
     let out_dir = path(dir.path(), "tradeoffs");
     for (args, needs) in [
         (
             vec!["tradeoffs", &empty, "--quick", "--out", &out_dir],
             true,
         ),
-        (vec!["bench", "tree", "--file", &empty], true),
+        (vec!["bench", "tree", &empty], true),
         (vec!["farfield", "build", &store], true),
         (vec!["info", &store], false),
         (vec!["pick", &empty, "--ray", "0,0,0,1,0,0"], false),

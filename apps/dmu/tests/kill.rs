@@ -99,7 +99,7 @@ fn issue_48_a_killed_import_leaves_the_previous_store() {
     timed(&["import", &small, "-o", &store]);
     let previous = std::fs::read(&store).unwrap();
     let args = ["import", big.as_str(), "-o", store.as_str()];
-    let mid_run = kill_rounds(&args, span.mul_f64(1.2), 48, |round| {
+    let mid_run = kill_rounds(&args, span.mul_f64(0.9), 48, |round| {
         let now = std::fs::read(&store).unwrap();
         assert!(
             now == previous || now == finished,
@@ -168,7 +168,7 @@ fn issue_48_a_killed_far_field_build_leaves_the_previous_store() {
     assert_ne!(previous_cells, finished_cells, "the builds differ");
     std::fs::remove_file(&copy).unwrap();
     let args = build("20000");
-    let mid_run = kill_rounds(&args, span.mul_f64(1.2), 4848, |round| {
+    let mid_run = kill_rounds(&args, span.mul_f64(0.9), 4848, |round| {
         let n = cells(&format!("round {round}"));
         if n == previous_cells {
             assert_eq!(
