@@ -108,7 +108,9 @@ pub(crate) struct TocEntry {
 const _: () = assert!(size_of::<TocEntry>() == 32);
 
 impl TocEntry {
-    /// The payload with its padding: what the checksum covers.
+    /// The payload with its padding: what the checksum covers. For an entry
+    /// that [`parse`] validated (its segment lies within the file); a length
+    /// within 15 of `u64::MAX` overflows.
     pub fn padded_len(&self) -> u64 {
         self.length.next_multiple_of(ALIGN)
     }
@@ -291,9 +293,12 @@ fn validate_entries(entries: &[TocEntry], toc_offset: u64) -> Result<Layout, Str
                 e.id, e.kind, e.offset
             ));
         }
+        // Checked: a length within 15 of `u64::MAX` overflows when padded
+        // (`padded_len` is for validated entries only).
         at = e
-            .offset
-            .checked_add(e.padded_len())
+            .length
+            .checked_next_multiple_of(ALIGN)
+            .and_then(|padded| e.offset.checked_add(padded))
             .filter(|&end| end <= toc_offset)
             .ok_or_else(|| {
                 format!(
