@@ -883,4 +883,12 @@ impl SceneBuilder {
         debug_assert_eq!(self.scene.validate(), Ok(()));
         self.scene
     }
+
+    /// The scene as built, not validated: for a caller that builds from input
+    /// read from a file and calls [`Scene::validate`] itself, so that a bad
+    /// input is an error (where [`SceneBuilder::finish`] asserts in debug
+    /// builds).
+    pub(crate) fn finish_unvalidated(self) -> Scene {
+        self.scene
+    }
 }

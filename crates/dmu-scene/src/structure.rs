@@ -475,7 +475,10 @@ impl Structure {
                 hidden.push(part);
             }
         }
-        let mut scene = b.finish();
+        // Validated here, an error: `Structure::check` does not see the
+        // parts' world boxes (a finite transform can still put one beyond
+        // ±MAX_WORLD_COORDINATE), and `finish` would assert on them.
+        let mut scene = b.finish_unvalidated();
         for part in hidden {
             scene.set_part_hidden(part, true);
         }

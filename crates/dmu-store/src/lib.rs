@@ -80,7 +80,7 @@ mod walk;
 mod write;
 
 pub use error::{ResidencyError, StoreError, WalkError};
-pub use format::FORMAT_VERSION;
+pub use format::{FORMAT_VERSION, reseal};
 pub use geometry::OwnedChunkGeometry;
 pub use import::{ImportOptions, ImportSummary, import_gltf};
 pub use open::open_scene;

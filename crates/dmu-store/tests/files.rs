@@ -181,6 +181,24 @@ fn other_versions_and_other_files_are_named() {
     assert!(msg.contains("absent.dmu"), "{msg}");
 }
 
+/// A table of contents whose checksums hold but whose lengths or offsets lie
+/// is refused naming the segment, never overflowing: a length that overflows
+/// when padded to 16 bytes (debug builds panicked in `padded_len`; seen while
+/// writing `dmu_store::reseal`, whose fuzz target now reaches it), one that
+/// overflows with its offset, one past the table.
+#[test]
+fn crafted_table_lengths_are_refused() {
+    let (_dir, path, bytes) = small_store();
+    for length in [u64::MAX - 2, u64::MAX - 64, 1 << 40] {
+        let crafted = with_toc(&bytes, |toc| toc[0].length = length);
+        std::fs::write(&path, crafted).unwrap();
+        let err = Store::open(&path).unwrap_err();
+        let msg = err.to_string();
+        assert!(matches!(err, StoreError::Corrupt { .. }), "{msg}");
+        assert!(msg.contains("runs into the table of contents"), "{msg}");
+    }
+}
+
 /// A save that fails (here: dropped before its rename) leaves the previous
 /// file as it was and no temporary file behind.
 #[test]
@@ -343,7 +361,8 @@ fn with_skeleton(bytes: &[u8], change: impl FnOnce(&mut [u8])) -> Vec<u8> {
 /// A skeleton whose checksums hold but whose counts or contents lie (crafted,
 /// not damaged) is refused naming what is wrong: counts that do not make its
 /// length (so no count can make the reader allocate more than the file holds),
-/// a parent after its child, a name past its table.
+/// a parent after its child, a name past its table, a part beyond the world's
+/// range.
 #[test]
 fn a_crafted_skeleton_is_refused_by_its_own_checks() {
     let (_dir, path, bytes) = small_store();
@@ -358,7 +377,7 @@ fn a_crafted_skeleton_is_refused_by_its_own_checks() {
             .fold(64, |at, bytes| (at + bytes).next_multiple_of(16))
     };
     type Change = Box<dyn Fn(&mut [u8])>;
-    let cases: [(&str, Change); 5] = [
+    let cases: [(&str, Change); 6] = [
         ("do not make its", Box::new(|s| s[0] += 1)),
         (
             "do not make its",
@@ -380,6 +399,15 @@ fn a_crafted_skeleton_is_refused_by_its_own_checks() {
             "node 2: transform is not finite",
             Box::new(move |s| {
                 s[node(2) + 8..node(2) + 16].copy_from_slice(&f64::NAN.to_le_bytes());
+            }),
+        ),
+        // Finite, but its part's world box beyond ±1e15: refused where debug
+        // builds used to assert (found by the resealed store_open fuzz target).
+        (
+            "world box not finite or beyond",
+            Box::new(move |s| {
+                let x = node(2) + 8 + 9 * 8; // the translation's x
+                s[x..x + 8].copy_from_slice(&1e16f64.to_le_bytes());
             }),
         ),
     ];
