@@ -8,6 +8,7 @@ mod fuzz_replay;
 mod fuzz_script_parse;
 mod review_tools;
 mod session;
+mod soak;
 mod support;
 mod xr;
 mod xvfb;
