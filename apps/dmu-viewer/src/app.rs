@@ -142,10 +142,13 @@ struct Runner {
     /// Action being run and its step.
     index: usize,
     step: u32,
-    /// One result per finished action.
-    results: Vec<Value>,
-    /// One record per frame while the script runs.
-    frames: Vec<Value>,
+    /// One result per finished action, as compact JSON text (see `frames`).
+    results: Vec<Box<str>>,
+    /// One record per frame while the script runs, as compact JSON text: a
+    /// record held as a `Value` took ten times as much (its maps' nodes and
+    /// keys), 17 kB a frame, which over a soak's thousands of frames was
+    /// most of what the process grew by (issue 48).
+    frames: Vec<Box<str>>,
     /// Where the running gizmo or section drag pressed (view pixels).
     gizmo_from: ViewPoint,
 }
@@ -303,7 +306,7 @@ impl App {
         report["adapter"] = json!(gfx.map(|g| g.adapter.clone()));
         report["window"] = json!(gfx.map(Gfx::size));
         report["frames_drawn"] = json!(self.frames_drawn);
-        report["steps"] = json!(self.runner.results);
+        report["steps"] = Value::Array(parsed(&self.runner.results));
         report["moved_parts"] = json!(
             self.review
                 .moved_parts()
@@ -311,8 +314,9 @@ impl App {
                 .map(|p| p.0)
                 .collect::<Vec<_>>()
         );
-        report["frames"] = json!(self.runner.frames);
+        // The run's peak, before the records are parsed back for the report.
         report["peak_rss_bytes"] = json!(dmu_app::progress::peak_rss_bytes());
+        let frames = parsed(&self.runner.frames);
         report["first_frame_ms"] = json!(self.first_frame_ms);
         report["median_frame_ms"] = summary(&self.frame_times)["median"].clone();
         if let Some(s) = &self.streaming {
@@ -332,33 +336,25 @@ impl App {
                 "mesh_loads": g.loads(),
             });
         }
-        let drag: Vec<f64> = self
-            .runner
-            .frames
+        let drag: Vec<f64> = frames
             .iter()
             .filter(|f| matches!(f["action"].as_str(), Some("drag" | "mouse_drag")))
             .filter_map(|f| f["frame_ms"].as_f64())
             .collect();
         report["drag_frame_ms"] = summary(&drag);
-        let all = |key: &str| -> Vec<f64> {
-            self.runner
-                .frames
-                .iter()
-                .filter_map(|f| f[key].as_f64())
-                .collect()
-        };
+        let all =
+            |key: &str| -> Vec<f64> { frames.iter().filter_map(|f| f[key].as_f64()).collect() };
         report["frame_split_ms"] = json!({
             "frame": summary(&all("frame_ms")),
             "ui": summary(&all("ui_ms")),
             "view": summary(&all("view_ms")),
             "paint": summary(&all("paint_ms")),
-            "frames_painted_whole": self
-                .runner
-                .frames
+            "frames_painted_whole": frames
                 .iter()
                 .filter(|f| f["painted_whole"] == true)
                 .count(),
         });
+        report["frames"] = Value::Array(frames);
         Ok(Some(report))
     }
 
@@ -1023,7 +1019,7 @@ impl App {
         if self.runner.step >= action.frames() {
             let mut entry = result.unwrap_or_else(|| json!({}));
             entry["action"] = json!(action.name());
-            self.runner.results.push(entry);
+            self.runner.results.push(entry.to_string().into_boxed_str());
             self.runner.index += 1;
             self.runner.step = 0;
         }
@@ -1517,10 +1513,19 @@ impl App {
                     "min_pixels": main.min_pixels,
                     "queries": main.queries,
                     "rss_bytes": dmu_app::progress::rss_bytes(),
+                    "t_s": self.options.started.elapsed().as_secs_f64(),
                     "move_us": self.review.timings.move_us,
                     "check_ms": self.review.timings.check_ms,
                     "clashes": clashes_json(&self.review.report),
                 });
+                if let Some(s) = &self.streaming {
+                    let pool = self
+                        .renderer
+                        .as_mut()
+                        .expect("made with the window")
+                        .geometry_pool();
+                    record["memory"] = s.frame_json(pool);
+                }
                 if let Some(far) = &self.far {
                     record["far_field"] = far.report().json();
                 }
@@ -1528,7 +1533,7 @@ impl App {
                     record["pane_triangles_drawn"] =
                         json!(stats.iter().map(|s| s.triangles_drawn).collect::<Vec<_>>());
                 }
-                self.runner.frames.push(record);
+                self.runner.frames.push(record.to_string().into_boxed_str());
             }
             self.frames_drawn += 1;
             if final_frame {
@@ -1644,6 +1649,14 @@ fn camera_json(nav: &Navigator) -> Value {
         "fov_y_deg": nav.fov_y_rad.to_degrees(),
         "near": nav.near,
     })
+}
+
+/// Records kept as JSON text, parsed back.
+fn parsed(records: &[Box<str>]) -> Vec<Value> {
+    records
+        .iter()
+        .map(|r| serde_json::from_str(r).expect("a record serde_json wrote"))
+        .collect()
 }
 
 /// Milliseconds since `start`.

@@ -246,6 +246,26 @@ impl Streaming {
         )
     }
 
+    /// A scripted frame's memory facts, for a soak to follow frame by
+    /// frame: the residency's bytes (resident, reserved by loads in
+    /// flight) against its budget and its evictions so far, and the GPU
+    /// pool's copy (bytes of the chunks and stand-ins it holds, its pages
+    /// and the bytes they have handed out), which the budget allows as much
+    /// again as the residency's.
+    pub fn frame_json(&self, pool: &GeometryPool) -> Value {
+        let stats = self.streamer.residency().stats();
+        json!({
+            "resident_bytes": stats.resident_bytes,
+            "reserved_bytes": stats.reserved_bytes,
+            "residency_budget_bytes": self.residency_budget_bytes,
+            "evictions": stats.evictions,
+            "pool_resident_bytes": pool.resident_bytes(),
+            "pool_handed_out_bytes": pool.handed_out_bytes(),
+            "pool_pages": pool.pages(),
+            "pool_stand_ins": self.standing.count(),
+        })
+    }
+
     /// The report's facts.
     pub fn json(&self) -> Value {
         let stats = self.streamer.residency().stats();

@@ -9,6 +9,7 @@ mod fuzz_script_parse;
 mod kill;
 mod review_tools;
 mod session;
+mod soak;
 mod support;
 mod xr;
 mod xvfb;

@@ -207,6 +207,12 @@ impl StandIns {
         }
     }
 
+    /// How many stand-ins the pool holds (a box each, kept until its chunk
+    /// is resident).
+    pub fn count(&self) -> usize {
+        self.list.len()
+    }
+
     /// Whether the pool holds `chunk`'s stand-in.
     pub fn is_standing(&self, chunk: ChunkId) -> bool {
         self.standing.get(chunk.index()).copied().unwrap_or(false)
