@@ -456,16 +456,26 @@ fn collide_peak(records: &Path) -> (Option<i32>, u64) {
     (status.code(), peak)
 }
 
+/// Steps of each record of the collide batch: enough that holding every
+/// record's steps would show in its peak.
+const RECORD_STEPS: u32 = 300;
+
+/// How far above the plant the records slide their parts, millimetres: out
+/// there a step has no neighbours to check, so a long record replays fast.
+const LIFT_MM: f64 = 1e6;
+
 /// Writes `count` records into `dir`, record `i` sliding part `parts[i %
-/// parts.len()]` from its pose in 5 steps of 20 mm along one axis.
+/// parts.len()]` in [`RECORD_STEPS`] steps of 20 mm along one axis, from
+/// [`LIFT_MM`] above its pose.
 fn write_records(dir: &Path, count: usize, parts: &[(u32, glam::DAffine3)]) {
     std::fs::create_dir_all(dir).unwrap();
     for i in 0..count {
         let (part, world) = parts[i % parts.len()];
         let (_, rotation, translation) = world.to_scale_rotation_translation();
-        let lines: String = (0..5)
+        let lines: String = (0..RECORD_STEPS)
             .map(|s| {
                 let mut t = translation;
+                t[2] += LIFT_MM;
                 t[i % 3] += 20.0 * f64::from(s);
                 format!(
                     "{}\n",
@@ -479,9 +489,10 @@ fn write_records(dir: &Path, count: usize, parts: &[(u32, glam::DAffine3)]) {
 }
 
 /// `dmu collide` over a batch: three times the records (each of the same
-/// 100 parts, so the checker's meshes are the same) peak within 2 % of the
-/// memory of one time; the records are all read before any is checked, and
-/// what each holds (its steps) is all that may grow.
+/// 100 parts, so the checker's meshes are the same) peak within 5 % of the
+/// memory of one time (runs of the same batch vary by up to 3 %): the
+/// records are all read before any is checked, but only those under way are
+/// held (holding all of them, 300 records peaked 35 % above 100).
 #[test]
 fn issue_48_a_collide_batch_does_not_grow_with_its_records() {
     let started = Instant::now();
@@ -513,7 +524,7 @@ fn issue_48_a_collide_batch_does_not_grow_with_its_records() {
     assert!(matches!(status_few, Some(0 | 1)), "{status_few:?}");
     assert!(matches!(status_many, Some(0 | 1)), "{status_many:?}");
     assert!(
-        peak_many as f64 <= peak_few as f64 * 1.02,
+        peak_many as f64 <= peak_few as f64 * 1.05,
         "300 records peaked at {peak_many} B, 100 at {peak_few} B"
     );
 }

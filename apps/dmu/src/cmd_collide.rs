@@ -10,7 +10,7 @@ use dmu_collide::{AllowList, Finding, Settings, StepOutcome, Summary, SweepMode,
 use dmu_scene::Scene;
 use serde_json::json;
 
-use crate::collide_batch::{Checked, check_records};
+use crate::collide_batch::{Checked, Records, check_records};
 use crate::collide_bcf::{BcfRequest, write_bcf};
 use crate::load::{Loaded, ModelArgs, load};
 
@@ -229,10 +229,16 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
     let (files, folder) = record_files(&args.record)?;
     // One record named as a file prints as it always has.
     let batch = folder || files.len() > 1;
-    let records = files
-        .iter()
-        .map(|file| read_record(file, &scene).with_context(|| format!("record {}", file.display())))
-        .collect::<anyhow::Result<Vec<_>>>()?;
+    // Every record is read before any is replayed, so that a bad one stops
+    // the batch before its work; the workers read each again as they take it
+    // and hold only the records under way.
+    let read = |index: usize, scene: &Scene| {
+        let file = &files[index];
+        read_record(file, scene).with_context(|| format!("record {}", file.display()))
+    };
+    for index in 0..files.len() {
+        read(index, &scene)?;
+    }
     let settings = Settings {
         clearance: args.clearance,
         allow: allow_list(&scene, &args.allow)?,
@@ -377,7 +383,11 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
             normal: f.normal,
         }));
     };
-    let workers = check_records(scene, &records, &settings, sweep, jobs, collect, emit)?;
+    let records = Records {
+        count: files.len(),
+        load: read,
+    };
+    let workers = check_records(scene, records, &settings, sweep, jobs, collect, emit)?;
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
     let bcf = match (&args.bcf, bcf_scene) {
         (Some(path), Some(scene)) => {
@@ -387,7 +397,7 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
                 snapshot: args.bcf_snapshot.0,
                 clearance: args.clearance,
             };
-            let written = write_bcf(scene, &records, &files, &bcf_clashes, batch, &request)
+            let written = write_bcf(scene, read, &files, &bcf_clashes, batch, &request)
                 .with_context(|| format!("--bcf {}", path.display()))?;
             Some(json!({
                 "path": path.display().to_string(),
@@ -407,7 +417,7 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
                 "jobs": workers,
                 "records": reports,
                 "summary": {
-                    "records": records.len(),
+                    "records": files.len(),
                     "records_with_findings": records_with_findings,
                     "steps": totals.steps,
                     "part_pairs_tested": totals.part_pairs_tested,
@@ -430,7 +440,7 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
     } else if batch {
         let line = format!(
             "{} records ({records_with_findings} with clashes or impacts), {} steps, {} clashes, {} impacts, {workers} jobs, {wall_ms:.1} ms",
-            records.len(),
+            files.len(),
             totals.steps,
             totals.clashes,
             totals.impacts,

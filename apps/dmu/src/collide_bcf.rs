@@ -165,12 +165,12 @@ fn clash_camera(tree: &Tree, bounds: &Aabb3d) -> Camera {
 
 /// Writes the BCF archive of a run: for each record in order, a topic per
 /// pair in `clashes[record]`, with the parts at the poses of that pair's first
-/// step. `scene` is a copy of the model at its own poses (the run's workers
+/// step (the records with clashes read again with `read`). `scene` is a copy of the model at its own poses (the run's workers
 /// consumed theirs). Without a GPU adapter the snapshots are left out, with a
 /// warning.
 pub fn write_bcf(
     mut scene: Scene,
-    records: &[Vec<Step>],
+    read: impl Fn(usize, &Scene) -> anyhow::Result<Vec<Step>>,
     files: &[PathBuf],
     clashes: &[Vec<PairClash>],
     batch: bool,
@@ -192,7 +192,12 @@ pub fn write_bcf(
     let model_poses: Vec<DAffine3> = scene.part_ids().map(|p| scene.part_world(p)).collect();
     let mut topics = Vec::new();
     let mut with_snapshot = 0;
-    for ((steps, file), pairs) in records.iter().zip(files).zip(clashes) {
+    for (index, (file, pairs)) in files.iter().zip(clashes).enumerate() {
+        if pairs.is_empty() {
+            continue;
+        }
+        // The scene is at the model's poses between records.
+        let steps = read(index, &scene)?;
         let record = file.display().to_string();
         let record_name = file
             .file_name()

@@ -2,6 +2,7 @@
 //! reader, their writer, and their replay: parts moved through the tree step by
 //! step, each step checked.
 
+use std::collections::HashMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -170,6 +171,9 @@ pub fn read_record(path: &Path, scene: &Scene) -> Result<Vec<Step>, RecordError>
 /// one step. Parts are named as [`Scene::find_part`] accepts.
 pub fn parse_record(text: &str, scene: &Scene) -> Result<Vec<Step>, RecordError> {
     let mut steps: Vec<Step> = Vec::new();
+    // A record moves a few parts over many lines: each is looked up once
+    // (a lookup by name compares every part's name).
+    let mut found: HashMap<String, PartId> = HashMap::new();
     // Editors on some systems start UTF-8 files with a byte-order mark.
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     for (i, raw) in text.lines().enumerate() {
@@ -206,9 +210,16 @@ pub fn parse_record(text: &str, scene: &Scene) -> Result<Vec<Step>, RecordError>
                 dmu_geom::Short(q.length())
             )));
         }
-        let part = scene
-            .find_part(&parsed.part)
-            .map_err(|cause| RecordError::UnknownPart { line, cause })?;
+        let part = match found.get(&parsed.part) {
+            Some(&part) => part,
+            None => {
+                let part = scene
+                    .find_part(&parsed.part)
+                    .map_err(|cause| RecordError::UnknownPart { line, cause })?;
+                found.insert(parsed.part.clone(), part);
+                part
+            }
+        };
         let scale = scene.part_world(part).to_scale_rotation_translation().0;
         let world = DAffine3::from_scale_rotation_translation(
             scale,
