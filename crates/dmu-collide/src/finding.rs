@@ -46,8 +46,10 @@ impl From<ClashKind> for FindingKind {
 }
 
 impl fmt::Display for FindingKind {
+    /// The kind's name, padded as the format asks (`dmu collide`'s text lines
+    /// align it in 7 columns).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.as_str())
+        f.pad(self.as_str())
     }
 }
 
@@ -112,5 +114,19 @@ impl<'a> StepOutcome<'a> {
             normal: None,
         });
         clashes.chain(impacts)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::FindingKind;
+
+    /// A kind pads like a string: `dmu collide`'s text lines align on it
+    /// (the enum that replaced the string printed its name unpadded).
+    #[test]
+    fn a_kind_pads_as_asked() {
+        assert_eq!(format!("{:<7}|", FindingKind::Hard), "hard   |");
+        assert_eq!(format!("{:>8}|", FindingKind::Impact), "  impact|");
+        assert_eq!(FindingKind::Contact.to_string(), "contact");
     }
 }
