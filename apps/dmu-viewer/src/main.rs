@@ -489,11 +489,7 @@ fn main() -> ExitCode {
     match run(&cli, started) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            let message = format!("{e:#}");
-            eprintln!(
-                "dmu-viewer: error: {}",
-                dmu_app::text::printable(&message, dmu_app::text::MESSAGE_CHARS)
-            );
+            eprintln!("{}", dmu_app::text::error_line("dmu-viewer", &e));
             ExitCode::from(2)
         }
     }

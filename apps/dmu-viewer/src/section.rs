@@ -109,17 +109,17 @@ impl Section {
     /// anything at the world's edge, ±[`MAX_WORLD_COORDINATE`]).
     pub fn slid(&self, index: usize, by: f64) -> Self {
         let mut out = self.clone();
+        // Kept within the world, as every section is (a BCF file holds it).
+        let world = |x: f64| x.clamp(-MAX_WORLD_COORDINATE, MAX_WORLD_COORDINATE);
         match &mut out {
             Self::Off => {}
-            // Kept within the world, as every section is (a BCF file holds it).
             Self::Planes(p) => {
                 if let Some(pl) = p.get_mut(index) {
-                    pl.d = (pl.d - by).clamp(-MAX_WORLD_COORDINATE, MAX_WORLD_COORDINATE);
+                    pl.d = world(pl.d - by);
                 }
             }
             Self::Box(b) => {
                 let axis = index / 2;
-                let world = |x: f64| x.clamp(-MAX_WORLD_COORDINATE, MAX_WORLD_COORDINATE);
                 if index.is_multiple_of(2) {
                     b.min[axis] = world(b.min[axis] - by).min(b.max[axis]);
                 } else {

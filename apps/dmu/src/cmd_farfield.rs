@@ -82,11 +82,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let scene = store
         .load_scene()
         .with_context(|| format!("loading {}", args.file.display()))?;
-    anyhow::ensure!(
-        scene.triangle_count() > 0,
-        "{}: the model has no triangles: no far field to build",
-        args.file.display()
-    );
+    dmu_app::load::require_triangles(
+        &scene,
+        &args.file.display().to_string(),
+        "build far fields of",
+    )?;
     let tree = Tree::build(&scene, TreeOptions::default());
     let cell_size = args
         .cell_size

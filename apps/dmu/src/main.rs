@@ -95,12 +95,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            // One line, whatever the file or flag it quotes held.
-            let message = format!("{e:#}");
-            eprintln!(
-                "dmu: error: {}",
-                dmu_app::text::printable(&message, dmu_app::text::MESSAGE_CHARS)
-            );
+            eprintln!("{}", dmu_app::text::error_line("dmu", &e));
             ExitCode::from(2)
         }
     }

@@ -20,21 +20,27 @@ pub struct Loaded {
 }
 
 impl Loaded {
-    /// Refuses a model with no triangles for work that needs some (sweeps,
-    /// far fields, benchmarks): an empty glTF (no nodes) panicked in each of
-    /// them, on a sample drawn from nothing or a view of nothing.
+    /// [`require_triangles`] of this model.
     pub fn require_triangles(&self, work: &str) -> anyhow::Result<()> {
-        anyhow::ensure!(
-            self.scene.triangle_count() > 0,
-            "{}: the model has no triangles ({} parts): nothing to {work}",
-            self.source.as_ref().map_or_else(
-                || "the built-in plant".to_owned(),
-                |p| p.display().to_string()
-            ),
-            self.scene.parts().len()
+        let source = self.source.as_ref().map_or_else(
+            || "the built-in plant".to_owned(),
+            |p| p.display().to_string(),
         );
-        Ok(())
+        require_triangles(&self.scene, &source, work)
     }
+}
+
+/// Refuses a model with no triangles (read from `source`) for `work` that
+/// needs some (sweeps, far fields, benchmarks): an empty glTF (no nodes)
+/// panicked in each of them, on a sample drawn from nothing or a view of
+/// nothing.
+pub fn require_triangles(scene: &Scene, source: &str, work: &str) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        scene.triangle_count() > 0,
+        "{source}: the model has no triangles ({} parts): nothing to {work}",
+        scene.parts().len()
+    );
+    Ok(())
 }
 
 /// Shared clap arguments for commands that open a model.

@@ -39,6 +39,16 @@ pub fn printable(s: &str, max_chars: usize) -> Cow<'_, str> {
 /// 16 MiB XML text does not print it).
 pub const MESSAGE_CHARS: usize = 2_000;
 
+/// The one line a program prints for the error that stops it:
+/// `PROGRAM: error: ` and the error with its causes, escaped ([`printable`]),
+/// one line whatever the file or flag it quotes held.
+pub fn error_line(program: &str, e: &anyhow::Error) -> String {
+    format!(
+        "{program}: error: {}",
+        printable(&format!("{e:#}"), MESSAGE_CHARS)
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
