@@ -1057,13 +1057,7 @@ impl App {
     pub fn start_export(&mut self, path: PathBuf) -> anyhow::Result<usize> {
         dmu_app::bcf::check_output_name(&path)?;
         let nav = &self.panes[self.active].nav;
-        let issues = crate::issues::issues(
-            &self.review,
-            &self.ui.viewpoints,
-            nav.forward(),
-            nav.fov_y_rad,
-            nav.near,
-        );
+        let issues = crate::issues::issues(&self.review, &self.ui.viewpoints, nav.near);
         let n = issues.len();
         self.export = Some(Export {
             path,

@@ -1,11 +1,11 @@
 //! The clash list: clashes of the session and of `dmu collide --json`
-//! reports, one entry per part pair and kind; showing one frames both parts,
-//! isolates them and finds their closest points.
+//! reports, one entry per part pair, named by its worst finding; showing one
+//! frames both parts, isolates them and finds their closest points.
 
 use std::path::Path;
 
 use anyhow::Context as _;
-use dmu_collide::{FindingKind, Separation};
+use dmu_collide::{Finding, Separation};
 use dmu_geom::Short;
 use dmu_scene::{MAX_WORLD_COORDINATE, PartId};
 use glam::DVec3;
@@ -13,31 +13,23 @@ use serde::Deserialize;
 
 use crate::review::{ListedClash, Review, list_clash};
 
-/// A finding as `dmu collide --json` prints it (the fields the list needs).
-#[derive(Debug, Deserialize)]
-struct Finding {
-    step: usize,
-    kind: FindingKind,
-    a: String,
-    b: String,
-    distance: f64,
-    point: [f64; 3],
-}
-
 /// A `dmu collide --json` report: one record's clashes, or a batch's (at
 /// least one of the two: an object with neither was read as an empty list).
+/// Its findings are [`dmu_collide`]'s, the type the report is written from.
 #[derive(Debug, Deserialize)]
-struct CollideReport {
-    clashes: Option<Vec<Finding>>,
-    records: Option<Vec<RecordReport>>,
+struct CollideReport<'a> {
+    #[serde(borrow)]
+    clashes: Option<Vec<Finding<'a>>>,
+    #[serde(borrow)]
+    records: Option<Vec<RecordReport<'a>>>,
 }
 
 #[derive(Debug, Deserialize)]
-struct RecordReport {
+struct RecordReport<'a> {
     #[serde(default)]
     record: Option<String>,
-    #[serde(default)]
-    clashes: Vec<Finding>,
+    #[serde(default, borrow)]
+    clashes: Vec<Finding<'a>>,
 }
 
 /// Adds the clashes of a `dmu collide --json` report at `path` to the
@@ -106,7 +98,8 @@ pub fn load_report(review: &mut Review, path: &Path) -> anyhow::Result<usize> {
             found.push(ListedClash {
                 a,
                 b,
-                kind: f.kind.as_str().to_owned(),
+                kind: f.kind,
+                others: Vec::new(),
                 distance: f.distance,
                 point: DVec3::from_array(f.point),
                 source: match record {

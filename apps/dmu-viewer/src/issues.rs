@@ -3,7 +3,7 @@
 //! topics from any tool as viewpoints to go to. The archive itself is
 //! [`dmu_app::bcf`]'s; snapshots are taken by the app, a frame per topic.
 
-use dmu_app::bcf::{self, ClippingPlane, Component, Topic, Visibility};
+use dmu_app::bcf::{self, ClashIssue, ClippingPlane, Component, Topic, Visibility};
 use dmu_scene::PartId;
 use glam::DVec3;
 
@@ -23,27 +23,34 @@ pub struct Issue {
     pub view: Viewpoint,
 }
 
-/// The view that shows a listed clash: its two parts alone, framed from
-/// `forward`, the first selected.
-pub fn clash_view(
-    review: &Review,
-    c: &ListedClash,
-    forward: DVec3,
-    fov_y_rad: f64,
-    near: f64,
-) -> Viewpoint {
+/// What a topic says of a listed clash: the same as `dmu collide --bcf`
+/// says of a pair (titled with its worst finding, the others listed).
+fn clash_issue<'a>(review: &'a Review, c: &ListedClash) -> ClashIssue<'a> {
+    let scene = &review.scene;
+    ClashIssue {
+        parts: [scene.part_name(c.a), scene.part_name(c.b)],
+        described: [scene.part_path(c.a), scene.part_path(c.b)],
+        kind: c.kind,
+        distance: c.distance,
+        toi: None,
+        point: c.point,
+        when: String::new(),
+        others: c.others.iter().map(|&k| (k, String::new())).collect(),
+        found: format!("Found {}.", c.source),
+        prefix: String::new(),
+    }
+}
+
+/// The view that shows a listed clash: its two parts alone, seen by the
+/// clash camera `dmu collide --bcf` uses, the first selected.
+pub fn clash_view(review: &Review, c: &ListedClash, near: f64) -> Viewpoint {
     let bounds = crate::clashes::pair_bounds(review, c.a, c.b);
-    let camera = dmu_geom::Camera::framing(&bounds, forward, DVec3::Z, fov_y_rad, near);
+    let camera = bcf::clash_camera(&bounds, |_| near);
     Viewpoint {
-        name: format!(
-            "{}: {} × {}",
-            c.kind,
-            review.scene.part_name(c.a),
-            review.scene.part_name(c.b)
-        ),
+        name: clash_issue(review, c).title(),
         eye: camera.eye,
         forward: (camera.target - camera.eye).normalize(),
-        fov_y_rad,
+        fov_y_rad: camera.fov_y_rad,
         pivot_distance: camera.target.distance(camera.eye),
         selected: Some(c.a),
         hidden: review
@@ -55,31 +62,13 @@ pub fn clash_view(
     }
 }
 
-/// The issues of a review: one per listed clash (type `Clash`), then one per
-/// saved viewpoint (type `Issue`).
-pub fn issues(
-    review: &Review,
-    viewpoints: &[Viewpoint],
-    forward: DVec3,
-    fov_y_rad: f64,
-    near: f64,
-) -> Vec<Issue> {
+/// The issues of a review: one per listed clash (type `Clash`, its view
+/// with a near plane at `near`), then one per saved viewpoint (type `Issue`).
+pub fn issues(review: &Review, viewpoints: &[Viewpoint], near: f64) -> Vec<Issue> {
     let clashes = review.clash_list.iter().map(|c| {
-        let view = clash_view(review, c, forward, fov_y_rad, near);
-        let mut topic = Topic::new(view.name.clone(), AUTHOR);
-        topic.topic_type = "Clash".to_owned();
-        topic.description = format!(
-            "{} between {} and {}: distance {:.6} at [{:.3}, {:.3}, {:.3}] (model units); found {}.",
-            c.kind,
-            review.scene.part_path(c.a),
-            review.scene.part_path(c.b),
-            c.distance,
-            c.point.x,
-            c.point.y,
-            c.point.z,
-            c.source
-        );
-        (topic, view)
+        let view = clash_view(review, c, near);
+        let topic = clash_issue(review, c).topic(AUTHOR, bcf_viewpoint(review, &view));
+        Issue { topic, view }
     });
     let saved = viewpoints.iter().map(|v| {
         let mut topic = Topic::new(v.name.clone(), AUTHOR);
@@ -89,15 +78,13 @@ pub fn issues(
             v.name,
             v.section.describe()
         );
-        (topic, v.clone())
+        topic.viewpoints.push(bcf_viewpoint(review, v));
+        Issue {
+            topic,
+            view: v.clone(),
+        }
     });
-    clashes
-        .chain(saved)
-        .map(|(mut topic, view)| {
-            topic.viewpoints.push(bcf_viewpoint(review, &view));
-            Issue { topic, view }
-        })
-        .collect()
+    clashes.chain(saved).collect()
 }
 
 /// A viewer viewpoint as a BCF viewpoint (no snapshot yet).
@@ -244,7 +231,8 @@ mod tests {
             ListedClash {
                 a,
                 b,
-                kind: "hard".to_owned(),
+                kind: dmu_collide::FindingKind::Hard,
+                others: Vec::new(),
                 distance: 0.0,
                 point: DVec3::new(5.0, 0.0, 0.0),
                 source: "live".to_owned(),
@@ -268,13 +256,7 @@ mod tests {
             .section
             .add_plane(DVec3::new(3.0, 1.0, 0.0), DVec3::new(1.0, 1.0, 0.0))
             .unwrap();
-        let issues = issues(
-            &review,
-            std::slice::from_ref(&saved),
-            DVec3::new(1.0, 1.0, -1.0).normalize(),
-            1.0,
-            0.1,
-        );
+        let issues = issues(&review, std::slice::from_ref(&saved), 0.1);
         assert_eq!(issues.len(), 2);
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("issues.bcfzip");

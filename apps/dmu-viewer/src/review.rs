@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use dmu_collide::{Checker, Report, Separation, Settings};
+use dmu_collide::{Checker, FindingKind, Report, Separation, Settings};
 use dmu_geom::Ray3d;
 use dmu_scene::{MeshId, PartId, Scene};
 use dmu_tree::{Hit, Tree, TreeOptions};
@@ -41,31 +41,49 @@ pub struct ListedClash {
     pub a: PartId,
     /// The other part.
     pub b: PartId,
-    /// `hard`, `contact`, `soft`, or `impact` (from a report of swept moves).
-    pub kind: String,
-    /// The smallest distance seen (0 for hard clashes), model units.
+    /// The pair's worst finding (an impact comes from a report of swept
+    /// moves).
+    pub kind: FindingKind,
+    /// The other kinds the pair showed, worst first.
+    pub others: Vec<FindingKind>,
+    /// The smallest distance seen of the worst kind (0 for hard clashes),
+    /// model units.
     pub distance: f64,
     /// A world point of the clash where that distance was seen.
     pub point: DVec3,
-    /// Where it was found: `live`, or the report file and step.
+    /// Where the worst finding was found: `live`, or the report file and
+    /// step.
     pub source: String,
 }
 
-/// Adds `clash` to `list`, or keeps the smaller distance of an entry for the
-/// same pair (either order) and kind.
+/// Adds `clash` to `list`: an entry per pair (either order) with its worst
+/// finding, as a BCF topic names it. A worse finding takes the entry over
+/// (the kind it replaces joins the others), one of the same kind keeps the
+/// smaller distance, a milder one joins the others.
 pub fn list_clash(list: &mut Vec<ListedClash>, clash: ListedClash) {
-    let same = |c: &&mut ListedClash| {
-        c.kind == clash.kind
-            && ((c.a, c.b) == (clash.a, clash.b) || (c.a, c.b) == (clash.b, clash.a))
+    let same =
+        |c: &&mut ListedClash| (c.a, c.b) == (clash.a, clash.b) || (c.a, c.b) == (clash.b, clash.a);
+    let Some(c) = list.iter_mut().find(same) else {
+        list.push(clash);
+        return;
     };
-    match list.iter_mut().find(same) {
-        Some(c) if clash.distance < c.distance => {
-            c.distance = clash.distance;
-            c.point = clash.point;
+    let milder = if clash.kind < c.kind {
+        let old = std::mem::replace(c, clash);
+        old.others.into_iter().chain([old.kind]).collect()
+    } else if clash.kind == c.kind {
+        if clash.distance < c.distance {
+            (c.distance, c.point) = (clash.distance, clash.point);
         }
-        Some(_) => {}
-        None => list.push(clash),
+        clash.others
+    } else {
+        clash.others.into_iter().chain([clash.kind]).collect()
+    };
+    for kind in milder {
+        if kind != c.kind && !c.others.contains(&kind) {
+            c.others.push(kind);
+        }
     }
+    c.others.sort();
 }
 
 /// Timings of the last edit, for the stats overlay.
@@ -112,7 +130,7 @@ pub struct Review {
     /// What cuts the model open (drawing and picking both follow it).
     pub section: Section,
     /// Every clash seen in this session (live checks and loaded reports),
-    /// one entry per part pair and kind, in the order first seen.
+    /// one entry per part pair (its worst finding), in the order first seen.
     pub clash_list: Vec<ListedClash>,
     /// Under a memory budget: where the meshes picks and checks read come
     /// from (the scene is then the store's skeleton); `None`: all loaded.
@@ -270,7 +288,8 @@ impl Review {
                         ListedClash {
                             a: c.a,
                             b: c.b,
-                            kind: c.kind.as_str().to_owned(),
+                            kind: c.kind.into(),
+                            others: Vec::new(),
                             distance: c.distance,
                             point: c.point,
                             source: "live".to_owned(),
@@ -495,6 +514,48 @@ mod tests {
 
     fn review() -> Review {
         Review::new(dmu_samples::grid(2, 10.0, 4.0, 2048), None)
+    }
+
+    proptest::proptest! {
+        /// The list holds an entry per pair, named by its worst finding with
+        /// that kind's smallest distance, and the pair's other kinds: against
+        /// a brute force over the findings listed, in any order.
+        #[test]
+        fn the_list_names_each_pair_by_its_worst_finding(
+            findings in proptest::collection::vec((0u32..4, 0u32..4, 0usize..4, 0u32..100), 0..40)
+        ) {
+            let mut list = Vec::new();
+            let findings: Vec<_> = findings.into_iter().filter(|f| f.0 != f.1).collect();
+            for &(a, b, kind, d) in &findings {
+                list_clash(&mut list, ListedClash {
+                    a: PartId(a),
+                    b: PartId(b),
+                    kind: FindingKind::ALL[kind],
+                    others: Vec::new(),
+                    distance: f64::from(d),
+                    point: DVec3::splat(f64::from(d)),
+                    source: String::new(),
+                });
+            }
+            let pair = |a: u32, b: u32| (a.min(b), a.max(b));
+            let mut pairs: Vec<_> = findings.iter().map(|f| pair(f.0, f.1)).collect();
+            pairs.sort();
+            pairs.dedup();
+            proptest::prop_assert_eq!(list.len(), pairs.len());
+            for c in &list {
+                let of_pair: Vec<_> =
+                    findings.iter().filter(|f| pair(f.0, f.1) == pair(c.a.0, c.b.0)).collect();
+                let worst = of_pair.iter().map(|f| f.2).min().unwrap();
+                let mut others: Vec<_> = of_pair.iter().map(|f| f.2).filter(|&k| k != worst).collect();
+                others.sort();
+                others.dedup();
+                let distance = of_pair.iter().filter(|f| f.2 == worst).map(|f| f.3).min().unwrap();
+                proptest::prop_assert_eq!(c.kind, FindingKind::ALL[worst]);
+                proptest::prop_assert_eq!(&c.others, &others.iter().map(|&k| FindingKind::ALL[k]).collect::<Vec<_>>());
+                proptest::prop_assert_eq!(c.distance, f64::from(distance));
+                proptest::prop_assert_eq!(c.point, DVec3::splat(f64::from(distance)));
+            }
+        }
     }
 
     /// A drag and typed moves undo and redo exactly, and the tree follows.

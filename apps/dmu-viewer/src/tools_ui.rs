@@ -253,7 +253,8 @@ fn clash_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review, pane
     let mut show = None;
     egui::Grid::new("clash list").striped(true).show(ui, |ui| {
         for (i, c) in review.clash_list.iter().enumerate() {
-            ui.colored_label(kind_colour(&c.kind), &c.kind);
+            ui.colored_label(crate::ui::clash_colour(c.kind), c.kind.as_str())
+                .on_hover_text(others_text(&c.others));
             let text = format!(
                 "{} · {}",
                 review.scene.part_name(c.a),
@@ -320,14 +321,13 @@ fn viewpoint_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review, 
     });
 }
 
-/// Colour of a clash kind's name (impacts as hard clashes).
-fn kind_colour(kind: &str) -> Color32 {
-    use dmu_collide::ClashKind;
-    crate::ui::clash_colour(match kind {
-        "contact" => ClashKind::Contact,
-        "soft" => ClashKind::Soft,
-        _ => ClashKind::Hard,
-    })
+/// What else a listed pair showed, for the hover text of its kind.
+fn others_text(others: &[dmu_collide::FindingKind]) -> String {
+    if others.is_empty() {
+        return "its only kind of finding".to_owned();
+    }
+    let names: Vec<&str> = others.iter().map(|k| k.as_str()).collect();
+    format!("also {}", names.join(", "))
 }
 
 /// Draws the gizmo, the section and the measurement over pane `pane` at

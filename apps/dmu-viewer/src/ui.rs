@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use dmu_collide::ClashKind;
+use dmu_collide::FindingKind;
 use dmu_render::{Culling, FrameStats};
 use dmu_scene::{NodeId, PartId, Scene};
 use egui::{Color32, Pos2, Rect, RichText, Sense, Vec2};
@@ -706,12 +706,12 @@ fn history_row(ui: &mut egui::Ui, review: &mut Review) {
     });
 }
 
-/// Marker colour of a clash kind.
-pub fn clash_colour(kind: ClashKind) -> Color32 {
-    match kind {
-        ClashKind::Hard => Color32::from_rgb(255, 40, 40),
-        ClashKind::Contact => Color32::from_rgb(255, 200, 0),
-        ClashKind::Soft => Color32::from_rgb(80, 180, 255),
+/// Marker colour of a kind of finding (an impact as a hard clash).
+pub fn clash_colour(kind: impl Into<FindingKind>) -> Color32 {
+    match kind.into() {
+        FindingKind::Hard | FindingKind::Impact => Color32::from_rgb(255, 40, 40),
+        FindingKind::Contact => Color32::from_rgb(255, 200, 0),
+        FindingKind::Soft => Color32::from_rgb(80, 180, 255),
     }
 }
 

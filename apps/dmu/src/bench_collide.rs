@@ -255,11 +255,10 @@ pub fn bench_collide(args: &CollideArgs) -> anyhow::Result<()> {
         "part_pairs_tested_per_step": warm.part_pairs as f64 / n,
         "pairs_tested_per_step": warm.chunk_pairs.iter().sum::<u64>() as f64 / n,
         "clashes_per_step": warm.clashes as f64 / n,
-        "clashes_by_kind": {
-            "hard": warm.kinds[ClashKind::Hard as usize],
-            "contact": warm.kinds[ClashKind::Contact as usize],
-            "soft": warm.kinds[ClashKind::Soft as usize],
-        },
+        "clashes_by_kind": ([ClashKind::Hard, ClashKind::Contact, ClashKind::Soft]
+            .map(|k| (k.as_str(), warm.kinds[k as usize]))
+            .into_iter()
+            .collect::<std::collections::BTreeMap<_, _>>()),
         "no_tree_steps": flat_poses.len(),
         "steps_per_s_no_tree": steps_per_s_no_tree,
         "steps_per_s_same_steps": same_steps_per_s,

@@ -35,10 +35,11 @@ use crate::load::{Loaded, ModelArgs, load};
 ///
 /// With --bcf FILE.bcfzip the clashes are also written as BCF 2.1 issues for
 /// design-review tools (`dmu bcf show FILE` lists them): one topic per pair of
-/// parts per record, at the first step where the pair has a finding (a record
-/// of 3,000 steps of one contact makes one topic), titled with the kind, both
-/// parts, the step and its time (and the record's file name when there are
-/// several); its viewpoint frames both parts as they stand at that step (for
+/// parts per record, at the first step of the pair's worst finding (hard over
+/// impact over contact over soft; a record of 3,000 steps of one contact makes
+/// one topic), titled with that kind, both parts, the step and its time (and
+/// the record's file name when there are several), the other kinds listed in
+/// its description; its viewpoint frames both parts as they stand at that step (for
 /// an impact, the part hit and the point of impact), from the +X, -Y, +Z side,
 /// with both selected (glTF node names in
 /// AuthoringToolId) and a snapshot rendered offscreen, the pair tinted.
@@ -148,8 +149,8 @@ fn csv_row(f: &Finding<'_>) -> String {
         f.step,
         f.t,
         f.kind,
-        csv_field(f.a),
-        csv_field(f.b),
+        csv_field(&f.a),
+        csv_field(&f.b),
         f.distance,
         f.toi.map_or(String::new(), |t| t.to_string()),
         p[0],
@@ -294,7 +295,7 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
         totals.seconds += summary.seconds;
         records_with_findings += usize::from(found_any(&summary));
         if args.bcf.is_some() {
-            bcf_clashes.push(crate::collide_bcf::first_clashes(&findings));
+            bcf_clashes.push(crate::collide_bcf::pair_clashes(&findings));
         }
         let mut out = std::io::stdout().lock();
         if args.json {
@@ -370,8 +371,8 @@ pub fn run(args: &Args) -> anyhow::Result<ExitCode> {
     // copies of the scene.
     let collect = |o: &StepOutcome<'_>, found: &mut Vec<_>| {
         found.extend(o.findings().map(|f| Finding {
-            a: &names[f.a_id as usize],
-            b: &names[f.b_id as usize],
+            a: names[f.a_id as usize].as_str().into(),
+            b: names[f.b_id as usize].as_str().into(),
             step: f.step,
             t: f.t,
             kind: f.kind,

@@ -6,37 +6,47 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
-use dmu_app::bcf::{self, Component, Topic, Viewpoint};
+use dmu_app::bcf::{self, ClashIssue, Component, Topic, Viewpoint};
 use dmu_app::units::LengthUnit;
-use dmu_collide::{Finding, Step};
-use dmu_geom::Aabb3d;
+use dmu_collide::{Finding, FindingKind, Step};
 use dmu_render::{Camera, Capture, Culling, Renderer, RendererOptions, View, headless_device};
 use dmu_scene::{PartId, Scene};
 use dmu_tree::{Tree, TreeOptions};
 use glam::{DAffine3, DVec3};
 
-/// The snapshot's vertical field of view, degrees (the viewer's default).
-const FOV_Y_DEG: f64 = 60.0;
-
-/// One pair of parts that clashes in a record, as first found.
+/// One kind of finding of a pair in a record: its first finding and the
+/// steps it was seen at.
 #[derive(Clone, Debug)]
-pub struct PairClash {
-    /// The first finding of the pair (the moved part first).
-    pub a_id: u32,
-    /// The other part.
-    pub b_id: u32,
-    /// `hard`, `contact`, `soft` or `impact`, at the first step.
-    pub kind: &'static str,
-    /// The first step with a finding for the pair, and its time.
+pub struct KindSeen {
+    /// `hard`, `impact`, `contact` or `soft`.
+    pub kind: FindingKind,
+    /// The first step with a finding of this kind, and its time.
     pub step: usize,
     /// See `step`.
     pub t: f64,
-    /// The first finding's distance (0 when hard) and time of impact.
+    /// That finding's distance (0 when hard) and time of impact.
     pub distance: f64,
     /// See `distance`.
     pub toi: Option<f64>,
     /// Where, world units.
     pub point: [f64; 3],
+    /// Steps with a finding of this kind.
+    pub steps: usize,
+    /// The last of them.
+    pub last_step: usize,
+}
+
+/// One pair of parts that clashes in a record: each kind it showed, worst
+/// first, and the steps with any finding.
+#[derive(Clone, Debug)]
+pub struct PairClash {
+    /// The moved part of the pair's first finding.
+    pub a_id: u32,
+    /// The other part.
+    pub b_id: u32,
+    /// The kinds seen, worst first (never empty): the topic is titled with
+    /// the first.
+    pub kinds: Vec<KindSeen>,
     /// Steps with a finding for the pair, and the last of them with its time.
     pub steps: usize,
     /// See `steps`.
@@ -45,41 +55,66 @@ pub struct PairClash {
     pub last_t: f64,
 }
 
-/// The pairs clashing in one record's findings (in step order), each once, at
-/// the first step where it appears, in the order they first appear: a record
-/// of 3,000 steps of the same contact is one issue, not 3,000.
-pub fn first_clashes(findings: &[Finding<'_>]) -> Vec<PairClash> {
+impl PairClash {
+    /// The pair's worst finding.
+    pub fn worst(&self) -> &KindSeen {
+        &self.kinds[0]
+    }
+}
+
+/// The pairs clashing in one record's findings (in step order), each once,
+/// with its worst finding first, in the order of the steps of their worst
+/// findings: a record of 3,000 steps of the same contact is one issue, not
+/// 3,000, and a pair that goes from a soft clash to a hard one is one issue
+/// about the hard clash.
+pub fn pair_clashes(findings: &[Finding<'_>]) -> Vec<PairClash> {
     let mut pairs: Vec<PairClash> = Vec::new();
     let mut index: HashMap<(u32, u32), usize> = HashMap::new();
     for f in findings {
         let key = (f.a_id.min(f.b_id), f.a_id.max(f.b_id));
-        match index.get(&key) {
-            Some(&i) => {
-                let p = &mut pairs[i];
-                if p.last_step != f.step {
-                    p.steps += 1;
-                    p.last_step = f.step;
-                    p.last_t = f.t;
-                }
-            }
+        let p = match index.get(&key) {
+            Some(&i) => &mut pairs[i],
             None => {
                 index.insert(key, pairs.len());
                 pairs.push(PairClash {
                     a_id: f.a_id,
                     b_id: f.b_id,
-                    kind: f.kind.as_str(),
-                    step: f.step,
-                    t: f.t,
-                    distance: f.distance,
-                    toi: f.toi,
-                    point: f.point,
-                    steps: 1,
+                    kinds: Vec::new(),
+                    steps: 0,
                     last_step: f.step,
                     last_t: f.t,
                 });
+                pairs.last_mut().expect("just pushed")
             }
+        };
+        if p.steps == 0 || p.last_step != f.step {
+            p.steps += 1;
+            p.last_step = f.step;
+            p.last_t = f.t;
+        }
+        match p.kinds.iter_mut().find(|k| k.kind == f.kind) {
+            Some(k) if k.last_step != f.step => {
+                k.steps += 1;
+                k.last_step = f.step;
+            }
+            Some(_) => {}
+            None => p.kinds.push(KindSeen {
+                kind: f.kind,
+                step: f.step,
+                t: f.t,
+                distance: f.distance,
+                toi: f.toi,
+                point: f.point,
+                steps: 1,
+                last_step: f.step,
+            }),
         }
     }
+    for p in &mut pairs {
+        p.kinds.sort_by_key(|k| k.kind);
+    }
+    // The topics are written replaying the record forward once.
+    pairs.sort_by_key(|p| p.worst().step);
     pairs
 }
 
@@ -153,16 +188,6 @@ impl Snapshots {
     }
 }
 
-/// The camera of a clash: looking from the +X, −Y, +Z side (the viewer's iso
-/// view) at `bounds` (both parts' boxes; for an impact, the part hit and the
-/// point of impact), framed as the viewer frames a selection.
-fn clash_camera(tree: &Tree, bounds: &Aabb3d) -> Camera {
-    let forward = DVec3::new(-1.0, 1.0, -1.0);
-    let framed = |near| Camera::framing(bounds, forward, DVec3::Z, FOV_Y_DEG.to_radians(), near);
-    let first = framed(bounds.extent().length().max(1e-3) * 1e-4);
-    framed(crate::cmd_render::default_near(tree, first.eye))
-}
-
 /// Writes the BCF archive of a run: for each record in order, a topic per
 /// pair in `clashes[record]`, with the parts at the poses of that pair's first
 /// step (the records with clashes read again with `read`). `scene` is a copy of the model at its own poses (the run's workers
@@ -207,27 +232,29 @@ pub fn write_bcf(
         let mut next_step = 0;
         let mut moved = Vec::new();
         for pair in pairs {
-            debug_assert!(pair.step + 1 >= next_step, "pairs in step order");
-            for step in &steps[next_step..=pair.step] {
+            debug_assert!(pair.worst().step + 1 >= next_step, "pairs in step order");
+            let worst = pair.worst();
+            for step in &steps[next_step..=worst.step] {
                 for m in &step.moves {
                     tree.move_part(&mut scene, m.part, m.world);
                     moved.push(m.part);
                 }
             }
-            next_step = pair.step + 1;
+            next_step = worst.step + 1;
             let (a, b) = (PartId(pair.a_id), PartId(pair.b_id));
             // An impact happened along the move, not where the moved part
             // ends: frame the part hit and the point of impact.
-            let bounds = match pair.toi {
+            let bounds = match worst.toi {
                 Some(_) => scene
                     .part_world_bounds(b)
-                    .grown(DVec3::from_array(pair.point)),
+                    .grown(DVec3::from_array(worst.point)),
                 None => scene.part_world_bounds(a).union(scene.part_world_bounds(b)),
             };
-            let camera = clash_camera(&tree, &bounds);
+            let camera =
+                bcf::clash_camera(&bounds, |eye| crate::cmd_render::default_near(&tree, eye));
             let snapshot = match snapshots.as_mut() {
                 Some(s) => Some(s.take(&scene, &tree, camera, [a, b]).with_context(|| {
-                    format!("rendering the snapshot of {record} step {}", pair.step)
+                    format!("rendering the snapshot of {record} step {}", worst.step)
                 })?),
                 None => None,
             };
@@ -261,7 +288,7 @@ pub fn write_bcf(
     })
 }
 
-/// The topic of one clashing pair.
+/// The topic of one clashing pair, titled with its worst finding.
 fn topic(
     scene: &Scene,
     pair: &PairClash,
@@ -275,42 +302,49 @@ fn topic(
         scene.part_name(PartId(pair.a_id)),
         scene.part_name(PartId(pair.b_id)),
     );
-    let prefix = record_name.map_or_else(String::new, |r| format!("{r}: "));
-    let title = format!(
-        "{prefix}{}: {a} × {b} at step {} (t={})",
-        pair.kind, pair.step, pair.t
-    );
-    let measure = match pair.toi {
-        Some(toi) => format!("impact at {toi:.6} of the move"),
-        None => format!("distance {:.6}", pair.distance),
+    let worst = pair.worst();
+    let plural = |n: usize| if n == 1 { "" } else { "s" };
+    let issue = ClashIssue {
+        parts: [a, b],
+        described: [
+            format!("{a} (#{})", pair.a_id),
+            format!("{b} (#{})", pair.b_id),
+        ],
+        kind: worst.kind,
+        distance: worst.distance,
+        toi: worst.toi,
+        point: DVec3::from_array(worst.point),
+        when: bcf::at_step(worst.step, worst.t),
+        others: pair.kinds[1..]
+            .iter()
+            .map(|k| {
+                let when = format!(
+                    "at {} step{} from step {} (t={})",
+                    k.steps,
+                    plural(k.steps),
+                    k.step,
+                    dmu_geom::Short(k.t)
+                );
+                (k.kind, when)
+            })
+            .collect(),
+        found: format!(
+            "Record {record}: the pair has findings at {} step{}, the last at step {} (t={}). \
+             Found by dmu collide with clearance {clearance}.",
+            pair.steps,
+            plural(pair.steps),
+            pair.last_step,
+            dmu_geom::Short(pair.last_t)
+        ),
+        prefix: record_name.map_or_else(String::new, |r| format!("{r}: ")),
     };
-    let p = pair.point;
-    let description = format!(
-        "{} between {a} (#{}) and {b} (#{}) at step {} (t={}) of record {record}: {measure}, at [{:.3}, {:.3}, {:.3}] (model units). \
-         The pair has findings at {} step{}, the last at step {} (t={}). Found by dmu collide with clearance {clearance}.",
-        pair.kind,
-        pair.a_id,
-        pair.b_id,
-        pair.step,
-        pair.t,
-        p[0],
-        p[1],
-        p[2],
-        pair.steps,
-        if pair.steps == 1 { "" } else { "s" },
-        pair.last_step,
-        pair.last_t
-    );
-    Topic {
-        description,
-        topic_type: "Clash".to_owned(),
-        labels: vec![pair.kind.to_owned(), "dmu collide".to_owned()],
-        viewpoints: vec![Viewpoint {
+    issue.topic(
+        "dmu collide",
+        Viewpoint {
             camera: Some(bcf::Camera::perspective(&camera)),
             selected: vec![Component::part(a), Component::part(b)],
             snapshot: snapshot.map(Into::into),
             ..Viewpoint::new()
-        }],
-        ..Topic::new(title, "dmu collide")
-    }
+        },
+    )
 }

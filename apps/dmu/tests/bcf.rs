@@ -141,6 +141,66 @@ fn a_topic_per_pair_at_its_first_step() {
     assert_eq!(run["bcf"]["snapshots"], if rendered { 2 } else { 0 });
 }
 
+/// Issue 47: a pair going from a 0.05 soft clash to a hard clash and back is
+/// one topic titled with its hard clash (it was titled "soft", its first
+/// finding), at the hard step's poses, listing the soft clash.
+#[test]
+fn a_pair_topic_is_titled_with_its_worst_finding() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = grid(dir.path());
+    // box_1_0_0 spans x 8..12: box_0_0_0 (side 4) at x 5.95 is 0.05 away.
+    let moves = record(
+        dir.path(),
+        "closer.jsonl",
+        &[
+            pose(0, "box_0_0_0", [-30.0, 0.0, 0.0]),
+            pose(1, "box_0_0_0", [5.95, 0.0, 0.0]),
+            pose(2, "box_0_0_0", [7.0, 0.0, 0.0]),
+            pose(3, "box_0_0_0", [5.95, 0.0, 0.0]),
+        ],
+    );
+    let bcf = path(dir.path(), "closer.bcfzip");
+    let out = dmu(&[
+        "collide",
+        &model,
+        "--record",
+        &moves,
+        "--clearance",
+        "0.1",
+        "--discrete",
+        "--json",
+        "--bcf",
+        &bcf,
+        "--bcf-snapshot",
+        "none",
+    ]);
+    let run = report(&out);
+    let kinds: Vec<&str> = run["clashes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["kind"].as_str().unwrap())
+        .collect();
+    assert_eq!(kinds, ["soft", "hard", "soft"]);
+    assert_eq!(run["bcf"]["topics"], 1);
+    let shown = json(&dmu(&["bcf", "show", &bcf, "--json"]));
+    let topic = &shown["topics"][0];
+    assert_eq!(
+        topic["title"],
+        "hard: box_0_0_0 × box_1_0_0 at step 2 (t=2)"
+    );
+    let description = topic["description"].as_str().unwrap();
+    assert!(
+        description.contains("Also soft at 2 steps from step 1 (t=1).")
+            && description.contains("findings at 3 steps, the last at step 3"),
+        "{description}"
+    );
+    assert_eq!(
+        topic["labels"],
+        serde_json::json!(["hard", "soft", "dmu collide"])
+    );
+}
+
 /// Several records: topics from each, titled with the record's file name;
 /// `--bcf-snapshot none` writes none; a clear run writes an empty file.
 #[test]

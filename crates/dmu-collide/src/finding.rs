@@ -1,38 +1,55 @@
 //! A replayed step's clashes and impacts, flat and named, as reports print them.
 
+use std::borrow::Cow;
 use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
 use crate::{ClashKind, StepOutcome};
 
-/// What a finding is: a clash of one of [`ClashKind`]'s kinds, or an impact
-/// found by a sweep. Written and read as `hard`, `contact`, `soft`,
-/// `impact` (the one place these names are spelled); a report with any other
-/// kind is refused when read.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum FindingKind {
-    /// The parts interpenetrate.
-    Hard,
-    /// The surfaces touch without penetrating.
-    Contact,
-    /// Apart, but closer than the clearance.
-    Soft,
-    /// A swept move hits the other part on the way.
-    Impact,
+/// Declares [`FindingKind`] and its names from one list, so that the name
+/// `as_str` gives and the one serde writes and reads (`rename_all`) are one
+/// spelling: a variant's name is its identifier in lower case.
+macro_rules! finding_kinds {
+    ($($(#[doc = $doc:literal])* $variant:ident $name:ident,)*) => {
+        /// What a finding is: a clash of one of [`ClashKind`]'s kinds, or an
+        /// impact found by a sweep. Written and read as `hard`, `impact`,
+        /// `contact`, `soft`; a report with any other kind is refused when
+        /// read.
+        ///
+        /// Declared worst first, so `Ord` ranks them: a pair's worst finding
+        /// is its smallest kind. An impact ranks below a hard clash because
+        /// the parts meet on the way and may be apart where the move ends;
+        /// above a contact, because they meet at speed.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+        #[serde(rename_all = "lowercase")]
+        pub enum FindingKind {
+            $($(#[doc = $doc])* $variant,)*
+        }
+
+        impl FindingKind {
+            /// Every kind, worst first.
+            pub const ALL: [FindingKind; 4] = [$(Self::$variant),*];
+
+            /// The kind's name, as reports write it.
+            pub fn as_str(self) -> &'static str {
+                match self {
+                    $(Self::$variant => stringify!($name),)*
+                }
+            }
+        }
+    };
 }
 
-impl FindingKind {
-    /// `hard`, `contact`, `soft` or `impact`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Self::Hard => "hard",
-            Self::Contact => "contact",
-            Self::Soft => "soft",
-            Self::Impact => "impact",
-        }
-    }
+finding_kinds! {
+    /// The parts interpenetrate.
+    Hard hard,
+    /// A swept move hits the other part on the way.
+    Impact impact,
+    /// The surfaces touch without penetrating.
+    Contact contact,
+    /// Apart, but closer than the clearance.
+    Soft soft,
 }
 
 impl From<ClashKind> for FindingKind {
@@ -54,9 +71,10 @@ impl fmt::Display for FindingKind {
 }
 
 /// One clash or impact of a replayed step with everything a report needs: the
-/// one definition of the fields of `dmu collide --json` and of the Python
-/// module's `collide` (serialized with serde, so the two cannot drift apart).
-#[derive(Clone, Debug, PartialEq, Serialize)]
+/// one definition of the fields of `dmu collide --json`, of the Python
+/// module's `collide` and of the viewer's report reader (serialized and read
+/// with serde, so they cannot drift apart).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Finding<'a> {
     /// Step number, from 0.
     pub step: usize,
@@ -64,10 +82,13 @@ pub struct Finding<'a> {
     pub t: f64,
     /// A clash's kind, or an impact.
     pub kind: FindingKind,
-    /// The first part's name (a moved part).
-    pub a: &'a str,
+    /// The first part's name (a moved part): borrowed from the scene when
+    /// written, owned when read from a report.
+    #[serde(borrow)]
+    pub a: Cow<'a, str>,
     /// The second part's name.
-    pub b: &'a str,
+    #[serde(borrow)]
+    pub b: Cow<'a, str>,
     /// The first part's id.
     pub a_id: u32,
     /// The second part's id.
@@ -91,8 +112,8 @@ impl<'a> StepOutcome<'a> {
             step: index,
             t,
             kind: c.kind.into(),
-            a: scene.part_name(c.a),
-            b: scene.part_name(c.b),
+            a: scene.part_name(c.a).into(),
+            b: scene.part_name(c.b).into(),
             a_id: c.a.0,
             b_id: c.b.0,
             distance: c.distance,
@@ -104,8 +125,8 @@ impl<'a> StepOutcome<'a> {
             step: index,
             t,
             kind: FindingKind::Impact,
-            a: scene.part_name(i.a),
-            b: scene.part_name(i.b),
+            a: scene.part_name(i.a).into(),
+            b: scene.part_name(i.b).into(),
             a_id: i.a.0,
             b_id: i.b.0,
             distance: i.distance,
@@ -119,7 +140,7 @@ impl<'a> StepOutcome<'a> {
 
 #[cfg(test)]
 mod tests {
-    use super::FindingKind;
+    use super::{Finding, FindingKind};
 
     /// A kind pads like a string: `dmu collide`'s text lines align on it
     /// (the enum that replaced the string printed its name unpadded).
@@ -128,5 +149,48 @@ mod tests {
         assert_eq!(format!("{:<7}|", FindingKind::Hard), "hard   |");
         assert_eq!(format!("{:>8}|", FindingKind::Impact), "  impact|");
         assert_eq!(FindingKind::Contact.to_string(), "contact");
+    }
+
+    /// A pair's worst finding is its smallest kind.
+    #[test]
+    fn kinds_rank_worst_first() {
+        use FindingKind::*;
+        let mut kinds = [Soft, Contact, Impact, Hard];
+        kinds.sort();
+        assert_eq!(kinds, [Hard, Impact, Contact, Soft]);
+        assert_eq!(kinds, FindingKind::ALL);
+    }
+
+    /// A kind's name is the one serde writes and reads.
+    #[test]
+    fn a_kind_is_named_as_serde_names_it() {
+        for kind in FindingKind::ALL {
+            let json = format!("\"{}\"", kind.as_str());
+            assert_eq!(serde_json::to_string(&kind).unwrap(), json);
+            assert_eq!(serde_json::from_str::<FindingKind>(&json).unwrap(), kind);
+        }
+    }
+
+    /// What a report writes reads back the same, names with escapes included
+    /// (they cannot be borrowed from the text).
+    #[test]
+    fn a_finding_reads_back_as_written() {
+        let written = Finding {
+            step: 3,
+            t: 0.5,
+            kind: FindingKind::Impact,
+            a: "pipe \"A\"".into(),
+            b: "valve".into(),
+            a_id: 7,
+            b_id: 9,
+            distance: 0.0,
+            toi: Some(0.25),
+            point: [1.0, -2.0, 3e8],
+            normal: None,
+        };
+        let text = serde_json::to_string(&written).unwrap();
+        let read: Finding<'_> = serde_json::from_str(&text).unwrap();
+        assert_eq!(read, written);
+        assert!(serde_json::from_str::<Finding<'_>>(&text.replace("impact", "scrape")).is_err());
     }
 }

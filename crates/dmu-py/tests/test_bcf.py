@@ -136,6 +136,30 @@ def test_collide_bcf_reads_in_bcf_client(grid_glb, dmu_bin, tmp_path):
         assert png_info(viewpoint.snapshot) == (320, 240)
 
 
+def test_collide_bcf_titles_a_pair_with_its_worst_finding(grid_glb, dmu_bin, tmp_path):
+    """Issue 47: a pair going from a 0.05 soft clash to a hard clash and back
+    is one topic, titled with its hard clash and listing the soft one, as
+    bcf-client reads it (it was titled "soft", the pair's first finding)."""
+    bcf = bcf_client()
+    # box_1_0_0 spans x 8..12: box_0_0_0 (side 4) at x 5.95 is 0.05 away.
+    poses = [[-30.0, 0.0, 0.0], [5.95, 0.0, 0.0], [7.0, 0.0, 0.0], [5.95, 0.0, 0.0]]
+    record = tmp_path / "closer.jsonl"
+    record.write_text("".join(
+        json.dumps({"t": float(t), "part": "box_0_0_0", "translation": p, "rotation": [0, 0, 0, 1]}) + "\n"
+        for t, p in enumerate(poses)))
+    out_path = tmp_path / "closer.bcfzip"
+    code, out = run_cli(dmu_bin, "collide", grid_glb, "--record", record, "--clearance", 0.1, "--discrete",
+                        "--json", "--bcf", out_path, "--bcf-snapshot", "none")
+    assert code == 1
+    report = json.loads(out)
+    assert [f["kind"] for f in report["clashes"]] == ["soft", "hard", "soft"]
+    archive = bcf.bcfxml.load(out_path)  # kept open: bcf-client reads topics lazily
+    (topic,) = archive.topics.values()
+    assert topic.topic.title == "hard: box_0_0_0 × box_1_0_0 at step 2 (t=2)"
+    assert "Also soft at 2 steps from step 1 (t=1)." in topic.topic.description
+    assert list(topic.topic.labels) == ["hard", "soft", "dmu collide"]
+
+
 def tiny_png(width, height):
     """A grey RGB PNG written from scratch."""
     def chunk(kind, body):

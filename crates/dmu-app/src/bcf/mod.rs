@@ -57,6 +57,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod clash;
 mod read;
 mod write;
 mod xml;
@@ -66,6 +67,7 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
+pub use clash::{CLASH_FOV_Y_DEG, CLASH_VIEW_FORWARD, ClashIssue, at_step, clash_camera};
 pub use read::read_bcfzip;
 pub use write::{check_output_name, write_bcfzip};
 
