@@ -90,19 +90,24 @@ def xyz(p):
     return [p.x, p.y, p.z]
 
 
+def collide_bcf(dmu_bin, model, record, poses, clearance, out_path, snapshot):
+    """`dmu collide --bcf` of box_0_0_0 moved to `poses` (one a step), which
+    clash: its JSON report."""
+    record.write_text("".join(
+        json.dumps({"t": float(t), "part": "box_0_0_0", "translation": p, "rotation": [0, 0, 0, 1]}) + "\n"
+        for t, p in enumerate(poses)))
+    code, out = run_cli(dmu_bin, "collide", model, "--record", record, "--clearance", clearance, "--discrete",
+                        "--json", "--bcf", out_path, "--bcf-snapshot", snapshot)
+    assert code == 1
+    return json.loads(out)
+
+
 def test_collide_bcf_reads_in_bcf_client(grid_glb, dmu_bin, tmp_path):
     bcf = bcf_client()
     # box_0_0_0: clear, into box_1_0_0 (steps 1 and 2: one topic), into box_0_1_0.
     poses = [[-30.0, 0.0, 0.0], [7.0, 0.0, 0.0], [7.0, 0.0, 0.0], [0.0, 7.0, 0.0]]
-    record = tmp_path / "moves.jsonl"
-    record.write_text("".join(
-        json.dumps({"t": float(t), "part": "box_0_0_0", "translation": p, "rotation": [0, 0, 0, 1]}) + "\n"
-        for t, p in enumerate(poses)))
     out_path = tmp_path / "clashes.bcfzip"
-    code, out = run_cli(dmu_bin, "collide", grid_glb, "--record", record, "--clearance", 0, "--discrete",
-                        "--json", "--bcf", out_path, "--bcf-snapshot", "320x240")
-    assert code == 1
-    report = json.loads(out)
+    report = collide_bcf(dmu_bin, grid_glb, tmp_path / "moves.jsonl", poses, 0, out_path, "320x240")
     assert report["bcf"]["topics"] == 2
     if report["bcf"]["snapshots"] == 0:
         require(False, "no Vulkan adapter: dmu collide wrote no snapshots")
@@ -143,15 +148,8 @@ def test_collide_bcf_titles_a_pair_with_its_worst_finding(grid_glb, dmu_bin, tmp
     bcf = bcf_client()
     # box_1_0_0 spans x 8..12: box_0_0_0 (side 4) at x 5.95 is 0.05 away.
     poses = [[-30.0, 0.0, 0.0], [5.95, 0.0, 0.0], [7.0, 0.0, 0.0], [5.95, 0.0, 0.0]]
-    record = tmp_path / "closer.jsonl"
-    record.write_text("".join(
-        json.dumps({"t": float(t), "part": "box_0_0_0", "translation": p, "rotation": [0, 0, 0, 1]}) + "\n"
-        for t, p in enumerate(poses)))
     out_path = tmp_path / "closer.bcfzip"
-    code, out = run_cli(dmu_bin, "collide", grid_glb, "--record", record, "--clearance", 0.1, "--discrete",
-                        "--json", "--bcf", out_path, "--bcf-snapshot", "none")
-    assert code == 1
-    report = json.loads(out)
+    report = collide_bcf(dmu_bin, grid_glb, tmp_path / "closer.jsonl", poses, 0.1, out_path, "none")
     assert [f["kind"] for f in report["clashes"]] == ["soft", "hard", "soft"]
     archive = bcf.bcfxml.load(out_path)  # kept open: bcf-client reads topics lazily
     (topic,) = archive.topics.values()
