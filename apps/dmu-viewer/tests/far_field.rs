@@ -69,7 +69,7 @@ fn far_frames(report: &Value) -> Vec<&Value> {
 /// memory) and draws it with the part as geometry.
 #[test]
 fn a_far_field_is_drawn_and_captured_again_after_a_move_under_xvfb() {
-    if !can_run("a_far_field_is_drawn_and_captured_again_after_a_move_under_xvfb") {
+    if !can_run() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -137,7 +137,7 @@ fn a_far_field_is_drawn_and_captured_again_after_a_move_under_xvfb() {
 /// faster way; each frame says why it drew none.
 #[test]
 fn auto_times_frames_with_and_without_the_far_field_under_xvfb() {
-    if !can_run("auto_times_frames_with_and_without_the_far_field_under_xvfb") {
+    if !can_run() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -181,7 +181,7 @@ fn auto_times_frames_with_and_without_the_far_field_under_xvfb() {
 /// the file and what makes them; the run never starts.
 #[test]
 fn far_fields_missing_or_impossible_give_a_one_line_error_under_xvfb() {
-    if !can_run("far_fields_missing_or_impossible_give_a_one_line_error_under_xvfb") {
+    if !can_run() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();

@@ -8,7 +8,9 @@ use dmu_scene::PartId;
 use glam::{DAffine3, DMat3, DQuat, DVec3};
 use serde_json::{Value, json};
 
-use crate::support::{Viewport, can_run, count_pixels, dmu, dmu_status, image_path, srgb};
+use dmu_testkit::image_path;
+
+use crate::support::{Viewport, can_run, count_pixels, dmu, dmu_status, srgb};
 use crate::xvfb::{no_overlays, path_str, plant_200k, run_script, step};
 
 /// A reported selection's transform.
@@ -28,7 +30,7 @@ fn world(facts: &Value) -> DAffine3 {
 /// frame; four undos put the part back bit for bit, in the saved file too.
 #[test]
 fn gizmo_drags_snap_and_undo_bit_for_bit_under_xvfb() {
-    if !can_run("gizmo_drags_snap_and_undo_bit_for_bit_under_xvfb") {
+    if !can_run() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -129,7 +131,7 @@ fn report_camera(camera: &Value) -> Camera {
 /// draws fewer triangles, culling what is wholly cut away.
 #[test]
 fn a_section_plane_cuts_the_2m_plant_under_xvfb() {
-    if !can_run("a_section_plane_cuts_the_2m_plant_under_xvfb") {
+    if !can_run() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -255,7 +257,7 @@ fn a_section_plane_cuts_the_2m_plant_under_xvfb() {
 /// the two parts and measures the same distance.
 #[test]
 fn measured_distance_equals_dmu_collide_clearance_under_xvfb() {
-    if !can_run("measured_distance_equals_dmu_collide_clearance_under_xvfb") {
+    if !can_run() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();

@@ -9,7 +9,9 @@ use dmu_scene::{PartId, Scene};
 use glam::{DAffine3, DQuat, DVec3};
 use serde_json::{Value, json};
 
-use crate::support::{Palette, Viewport, can_run, count_pixels, dmu_status, image_path};
+use dmu_testkit::image_path;
+
+use crate::support::{Palette, Viewport, can_run, count_pixels, dmu_status};
 use crate::xvfb::{
     PLANT, first_look, no_overlays, path_str, plant_200k, run_script, run_script_on, step,
 };
@@ -54,7 +56,7 @@ fn clash_keys(list: &Value) -> BTreeSet<ClashKey> {
 /// replaying the file finds at every step the clashes the viewer reported.
 #[test]
 fn recorded_drag_replays_to_the_same_clashes_under_xvfb() {
-    if !can_run("recorded_drag_replays_to_the_same_clashes_under_xvfb") {
+    if !can_run() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -146,7 +148,7 @@ fn recorded_drag_replays_to_the_same_clashes_under_xvfb() {
 /// undoes; the top preset looks down; occlusion on queries, off does not.
 #[test]
 fn hover_rotate_presets_and_occlusion_under_xvfb() {
-    if !can_run("hover_rotate_presets_and_occlusion_under_xvfb") {
+    if !can_run() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -237,7 +239,7 @@ fn hover_rotate_presets_and_occlusion_under_xvfb() {
 /// every cell wholly inside it is drawn.
 #[test]
 fn four_panes_with_a_cells_view_under_xvfb() {
-    if !can_run("four_panes_with_a_cells_view_under_xvfb") {
+    if !can_run() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -352,7 +354,7 @@ fn four_panes_with_a_cells_view_under_xvfb() {
 /// the panels show timings, which differ from run to run.)
 #[test]
 fn composed_frames_equal_whole_paints_under_xvfb() {
-    if !can_run("composed_frames_equal_whole_paints_under_xvfb") {
+    if !can_run() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -444,7 +446,7 @@ fn composed_frames_equal_whole_paints_under_xvfb() {
 /// `--stats`; nothing else in the window changes.
 #[test]
 fn the_stats_overlay_is_off_unless_asked_for_under_xvfb() {
-    if !can_run("the_stats_overlay_is_off_unless_asked_for_under_xvfb") {
+    if !can_run() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();

@@ -18,25 +18,17 @@ pub fn xvfb_lock() -> std::sync::MutexGuard<'static, ()> {
     XVFB.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-/// Whether the viewer can run here; prints why a test skips (and fails in CI,
-/// where the script installs Xvfb and lavapipe).
-pub fn can_run(test: &str) -> bool {
+/// Whether the viewer can run here (Xvfb and lavapipe); where not, the test
+/// skips through `dmu_testkit::skip` (a failure under `CI=true`).
+pub fn can_run() -> bool {
     let xvfb = Command::new("xvfb-run").arg("--help").output().is_ok();
     let lvp = Path::new(LVP_ICD).exists();
-    if xvfb && lvp {
-        return true;
+    if !xvfb {
+        dmu_testkit::skip("xvfb-run (apt-get install xvfb xauth) is missing");
+    } else if !lvp {
+        dmu_testkit::skip("lavapipe (mesa-vulkan-drivers) is missing");
     }
-    let why = if xvfb {
-        "lavapipe (mesa-vulkan-drivers)"
-    } else {
-        "xvfb-run (apt-get install xvfb xauth)"
-    };
-    assert!(
-        std::env::var("CI").as_deref() != Ok("true"),
-        "{test}: {why} is missing in CI"
-    );
-    eprintln!("SKIPPED {test}: {why} is missing");
-    false
+    xvfb && lvp
 }
 
 /// Runs the viewer with `args` in a 1600x1000 virtual screen on lavapipe and
@@ -128,13 +120,6 @@ pub fn dmu_status(args: &[&str]) -> (Option<i32>, Value) {
         )
     });
     (out.status.code(), json)
-}
-
-/// Where tests leave their screenshots, to be looked at.
-pub fn image_path(name: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target/test-images");
-    std::fs::create_dir_all(&dir).expect("create target/test-images");
-    dir.join(name)
 }
 
 /// The 3D view's rectangle in the window, from a report.

@@ -21,7 +21,6 @@ fn xr_root() -> PathBuf {
 
 #[test]
 fn xr_session_on_monado_passes_the_check() {
-    let test = "xr_session_on_monado_passes_the_check";
     let root = xr_root();
     let ready = root.join(".dmu-xr-ready");
     if !ready.exists() {
@@ -29,11 +28,7 @@ fn xr_session_on_monado_passes_the_check() {
             "no Monado chroot at {} (scripts/xr-setup.sh makes it; scripts/test.sh runs it)",
             root.display()
         );
-        assert!(
-            std::env::var("CI").as_deref() != Ok("true"),
-            "{test}: {why} (CI=true: a missing prerequisite is a failure)"
-        );
-        eprintln!("SKIPPED {test}: {why}");
+        dmu_testkit::skip(why);
         return;
     }
     let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");

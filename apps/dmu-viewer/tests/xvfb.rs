@@ -9,9 +9,9 @@ use dmu_scene::{PartId, Scene};
 use glam::{DAffine3, DVec3};
 use serde_json::{Value, json};
 
-use crate::support::{
-    Palette, Viewport, can_run, count_pixels, dmu, image_path, rgb, solid_pixel, viewer,
-};
+use dmu_testkit::image_path;
+
+use crate::support::{Palette, Viewport, can_run, count_pixels, dmu, rgb, solid_pixel, viewer};
 
 /// The plant of these tests, as `--plant-triangles 200k` builds it.
 pub const PLANT: &str = "200k";
@@ -112,7 +112,7 @@ fn assert_saved(saved: &Path, expected: &Scene, what: &str) {
 /// plant, and the highlight in the screenshots.
 #[test]
 fn pick_move_save_under_xvfb() {
-    if !can_run("pick_move_save_under_xvfb") {
+    if !can_run() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -229,7 +229,7 @@ fn pick_move_save_under_xvfb() {
 /// collision run at every step, and the undo puts it back.
 #[test]
 fn mouse_drag_along_z_then_undo_under_xvfb() {
-    if !can_run("mouse_drag_along_z_then_undo_under_xvfb") {
+    if !can_run() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();

@@ -8,7 +8,9 @@ use dmu_samples::{PlantOptions, plant};
 use dmu_scene::Scene;
 use dmu_tree::{EntryId, Tree, TreeOptions};
 
-use crate::support::{EveryOther, Rig, camera, differing, image_path};
+use dmu_testkit::image_path;
+
+use crate::support::{EveryOther, Rig, camera, differing};
 
 pub fn small_plant() -> (Scene, Tree) {
     let scene = plant(&PlantOptions {

@@ -5,7 +5,9 @@
 use dmu_render::{Culling, View};
 
 use crate::culling::{small_plant, viewpoints};
-use crate::support::{Rig, differing, image_path};
+use dmu_testkit::image_path;
+
+use crate::support::{Rig, differing};
 
 #[test]
 fn near_over_far_equals_the_whole_view() {

@@ -15,7 +15,9 @@ use dmu_scene::{PartId, Scene};
 use dmu_tree::Tree;
 
 use crate::culling::small_plant;
-use crate::support::{Rig, camera, image_path};
+use dmu_testkit::image_path;
+
+use crate::support::{Rig, camera};
 
 const SIZE: (u32, u32) = (480, 270);
 

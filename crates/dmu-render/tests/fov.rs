@@ -6,7 +6,9 @@ use dmu_geom::Fov;
 use dmu_render::{Culling, View};
 
 use crate::culling::{small_plant, viewpoints};
-use crate::support::{Rig, differing, image_path};
+use dmu_testkit::image_path;
+
+use crate::support::{Rig, differing};
 
 /// Tangent extent of one pixel, the same in both views.
 const PX: f64 = 0.005;

@@ -10,7 +10,9 @@ use dmu_scene::PartId;
 use dmu_tree::EntryId;
 
 use crate::culling::{small_plant, viewpoints};
-use crate::support::{EveryOther, Rig, differing, image_path};
+use dmu_testkit::image_path;
+
+use crate::support::{EveryOther, Rig, differing};
 
 /// The newly visible are drawn in the frame that finds them: from its first
 /// frame on, an `hzb` view draws the unculled image pixel for pixel and

@@ -5,10 +5,10 @@ use dmu_geom::{Plane, Ray3d};
 use dmu_render::{Camera, Culling, RendererOptions, View};
 use dmu_samples::grid;
 use dmu_scene::Scene;
-use dmu_testkit::Gpu;
+use dmu_testkit::{Gpu, image_path};
 use dmu_tree::{Tree, TreeOptions};
 
-use crate::support::{Rig, camera, differing, image_path};
+use crate::support::{Rig, camera, differing};
 
 /// Pixel position of a world point.
 fn project(camera: &Camera, size: (u32, u32), p: DVec3) -> DVec2 {

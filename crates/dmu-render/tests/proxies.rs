@@ -7,7 +7,9 @@ use dmu_scene::{PartId, Scene};
 use dmu_tree::Tree;
 
 use crate::culling::{small_plant, viewpoints};
-use crate::support::{Rig, camera, image_path};
+use dmu_testkit::image_path;
+
+use crate::support::{Rig, camera};
 
 /// The plant seen whole from outside, as the viewer opens it.
 fn overview(tree: &Tree) -> Camera {

@@ -10,7 +10,9 @@ use dmu_scene::Scene;
 use dmu_tree::Tree;
 
 use crate::culling::{small_plant, viewpoints};
-use crate::support::{Rig, image_path};
+use dmu_testkit::image_path;
+
+use crate::support::Rig;
 
 /// Each eye's image.
 const SIZE: (u32, u32) = (320, 240);

@@ -12,11 +12,11 @@ use dmu_render::{
 };
 use dmu_samples::grid;
 use dmu_scene::Scene;
-use dmu_testkit::{Adapter, Gpu, GpuTest};
+use dmu_testkit::{Adapter, Gpu, GpuTest, image_path};
 use dmu_tree::{EntryId, Tree, TreeOptions};
 
 use crate::culling::{small_plant, viewpoints};
-use crate::support::{Rig, camera, differing, image_path};
+use crate::support::{Rig, camera, differing};
 
 /// A small deterministic generator (SplitMix64) for sample points and boxes.
 struct Rng(u64);

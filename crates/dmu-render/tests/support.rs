@@ -1,8 +1,6 @@
 //! Shared test helpers: rigs on the binary's device (`dmu_testkit`), cameras,
 //! image output.
 
-use std::path::PathBuf;
-
 use dmu_geom::glam::DVec3;
 use dmu_render::{
     Camera, Capture, Culling, FrameStats, Proxies, ProxyOptions, Renderer, RendererOptions, View,
@@ -19,13 +17,6 @@ pub fn camera(eye: DVec3, target: DVec3, near: f64) -> Camera {
         fov_y_rad: 60f64.to_radians(),
         near,
     }
-}
-
-/// Where tests write the images they render, to be looked at.
-pub fn image_path(name: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target/test-images");
-    std::fs::create_dir_all(&dir).expect("create target/test-images");
-    dir.join(name)
 }
 
 /// A renderer, a capture and one frame of a fresh view.

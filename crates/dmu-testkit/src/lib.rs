@@ -64,6 +64,19 @@ pub fn require<T>(found: Result<T, impl Display>, body: impl FnOnce(T)) {
     }
 }
 
+/// The workspace's root folder.
+fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// Where tests leave the images they make, to be looked at:
+/// `target/test-images/<name>`.
+pub fn image_path(name: &str) -> PathBuf {
+    let dir = workspace().join("target/test-images");
+    std::fs::create_dir_all(&dir).expect("create target/test-images");
+    dir.join(name)
+}
+
 /// Test data kept outside the repository.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Data {
@@ -78,7 +91,7 @@ pub enum Data {
 impl Data {
     /// Where the data is, present or not.
     pub fn path(self) -> PathBuf {
-        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+        let root = workspace();
         match self {
             Data::Shared => root.join("../shared/data"),
             Data::Assimp => root.join("target/testdata/assimp/usr/share/assimp/models/glTF2"),
