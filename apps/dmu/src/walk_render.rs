@@ -21,8 +21,8 @@ use dmu_store::{CameraFrame, Drawn, Store, WalkOptions};
 use dmu_tree::{EntryId, Tree};
 use serde::Serialize;
 
-use crate::cmd_bench::percentile;
 use crate::resident::{ResidentSource, StandInSource, StandIns};
+use dmu_geom::percentile;
 
 /// One mode's frame.
 #[derive(Debug, Serialize)]

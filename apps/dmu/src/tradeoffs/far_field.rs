@@ -415,7 +415,7 @@ impl Sweep<'_> {
             |pixels: u64| 100.0 * pixels as f64 / (frames * f64::from(self.size.0 * self.size.1));
         Ok(Point::new(
             0.0,
-            super::median(tally.ms),
+            dmu_geom::median(tally.ms),
             share(tally.surface),
             ERROR_UNIT,
         )

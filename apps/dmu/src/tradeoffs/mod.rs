@@ -266,8 +266,3 @@ pub fn timed<T>(f: impl FnOnce() -> T) -> (T, f64) {
     let out = f();
     (out, start.elapsed().as_secs_f64() * 1e3)
 }
-
-/// The median (NaN when empty).
-pub fn median(mut v: Vec<f64>) -> f64 {
-    crate::cmd_bench::median(&mut v)
-}
