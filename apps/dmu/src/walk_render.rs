@@ -10,8 +10,8 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::Context as _;
-pub use dmu_app::far_fields::FarUse;
-use dmu_app::far_fields::{FarAuto, FarFieldSet};
+pub use dmu_app::farfield::FarUse;
+use dmu_app::farfield::{FarAuto, FarFieldSet};
 use dmu_render::{
     Camera, Capture, Culling, CullingOptions, FrameStats, GeometrySource, Renderer,
     RendererOptions, View, headless_device,

@@ -4,7 +4,7 @@
 mod bcf;
 mod collide;
 mod explain;
-mod far_field;
+mod farfield;
 mod hostile;
 mod kill;
 mod pick_rays;

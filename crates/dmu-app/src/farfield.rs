@@ -384,7 +384,7 @@ pub const FAR_AUTO_PROBE_EVERY: u64 = 60;
 /// (by their means) is kept until the next probe.
 ///
 /// ```
-/// use dmu_app::far_fields::FarAuto;
+/// use dmu_app::farfield::FarAuto;
 ///
 /// let mut auto = FarAuto::default();
 /// for frame in 0..6 {
