@@ -18,17 +18,17 @@ pub fn xvfb_lock() -> std::sync::MutexGuard<'static, ()> {
     XVFB.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-/// Whether the viewer can run here (Xvfb and lavapipe); where not, the test
-/// skips through `dmu_testkit::skip` (a failure under `CI=true`).
-pub fn can_run() -> bool {
-    let xvfb = Command::new("xvfb-run").arg("--help").output().is_ok();
-    let lvp = Path::new(LVP_ICD).exists();
-    if !xvfb {
-        dmu_testkit::skip("xvfb-run (apt-get install xvfb xauth) is missing");
-    } else if !lvp {
-        dmu_testkit::skip("lavapipe (mesa-vulkan-drivers) is missing");
-    }
-    xvfb && lvp
+/// Runs `body` where the viewer can run (Xvfb and lavapipe); elsewhere the
+/// test skips through `dmu_testkit` (a failure under `CI=true`).
+pub fn with_viewer(body: impl FnOnce()) {
+    let ready = if Command::new("xvfb-run").arg("--help").output().is_err() {
+        Err("xvfb-run (apt-get install xvfb xauth) is missing")
+    } else if !Path::new(LVP_ICD).exists() {
+        Err("lavapipe (mesa-vulkan-drivers) is missing")
+    } else {
+        Ok(())
+    };
+    dmu_testkit::require(ready, |()| body());
 }
 
 /// Runs the viewer with `args` in a 1600x1000 virtual screen on lavapipe and

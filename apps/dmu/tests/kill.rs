@@ -203,39 +203,39 @@ fn issue_48_a_full_disk_leaves_the_previous_store() {
         .args(["-t", "tmpfs", "-o", "size=2m", "tmpfs"])
         .arg(&disk)
         .output();
-    if !mounted.as_ref().is_ok_and(|o| o.status.success()) {
-        let why = match &mounted {
-            Ok(o) => String::from_utf8_lossy(&o.stderr).into_owned(),
-            Err(e) => e.to_string(),
-        };
-        dmu_testkit::skip(format!("cannot mount a tmpfs (needs root): {why}"));
-        return;
-    }
-    // Unmounted however the test ends.
-    struct Unmount<'a>(&'a Path);
-    impl Drop for Unmount<'_> {
-        fn drop(&mut self) {
-            let _ = Command::new("umount").arg(self.0).status();
+    let found = match mounted {
+        Ok(o) if o.status.success() => Ok(()),
+        Ok(o) => Err(String::from_utf8_lossy(&o.stderr).into_owned()),
+        Err(e) => Err(e.to_string()),
+    };
+    let found = found.map_err(|why| format!("cannot mount a tmpfs (needs root): {why}"));
+    dmu_testkit::require(found, |()| {
+        // Unmounted however the test ends.
+        struct Unmount<'a>(&'a Path);
+        impl Drop for Unmount<'_> {
+            fn drop(&mut self) {
+                let _ = Command::new("umount").arg(self.0).status();
+            }
         }
-    }
-    let _unmount = Unmount(&disk);
-    let store = path(&disk, "model.dmu");
-    timed(&["import", &small, "-o", &store]);
-    let previous = std::fs::read(&store).unwrap();
-    let out = dmu(&["import", &big, "-o", &store]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{err}");
-    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
-    assert_eq!(lines.len(), 1, "one line: {err}");
-    assert!(
-        lines[0].starts_with("dmu: error:") && lines[0].contains("model.dmu"),
-        "{err}"
-    );
-    assert!(lines[0].contains("No space left"), "{err}");
-    assert_eq!(
-        std::fs::read(&store).unwrap(),
-        previous,
-        "the store changed"
-    );
-    assert_eq!(names(&disk), ["model.dmu"], "temporary files left");
+        let _unmount = Unmount(&disk);
+        let store = path(&disk, "model.dmu");
+        timed(&["import", &small, "-o", &store]);
+        let previous = std::fs::read(&store).unwrap();
+        let out = dmu(&["import", &big, "-o", &store]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+        assert_eq!(lines.len(), 1, "one line: {err}");
+        assert!(
+            lines[0].starts_with("dmu: error:") && lines[0].contains("model.dmu"),
+            "{err}"
+        );
+        assert!(lines[0].contains("No space left"), "{err}");
+        assert_eq!(
+            std::fs::read(&store).unwrap(),
+            previous,
+            "the store changed"
+        );
+        assert_eq!(names(&disk), ["model.dmu"], "temporary files left");
+    });
 }
