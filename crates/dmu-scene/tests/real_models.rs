@@ -205,7 +205,7 @@ fn debian_assimp_models() {
             assert!(!err.to_string().is_empty());
         }
         // Everything else in the folder: an answer, never a panic.
-        for entry in walk(&dir) {
+        for entry in walk(dir) {
             let _ = import(&entry);
         }
     });
