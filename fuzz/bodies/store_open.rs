@@ -84,7 +84,7 @@ fn write_store_seed_corpus() {
     )
     .unwrap();
     // Far fields: an index and three cells.
-    let far = dir.join("grid1_far_fields.dmu");
+    let far = dir.join("grid1_farfield.dmu");
     write_scene(
         &dmu_samples::grid(1, 10.0, 4.0, 8),
         &far,

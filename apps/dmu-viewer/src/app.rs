@@ -77,7 +77,7 @@ pub struct Options {
     /// Under the budget, draw chunks not loaded yet as their boxes.
     pub stand_ins: bool,
     /// Where the main view draws the store's far fields.
-    pub far_field: dmu_app::far_fields::FarUse,
+    pub far_field: dmu_app::farfield::FarUse,
     /// When the process started (for the first frame's time).
     pub started: Instant,
 }
@@ -167,9 +167,9 @@ pub struct App {
     pub proxies: Option<dmu_render::Proxies>,
     /// The store's far fields (`--far-field on|auto`), until the renderer
     /// is made.
-    pub far_field_set: Option<dmu_app::far_fields::FarFieldSet>,
+    pub far_field_set: Option<dmu_app::farfield::FarFieldSet>,
     /// The main view's far fields, once the renderer is made.
-    far: Option<crate::far::FarFields>,
+    far: Option<crate::farfield::FarFields>,
     options: Options,
     instance: wgpu::Instance,
     review: Review,
@@ -382,7 +382,7 @@ impl App {
         if let Some(set) = self.far_field_set.take() {
             // The model as loaded, before any edit: what the far fields show.
             renderer.enable_far_fields(&self.review.scene, &self.review.tree);
-            self.far = Some(crate::far::FarFields::new(
+            self.far = Some(crate::farfield::FarFields::new(
                 set,
                 self.options.far_field,
                 gfx.device.clone(),

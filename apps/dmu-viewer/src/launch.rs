@@ -38,7 +38,7 @@ pub struct Loaded {
     /// The model's proxies (merged subtrees), when they were asked for.
     pub proxies: Option<dmu_render::Proxies>,
     /// The store's far fields, with `--far-field on|auto`.
-    pub far_fields: Option<dmu_app::far_fields::FarFieldSet>,
+    pub far_fields: Option<dmu_app::farfield::FarFieldSet>,
 }
 
 /// The loading thread's result.

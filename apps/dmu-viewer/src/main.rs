@@ -35,7 +35,7 @@
 mod app;
 mod budget;
 mod compose;
-mod far;
+mod farfield;
 mod gfx;
 mod launch;
 mod panes;
@@ -51,7 +51,7 @@ use std::time::Instant;
 
 use anyhow::Context as _;
 use clap::Parser;
-use dmu_app::far_fields::{FarFieldSet, FarUse};
+use dmu_app::farfield::{FarFieldSet, FarUse};
 use dmu_viewer::{
     clashes, gizmo, issues, measure, nav, record, review, script, section, settings, viewpoints,
 };

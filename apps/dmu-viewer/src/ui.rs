@@ -96,7 +96,7 @@ pub struct Overlay {
     /// Chunk geometry on the GPU, bytes.
     pub resident_bytes: u64,
     /// The main view's far fields (`--far-field on|auto`).
-    pub far: Option<crate::far::FarReport>,
+    pub far: Option<crate::farfield::FarReport>,
 }
 
 /// State of the panels between frames.

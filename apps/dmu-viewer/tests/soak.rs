@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 use dmu_samples::{PlantOptions, plant};
 use serde_json::{Value, json};
 
-use crate::support::{can_run, dmu, dmu_cli, viewer};
+use crate::support::{dmu, dmu_cli, viewer, with_viewer};
 use crate::xvfb::path_str;
 
 /// The soak's plant: the smallest whose walks want more geometry than the
@@ -219,102 +219,101 @@ fn field(v: &Value, key: &str) -> u64 {
 /// drawn as a hole.
 #[test]
 fn issue_48_the_viewer_cycles_under_a_budget_without_growing_under_xvfb() {
-    if !can_run("issue_48_the_viewer_cycles_under_a_budget_without_growing_under_xvfb") {
-        return;
-    }
-    let started = Instant::now();
-    let dir = tempfile::tempdir().unwrap();
-    let store = dir.path().join("plant.dmu");
-    dmu(&[
-        "generate",
-        "plant",
-        "--triangles",
-        SOAK_PLANT,
-        "-o",
-        path_str(&store),
-        "--json",
-    ]);
-    let info = dmu(&["info", path_str(&store), "--json"]);
-    let starts = walk_starts(&info["bounds"]);
-    let ends: Vec<[f64; 3]> = starts
-        .iter()
-        .map(|s| [s[0] + WALK_MM, s[1], s[2]])
-        .collect();
-    let aims = aims(dir.path(), &store, &ends);
-
-    // A first frame under a budget that fits everything shows what the
-    // process takes beside the geometry (`fixed_bytes`) and the frame
-    // reserve; the soak's budget then leaves the residency its target.
-    let probe = run(dir.path(), &store, 4 << 30, &json!([{"frames": 2}]));
-    let memory = &probe["memory"];
-    let (probe_budget, fixed) = (
-        field(memory, "memory_budget_bytes"),
-        field(memory, "fixed_bytes"),
-    );
-    let reserve =
-        probe_budget - fixed - probe_budget / 64 - 2 * field(memory, "residency_budget_bytes");
-    let budget = (fixed + reserve + 2 * RESIDENCY_TARGET_BYTES) * 64 / 63;
-    let view = (
-        field(&probe["viewport"], "width"),
-        field(&probe["viewport"], "height"),
-    );
-
-    let mut script = Vec::new();
-    let mut per_cycle = 0;
-    for i in 0..CYCLES {
-        let k = i % LOCATIONS;
-        let c = cycle(k, starts[k], ends[k], aims[k], view);
-        per_cycle = c.iter().map(frames_of).sum::<usize>();
-        script.extend(c);
-    }
-    let report = run(dir.path(), &store, budget, &json!(script));
-    let frames = report["frames"].as_array().expect("frames");
-    let summary = Soak::of(frames, per_cycle * LOCATIONS);
-    eprintln!(
-        "issue 48 soak ({:.0} s in all, {} frames, budget {:.1} MB): {}",
-        started.elapsed().as_secs_f64(),
-        frames.len(),
-        budget as f64 / 1e6,
-        summary.describe()
-    );
-
-    let memory = &report["memory"];
-    assert!(
-        summary.evictions > 0,
-        "the residency never evicted: {memory}"
-    );
-    assert_eq!(field(memory, "holes"), 0, "{memory}");
-    assert_eq!(report["frames_with_hole"], 0);
-    assert!(
-        summary.frames_over_residency.is_empty(),
-        "the residency passed its budget on frames {:?}",
-        summary.frames_over_residency
-    );
-    assert!(
-        summary.waves_with_pool_over.is_empty(),
-        "the GPU pool held more than the residency's budget after the waves ending on frames {:?}",
-        summary.waves_with_pool_over
-    );
-    let handed_out = &summary.pool_handed_out_per_pass;
-    assert!(
-        handed_out[2..]
+    with_viewer(|| {
+        let started = Instant::now();
+        let dir = tempfile::tempdir().unwrap();
+        let store = dir.path().join("plant.dmu");
+        dmu(&[
+            "generate",
+            "plant",
+            "--triangles",
+            SOAK_PLANT,
+            "-o",
+            path_str(&store),
+            "--json",
+        ]);
+        let info = dmu(&["info", path_str(&store), "--json"]);
+        let starts = walk_starts(&info["bounds"]);
+        let ends: Vec<[f64; 3]> = starts
             .iter()
-            .all(|&b| b as f64 <= handed_out[1] as f64 * 1.05),
-        "the GPU pool's pages grew: {}",
-        summary.describe()
-    );
-    assert!(
-        summary.rss_growth_pct <= 2.0,
-        "the resident set grew {:.2} % after warm-up: {}",
-        summary.rss_growth_pct,
-        summary.describe()
-    );
-    assert!(
-        summary.longest_after_warmup_ms <= 2_000.0,
-        "a frame after warm-up took {:.0} ms: {}",
-        summary.longest_after_warmup_ms,
-        summary.describe()
-    );
+            .map(|s| [s[0] + WALK_MM, s[1], s[2]])
+            .collect();
+        let aims = aims(dir.path(), &store, &ends);
+
+        // A first frame under a budget that fits everything shows what the
+        // process takes beside the geometry (`fixed_bytes`) and the frame
+        // reserve; the soak's budget then leaves the residency its target.
+        let probe = run(dir.path(), &store, 4 << 30, &json!([{"frames": 2}]));
+        let memory = &probe["memory"];
+        let (probe_budget, fixed) = (
+            field(memory, "memory_budget_bytes"),
+            field(memory, "fixed_bytes"),
+        );
+        let reserve =
+            probe_budget - fixed - probe_budget / 64 - 2 * field(memory, "residency_budget_bytes");
+        let budget = (fixed + reserve + 2 * RESIDENCY_TARGET_BYTES) * 64 / 63;
+        let view = (
+            field(&probe["viewport"], "width"),
+            field(&probe["viewport"], "height"),
+        );
+
+        let mut script = Vec::new();
+        let mut per_cycle = 0;
+        for i in 0..CYCLES {
+            let k = i % LOCATIONS;
+            let c = cycle(k, starts[k], ends[k], aims[k], view);
+            per_cycle = c.iter().map(frames_of).sum::<usize>();
+            script.extend(c);
+        }
+        let report = run(dir.path(), &store, budget, &json!(script));
+        let frames = report["frames"].as_array().expect("frames");
+        let summary = Soak::of(frames, per_cycle * LOCATIONS);
+        eprintln!(
+            "issue 48 soak ({:.0} s in all, {} frames, budget {:.1} MB): {}",
+            started.elapsed().as_secs_f64(),
+            frames.len(),
+            budget as f64 / 1e6,
+            summary.describe()
+        );
+
+        let memory = &report["memory"];
+        assert!(
+            summary.evictions > 0,
+            "the residency never evicted: {memory}"
+        );
+        assert_eq!(field(memory, "holes"), 0, "{memory}");
+        assert_eq!(report["frames_with_hole"], 0);
+        assert!(
+            summary.frames_over_residency.is_empty(),
+            "the residency passed its budget on frames {:?}",
+            summary.frames_over_residency
+        );
+        assert!(
+            summary.waves_with_pool_over.is_empty(),
+            "the GPU pool held more than the residency's budget after the waves ending on frames {:?}",
+            summary.waves_with_pool_over
+        );
+        let handed_out = &summary.pool_handed_out_per_pass;
+        assert!(
+            handed_out[2..]
+                .iter()
+                .all(|&b| b as f64 <= handed_out[1] as f64 * 1.05),
+            "the GPU pool's pages grew: {}",
+            summary.describe()
+        );
+        assert!(
+            summary.rss_growth_pct <= 2.0,
+            "the resident set grew {:.2} % after warm-up: {}",
+            summary.rss_growth_pct,
+            summary.describe()
+        );
+        assert!(
+            summary.longest_after_warmup_ms <= 2_000.0,
+            "a frame after warm-up took {:.0} ms: {}",
+            summary.longest_after_warmup_ms,
+            summary.describe()
+        );
+    });
 }
 
 /// What a soak run's frames say (definitions as in `scripts/soak.py`): a

@@ -18,25 +18,17 @@ pub fn xvfb_lock() -> std::sync::MutexGuard<'static, ()> {
     XVFB.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-/// Whether the viewer can run here; prints why a test skips (and fails in CI,
-/// where the script installs Xvfb and lavapipe).
-pub fn can_run(test: &str) -> bool {
-    let xvfb = Command::new("xvfb-run").arg("--help").output().is_ok();
-    let lvp = Path::new(LVP_ICD).exists();
-    if xvfb && lvp {
-        return true;
-    }
-    let why = if xvfb {
-        "lavapipe (mesa-vulkan-drivers)"
+/// Runs `body` where the viewer can run (Xvfb and lavapipe); elsewhere the
+/// test skips through `dmu_testkit` (a failure under `CI=true`).
+pub fn with_viewer(body: impl FnOnce()) {
+    let ready = if Command::new("xvfb-run").arg("--help").output().is_err() {
+        Err("xvfb-run (apt-get install xvfb xauth) is missing")
+    } else if !Path::new(LVP_ICD).exists() {
+        Err("lavapipe (mesa-vulkan-drivers) is missing")
     } else {
-        "xvfb-run (apt-get install xvfb xauth)"
+        Ok(())
     };
-    assert!(
-        std::env::var("CI").as_deref() != Ok("true"),
-        "{test}: {why} is missing in CI"
-    );
-    eprintln!("SKIPPED {test}: {why} is missing");
-    false
+    dmu_testkit::require(ready, |()| body());
 }
 
 /// Runs the viewer with `args` in a 1600x1000 virtual screen on lavapipe and
@@ -128,13 +120,6 @@ pub fn dmu_status(args: &[&str]) -> (Option<i32>, Value) {
         )
     });
     (out.status.code(), json)
-}
-
-/// Where tests leave their screenshots, to be looked at.
-pub fn image_path(name: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target/test-images");
-    std::fs::create_dir_all(&dir).expect("create target/test-images");
-    dir.join(name)
 }
 
 /// The 3D view's rectangle in the window, from a report.

@@ -1,7 +1,7 @@
 //! The real `dmu-viewer` binary, run under Xvfb on lavapipe.
 
 mod budget;
-mod far_field;
+mod farfield;
 #[path = "../../../fuzz/replay.rs"]
 mod fuzz_replay;
 #[path = "../../../fuzz/bodies/script_parse.rs"]

@@ -9,9 +9,9 @@ use dmu_scene::{PartId, Scene};
 use glam::{DAffine3, DVec3};
 use serde_json::{Value, json};
 
-use crate::support::{
-    Palette, Viewport, can_run, count_pixels, dmu, image_path, rgb, solid_pixel, viewer,
-};
+use dmu_testkit::image_path;
+
+use crate::support::{Palette, Viewport, count_pixels, dmu, rgb, solid_pixel, viewer, with_viewer};
 
 /// The plant of these tests, as `--plant-triangles 200k` builds it.
 pub const PLANT: &str = "200k";
@@ -112,116 +112,115 @@ fn assert_saved(saved: &Path, expected: &Scene, what: &str) {
 /// plant, and the highlight in the screenshots.
 #[test]
 fn pick_move_save_under_xvfb() {
-    if !can_run("pick_move_save_under_xvfb") {
-        return;
-    }
-    let dir = tempfile::tempdir().unwrap();
-    let (view, (px, py), start) = first_look(dir.path(), "viewer-pick");
-    let picked_png = image_path("viewer-pick-picked.png");
-    let moved_png = image_path("viewer-pick-moved.png");
-    let saved = dir.path().join("moved.glb");
-    let report = run_script(
-        dir.path(),
-        &json!([
-            no_overlays(),
-            {"pick": [px, py]},
-            {"screenshot": picked_png},
-            {"move": [100.0, 0.0, 0.0]},
-            {"save": saved},
-            {"screenshot": moved_png},
-        ]),
-    );
-    assert_eq!(
-        Viewport::from_json(&report["viewport"]),
-        view,
-        "the layout moved"
-    );
-
-    // The pick equals the command line's for the same f64 ray.
-    let pick = step(&report, 1, "pick");
-    assert_eq!(
-        pick["pixel"],
-        json!([f64::from(px) + 0.5, f64::from(py) + 0.5])
-    );
-    assert_eq!(pick["hit"]["hit"], true, "{pick}");
-    let cli = dmu(&[
-        "pick",
-        "--plant-triangles",
-        PLANT,
-        "--ray",
-        &ray_arg(&pick["ray"]),
-        "--json",
-    ]);
-    for key in ["hit", "part_id", "part", "path", "triangle", "point"] {
-        assert_eq!(
-            cli[key], pick["hit"][key],
-            "{key}: dmu pick {cli} vs viewer {pick}"
+    with_viewer(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let (view, (px, py), start) = first_look(dir.path(), "viewer-pick");
+        let picked_png = image_path("viewer-pick-picked.png");
+        let moved_png = image_path("viewer-pick-moved.png");
+        let saved = dir.path().join("moved.glb");
+        let report = run_script(
+            dir.path(),
+            &json!([
+                no_overlays(),
+                {"pick": [px, py]},
+                {"screenshot": picked_png},
+                {"move": [100.0, 0.0, 0.0]},
+                {"save": saved},
+                {"screenshot": moved_png},
+            ]),
         );
-    }
-    assert!(close(
-        cli["distance"].as_f64().unwrap(),
-        pick["hit"]["distance"].as_f64().unwrap()
-    ));
+        assert_eq!(
+            Viewport::from_json(&report["viewport"]),
+            view,
+            "the layout moved"
+        );
 
-    // The saved file has the part 100 mm along x, everything else in place.
-    let mut expected = plant_200k();
-    let part = PartId(pick["hit"]["part_id"].as_u64().unwrap() as u32);
-    assert_eq!(expected.part_path(part), pick["hit"]["path"]);
-    let mut world = expected.part_world(part);
-    world.translation += DVec3::new(100.0, 0.0, 0.0);
-    expected.set_part_world(part, world);
-    let moved = step(&report, 3, "move");
-    assert_eq!(moved["part_id"], part.0);
-    // To rounding of the report's JSON: serde_json (without its
-    // `float_roundtrip` feature) may read a printed f64 back an ulp off.
-    let t: Vec<f64> = serde_json::from_value(moved["translation"].clone()).unwrap();
-    assert!(
-        t.iter()
-            .zip(world.translation.to_array())
-            .all(|(&a, b)| close(a, b)),
-        "the typed move: {t:?}, expected {}",
-        world.translation
-    );
-    assert_eq!(step(&report, 4, "save")["format"], "gltf");
-    assert_saved(&saved, &expected, "after the move");
+        // The pick equals the command line's for the same f64 ray.
+        let pick = step(&report, 1, "pick");
+        assert_eq!(
+            pick["pixel"],
+            json!([f64::from(px) + 0.5, f64::from(py) + 0.5])
+        );
+        assert_eq!(pick["hit"]["hit"], true, "{pick}");
+        let cli = dmu(&[
+            "pick",
+            "--plant-triangles",
+            PLANT,
+            "--ray",
+            &ray_arg(&pick["ray"]),
+            "--json",
+        ]);
+        for key in ["hit", "part_id", "part", "path", "triangle", "point"] {
+            assert_eq!(
+                cli[key], pick["hit"][key],
+                "{key}: dmu pick {cli} vs viewer {pick}"
+            );
+        }
+        assert!(close(
+            cli["distance"].as_f64().unwrap(),
+            pick["hit"]["distance"].as_f64().unwrap()
+        ));
 
-    // The highlight. Around the picked pixel, surfaces that showed a plain
-    // material at some lighting now show that material mixed with the
-    // selection colour at the same lighting; and the moved part still shows it.
-    let plain = Palette::new(
-        expected
-            .materials()
-            .iter()
-            .map(|m| m.base_color.map(f64::from))
-            .map(|c| [c[0], c[1], c[2]]),
-    );
-    let tinted = plain.highlighted(dmu_render::RendererOptions::default().highlight);
-    let picked = image::open(&picked_png).unwrap().to_rgba8();
-    let after = image::open(&moved_png).unwrap().to_rgba8();
-    let mut turned = 0;
-    for y in view.y + py - 12..=view.y + py + 12 {
-        for x in view.x + px - 12..=view.x + px + 12 {
-            let now = rgb(&picked, x, y);
-            if plain
-                .explain(rgb(&start, x, y), 2.0)
+        // The saved file has the part 100 mm along x, everything else in place.
+        let mut expected = plant_200k();
+        let part = PartId(pick["hit"]["part_id"].as_u64().unwrap() as u32);
+        assert_eq!(expected.part_path(part), pick["hit"]["path"]);
+        let mut world = expected.part_world(part);
+        world.translation += DVec3::new(100.0, 0.0, 0.0);
+        expected.set_part_world(part, world);
+        let moved = step(&report, 3, "move");
+        assert_eq!(moved["part_id"], part.0);
+        // To rounding of the report's JSON: serde_json (without its
+        // `float_roundtrip` feature) may read a printed f64 back an ulp off.
+        let t: Vec<f64> = serde_json::from_value(moved["translation"].clone()).unwrap();
+        assert!(
+            t.iter()
+                .zip(world.translation.to_array())
+                .all(|(&a, b)| close(a, b)),
+            "the typed move: {t:?}, expected {}",
+            world.translation
+        );
+        assert_eq!(step(&report, 4, "save")["format"], "gltf");
+        assert_saved(&saved, &expected, "after the move");
+
+        // The highlight. Around the picked pixel, surfaces that showed a plain
+        // material at some lighting now show that material mixed with the
+        // selection colour at the same lighting; and the moved part still shows it.
+        let plain = Palette::new(
+            expected
+                .materials()
                 .iter()
-                .any(|&(m, k)| tinted.matches(m, k, now, 3.0))
-            {
-                turned += 1;
+                .map(|m| m.base_color.map(f64::from))
+                .map(|c| [c[0], c[1], c[2]]),
+        );
+        let tinted = plain.highlighted(dmu_render::RendererOptions::default().highlight);
+        let picked = image::open(&picked_png).unwrap().to_rgba8();
+        let after = image::open(&moved_png).unwrap().to_rgba8();
+        let mut turned = 0;
+        for y in view.y + py - 12..=view.y + py + 12 {
+            for x in view.x + px - 12..=view.x + px + 12 {
+                let now = rgb(&picked, x, y);
+                if plain
+                    .explain(rgb(&start, x, y), 2.0)
+                    .iter()
+                    .any(|&(m, k)| tinted.matches(m, k, now, 3.0))
+                {
+                    turned += 1;
+                }
             }
         }
-    }
-    assert!(
-        turned >= 20,
-        "{turned} pixels near the pick turned to the selection colour; {pick}"
-    );
-    let highlighted = |p: [u8; 3]| tinted.explains(p, 3.0) && !plain.explains(p, 3.0);
-    let count = |image| count_pixels(image, view, highlighted);
-    let (n_start, n_picked, n_after) = (count(&start), count(&picked), count(&after));
-    assert!(
-        n_picked >= n_start + 20 && n_after >= n_start + 20,
-        "highlighted pixels: {n_start} at start, {n_picked} picked, {n_after} moved"
-    );
+        assert!(
+            turned >= 20,
+            "{turned} pixels near the pick turned to the selection colour; {pick}"
+        );
+        let highlighted = |p: [u8; 3]| tinted.explains(p, 3.0) && !plain.explains(p, 3.0);
+        let count = |image| count_pixels(image, view, highlighted);
+        let (n_start, n_picked, n_after) = (count(&start), count(&picked), count(&after));
+        assert!(
+            n_picked >= n_start + 20 && n_after >= n_start + 20,
+            "highlighted pixels: {n_start} at start, {n_picked} picked, {n_after} moved"
+        );
+    });
 }
 
 /// Drags the picked part along Z with the mouse (the interactive drag's code),
@@ -229,55 +228,54 @@ fn pick_move_save_under_xvfb() {
 /// collision run at every step, and the undo puts it back.
 #[test]
 fn mouse_drag_along_z_then_undo_under_xvfb() {
-    if !can_run("mouse_drag_along_z_then_undo_under_xvfb") {
-        return;
-    }
-    let dir = tempfile::tempdir().unwrap();
-    let (_, (px, py), _) = first_look(dir.path(), "viewer-drag");
-    let dragged = dir.path().join("dragged.gltf");
-    let undone = dir.path().join("undone.glb");
-    let steps = 6;
-    let report = run_script(
-        dir.path(),
-        &json!([
-            {"pick": [px, py]},
-            {"mouse_drag": {"axis": "z", "from": [px, py], "to": [px, py - 30], "steps": steps}},
-            {"save": dragged},
-            "undo",
-            {"save": undone},
-        ]),
-    );
-    let plant = plant_200k();
-    let part = PartId(step(&report, 0, "pick")["hit"]["part_id"].as_u64().unwrap() as u32);
-    let start = plant.part_world(part);
-    let drag = step(&report, 1, "mouse_drag");
-    let t: Vec<f64> = serde_json::from_value(drag["translation"].clone()).unwrap();
-    assert_eq!((t[0], t[1]), (start.translation.x, start.translation.y));
-    assert!(
-        t[2] > start.translation.z,
-        "dragging the pointer up lifts the part: z {} -> {}",
-        start.translation.z,
-        t[2]
-    );
-    let frames: Vec<&Value> = report["frames"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|f| f["action"] == "mouse_drag")
-        .collect();
-    assert_eq!(frames.len(), steps + 1, "one frame per pointer position");
-    assert!(
-        frames[1..]
+    with_viewer(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let (_, (px, py), _) = first_look(dir.path(), "viewer-drag");
+        let dragged = dir.path().join("dragged.gltf");
+        let undone = dir.path().join("undone.glb");
+        let steps = 6;
+        let report = run_script(
+            dir.path(),
+            &json!([
+                {"pick": [px, py]},
+                {"mouse_drag": {"axis": "z", "from": [px, py], "to": [px, py - 30], "steps": steps}},
+                {"save": dragged},
+                "undo",
+                {"save": undone},
+            ]),
+        );
+        let plant = plant_200k();
+        let part = PartId(step(&report, 0, "pick")["hit"]["part_id"].as_u64().unwrap() as u32);
+        let start = plant.part_world(part);
+        let drag = step(&report, 1, "mouse_drag");
+        let t: Vec<f64> = serde_json::from_value(drag["translation"].clone()).unwrap();
+        assert_eq!((t[0], t[1]), (start.translation.x, start.translation.y));
+        assert!(
+            t[2] > start.translation.z,
+            "dragging the pointer up lifts the part: z {} -> {}",
+            start.translation.z,
+            t[2]
+        );
+        let frames: Vec<&Value> = report["frames"]
+            .as_array()
+            .unwrap()
             .iter()
-            .all(|f| f["move_us"].as_f64().unwrap() > 0.0)
-    );
+            .filter(|f| f["action"] == "mouse_drag")
+            .collect();
+        assert_eq!(frames.len(), steps + 1, "one frame per pointer position");
+        assert!(
+            frames[1..]
+                .iter()
+                .all(|f| f["move_us"].as_f64().unwrap() > 0.0)
+        );
 
-    let mut expected = plant.clone();
-    let mut world = start;
-    world.translation.z = t[2];
-    expected.set_part_world(part, world);
-    assert_saved(&dragged, &expected, "after the drag");
-    assert_eq!(step(&report, 3, "undo")["part_id"], part.0);
-    assert_saved(&undone, &plant, "after the undo");
-    assert_eq!(report["moved_parts"], json!([]), "nothing left moved");
+        let mut expected = plant.clone();
+        let mut world = start;
+        world.translation.z = t[2];
+        expected.set_part_world(part, world);
+        assert_saved(&dragged, &expected, "after the drag");
+        assert_eq!(step(&report, 3, "undo")["part_id"], part.0);
+        assert_saved(&undone, &plant, "after the undo");
+        assert_eq!(report["moved_parts"], json!([]), "nothing left moved");
+    });
 }

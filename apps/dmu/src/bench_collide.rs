@@ -12,12 +12,12 @@ use glam::{DAffine3, DVec3};
 use serde_json::json;
 use xxhash_rust::xxh3::Xxh3;
 
-use crate::cmd_bench::{median, percentile};
 use crate::load::{ModelArgs, load};
 use crate::units::{
     MAX_CHUNK_TRIANGLES, MAX_LENGTH, MAX_STEPS, MAX_TRIANGLES, MIN_PLANT_TRIANGLES, count_in,
     number_in,
 };
+use dmu_geom::{median, percentile};
 
 /// Collision checks per second for a part moving through the model.
 #[derive(Debug, clap::Args)]

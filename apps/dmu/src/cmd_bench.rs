@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use dmu_collide::{Checker, Report, Settings};
-use dmu_geom::Ray3d;
+use dmu_geom::{Ray3d, median, percentile};
 use dmu_render::Hierarchy;
 use dmu_samples::Rng;
 use dmu_scene::{PartId, Scene};
@@ -86,20 +86,6 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         What::Tree(t) => bench_tree(t),
         What::Collide(c) => crate::bench_collide::bench_collide(c),
     }
-}
-
-/// The median of `v` (sorts it).
-pub(crate) fn median(v: &mut [f64]) -> f64 {
-    percentile(v, 0.5)
-}
-
-/// The `q` quantile of `v` (sorts it); NaN when empty.
-pub(crate) fn percentile(v: &mut [f64], q: f64) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    v[((v.len() - 1) as f64 * q).round() as usize]
 }
 
 fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {

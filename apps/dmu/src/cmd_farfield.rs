@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use anyhow::Context as _;
-use dmu_app::far_fields::{BuildOptions, all_cells, build, cells_along, max_cells};
+use dmu_app::farfield::{BuildOptions, all_cells, build, cells_along, max_cells};
 use dmu_app::units::number_in;
 use dmu_render::{FAR_FIELD_RESOLUTIONS, FarFieldOptions, Renderer, RendererOptions};
 use dmu_store::Store;

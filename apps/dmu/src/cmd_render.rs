@@ -177,16 +177,8 @@ fn eye_path(output: &Path, eye: &str) -> PathBuf {
 /// occlusion culling converges over the first few.
 fn steady_ms(frames: &[FrameStats]) -> (f64, f64) {
     let tail = &frames[frames.len() / 2..];
-    let median = |f: fn(&FrameStats) -> f64| {
-        let mut v: Vec<f64> = tail.iter().map(f).collect();
-        v.sort_by(f64::total_cmp);
-        let n = v.len();
-        if n % 2 == 1 {
-            v[n / 2]
-        } else {
-            0.5 * (v[n / 2 - 1] + v[n / 2])
-        }
-    };
+    let median =
+        |f: fn(&FrameStats) -> f64| dmu_geom::median(tail.iter().map(f).collect::<Vec<_>>());
     (median(|s| s.cpu_ms), median(|s| s.gpu_ms))
 }
 

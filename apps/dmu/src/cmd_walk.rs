@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use crate::walk_render::{FarUse, Mode};
-use dmu_app::far_fields::FarFieldSet;
+use dmu_app::farfield::FarFieldSet;
 use std::sync::Arc;
 
 use anyhow::{Context as _, bail};

@@ -242,9 +242,7 @@ pub fn wide_window(fovs: &[Fov; 2], size: (u32, u32)) -> anyhow::Result<WideWind
 
 /// Median of the second half of `times` (the first frames warm caches up).
 fn steady(times: &[f64]) -> f64 {
-    let mut tail = times[times.len() / 2..].to_vec();
-    tail.sort_by(f64::total_cmp);
-    tail[tail.len() / 2]
+    dmu_geom::median(times[times.len() / 2..].to_vec())
 }
 
 /// Waits for the GPU; the milliseconds since `start`.

@@ -10,8 +10,8 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::Context as _;
-pub use dmu_app::far_fields::FarUse;
-use dmu_app::far_fields::{FarAuto, FarFieldSet};
+pub use dmu_app::farfield::FarUse;
+use dmu_app::farfield::{FarAuto, FarFieldSet};
 use dmu_render::{
     Camera, Capture, Culling, CullingOptions, FrameStats, GeometrySource, Renderer,
     RendererOptions, View, headless_device,
@@ -21,8 +21,8 @@ use dmu_store::{CameraFrame, Drawn, Store, WalkOptions};
 use dmu_tree::{EntryId, Tree};
 use serde::Serialize;
 
-use crate::cmd_bench::percentile;
 use crate::resident::{ResidentSource, StandInSource, StandIns};
+use dmu_geom::percentile;
 
 /// One mode's frame.
 #[derive(Debug, Serialize)]

@@ -365,31 +365,31 @@ fn misnamed_files_and_marks_read_and_errors_say_things_once() {
 /// one whole.
 #[test]
 fn a_headless_render_says_only_what_it_means() {
-    let dir = tempfile::tempdir().unwrap();
-    let png = path(dir.path(), "r.png");
-    let args = [
-        "--plant-triangles",
-        "20k",
-        "--eye",
-        "0,0,0",
-        "--target",
-        "1,0,0",
-        "-o",
-        &png,
-    ];
-    let Some(out) = render("a_headless_render_says_only_what_it_means", &args) else {
-        return;
-    };
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
-    assert_eq!(err, "", "a headless render prints no warnings");
-    let image = std::fs::read(&png).unwrap();
-    assert!(image.starts_with(b"\x89PNG"));
-    assert_eq!(
-        std::fs::read_dir(dir.path()).unwrap().count(),
-        1,
-        "no temporary file left"
-    );
+    dmu_testkit::with_gpu(|_| {
+        let dir = tempfile::tempdir().unwrap();
+        let png = path(dir.path(), "r.png");
+        let args = [
+            "--plant-triangles",
+            "20k",
+            "--eye",
+            "0,0,0",
+            "--target",
+            "1,0,0",
+            "-o",
+            &png,
+        ];
+        let out = render(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{err}");
+        assert_eq!(err, "", "a headless render prints no warnings");
+        let image = std::fs::read(&png).unwrap();
+        assert!(image.starts_with(b"\x89PNG"));
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            1,
+            "no temporary file left"
+        );
+    });
 }
 
 /// Second sweep: no input or output that is not a regular file (a pipe would
@@ -549,31 +549,31 @@ fn lenient_inputs_are_refused() {
 /// render came out empty.
 #[test]
 fn a_far_part_does_not_clip_what_is_near() {
-    let dir = tempfile::tempdir().unwrap();
-    let grid = grid(dir.path(), 3, "g.dmu");
-    let far = path(dir.path(), "far.dmu");
-    let args = [
-        "move",
-        &grid,
-        "--part",
-        "#1",
-        "--translate",
-        "1e6,0,0",
-        "-o",
-        &far,
-        "--json",
-    ];
-    json(&dmu(&args));
-    let png = path(dir.path(), "r.png");
-    let args = [
-        &far, "--eye", "50,50,50", "--target", "0,0,0", "--size", "64x64", "-o", &png, "--json",
-    ];
-    let Some(out) = render("a_far_part_does_not_clip_what_is_near", &args) else {
-        return;
-    };
-    let frames = json(&out)["frames"].clone();
-    let drawn = frames[0]["triangles_drawn"].as_u64().unwrap();
-    assert!(drawn > 100, "{drawn} triangles drawn near the eye");
+    dmu_testkit::with_gpu(|_| {
+        let dir = tempfile::tempdir().unwrap();
+        let grid = grid(dir.path(), 3, "g.dmu");
+        let far = path(dir.path(), "far.dmu");
+        let args = [
+            "move",
+            &grid,
+            "--part",
+            "#1",
+            "--translate",
+            "1e6,0,0",
+            "-o",
+            &far,
+            "--json",
+        ];
+        json(&dmu(&args));
+        let png = path(dir.path(), "r.png");
+        let args = [
+            &far, "--eye", "50,50,50", "--target", "0,0,0", "--size", "64x64", "-o", &png, "--json",
+        ];
+        let out = render(&args);
+        let frames = json(&out)["frames"].clone();
+        let drawn = frames[0]["triangles_drawn"].as_u64().unwrap();
+        assert!(drawn > 100, "{drawn} triangles drawn near the eye");
+    });
 }
 
 /// `dmu import` reads the JSON as a stream (issue 14): a document cut short,

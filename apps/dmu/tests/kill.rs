@@ -120,71 +120,71 @@ fn issue_48_a_killed_import_leaves_the_previous_store() {
 /// every segment whole; the next build succeeds and leaves only the store.
 #[test]
 fn issue_48_a_killed_far_field_build_leaves_the_previous_store() {
-    let dir = tempfile::tempdir().unwrap();
-    let store = super::generated_plant(dir.path(), "100k");
-    let build = |cell_size: &'static str| {
-        [
-            "farfield",
-            "build",
-            store.as_str(),
-            "--cell-size",
-            cell_size,
-            "--triangle-budget",
-            "20k",
-            "--resolution",
-            "64",
-        ]
-    };
-    // A first build is the previous state; the killed ones build others.
-    let Some(out) = super::on_gpu("killed_far_field_build", "farfield", &build("40000")[1..])
-    else {
-        return;
-    };
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let cells = |what: &str| {
-        let s = dmu_store::Store::open(Path::new(&store)).unwrap_or_else(|e| panic!("{what}: {e}"));
-        for c in 0..s.far_field_cells() {
-            s.far_field_cell(c as u32)
-                .unwrap_or_else(|e| panic!("{what}: cell {c}: {e}"));
-        }
-        s.load_scene().unwrap_or_else(|e| panic!("{what}: {e}"));
-        s.far_field_cells()
-    };
-    let previous_cells = cells("the first build");
-    let previous = std::fs::read(&store).unwrap();
-    // The finished build of the cells the kills interrupt, on a copy.
-    let copy = path(dir.path(), "copy.dmu");
-    std::fs::copy(&store, &copy).unwrap();
-    let mut finish = build("20000");
-    finish[2] = copy.as_str();
-    let span = timed(&finish);
-    let finished_cells = dmu_store::Store::open(Path::new(&copy))
-        .unwrap()
-        .far_field_cells();
-    assert_ne!(previous_cells, finished_cells, "the builds differ");
-    std::fs::remove_file(&copy).unwrap();
-    let args = build("20000");
-    let mid_run = kill_rounds(&args, span.mul_f64(0.9), 4848, |round| {
-        let n = cells(&format!("round {round}"));
-        if n == previous_cells {
-            assert_eq!(
-                std::fs::read(&store).unwrap(),
-                previous,
-                "round {round}: the previous store changed"
-            );
-        } else {
-            assert_eq!(n, finished_cells, "round {round}: a build half there");
-        }
+    dmu_testkit::with_gpu(|_| {
+        let dir = tempfile::tempdir().unwrap();
+        let store = super::generated_plant(dir.path(), "100k");
+        let build = |cell_size: &'static str| {
+            [
+                "farfield",
+                "build",
+                store.as_str(),
+                "--cell-size",
+                cell_size,
+                "--triangle-budget",
+                "20k",
+                "--resolution",
+                "64",
+            ]
+        };
+        // A first build is the previous state; the killed ones build others.
+        let out = super::on_gpu("farfield", &build("40000")[1..]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let cells = |what: &str| {
+            let s =
+                dmu_store::Store::open(Path::new(&store)).unwrap_or_else(|e| panic!("{what}: {e}"));
+            for c in 0..s.far_field_cells() {
+                s.far_field_cell(c as u32)
+                    .unwrap_or_else(|e| panic!("{what}: cell {c}: {e}"));
+            }
+            s.load_scene().unwrap_or_else(|e| panic!("{what}: {e}"));
+            s.far_field_cells()
+        };
+        let previous_cells = cells("the first build");
+        let previous = std::fs::read(&store).unwrap();
+        // The finished build of the cells the kills interrupt, on a copy.
+        let copy = path(dir.path(), "copy.dmu");
+        std::fs::copy(&store, &copy).unwrap();
+        let mut finish = build("20000");
+        finish[2] = copy.as_str();
+        let span = timed(&finish);
+        let finished_cells = dmu_store::Store::open(Path::new(&copy))
+            .unwrap()
+            .far_field_cells();
+        assert_ne!(previous_cells, finished_cells, "the builds differ");
+        std::fs::remove_file(&copy).unwrap();
+        let args = build("20000");
+        let mid_run = kill_rounds(&args, span.mul_f64(0.9), 4848, |round| {
+            let n = cells(&format!("round {round}"));
+            if n == previous_cells {
+                assert_eq!(
+                    std::fs::read(&store).unwrap(),
+                    previous,
+                    "round {round}: the previous store changed"
+                );
+            } else {
+                assert_eq!(n, finished_cells, "round {round}: a build half there");
+            }
+        });
+        eprintln!("farfield build: {mid_run} of {KILLS} kills came mid-run ({span:?} a run)");
+        assert!(mid_run >= KILLS / 2, "too few kills mid-run: {mid_run}");
+        timed(&args);
+        assert_eq!(cells("the last build"), finished_cells);
+        assert_eq!(names(dir.path()), ["p.dmu"], "temporary files left");
     });
-    eprintln!("farfield build: {mid_run} of {KILLS} kills came mid-run ({span:?} a run)");
-    assert!(mid_run >= KILLS / 2, "too few kills mid-run: {mid_run}");
-    timed(&args);
-    assert_eq!(cells("the last build"), finished_cells);
-    assert_eq!(names(dir.path()), ["p.dmu"], "temporary files left");
 }
 
 /// An import onto a full disk (a 2 MiB tmpfs) fails with one line naming the
@@ -203,44 +203,39 @@ fn issue_48_a_full_disk_leaves_the_previous_store() {
         .args(["-t", "tmpfs", "-o", "size=2m", "tmpfs"])
         .arg(&disk)
         .output();
-    if !mounted.as_ref().is_ok_and(|o| o.status.success()) {
-        let why = match &mounted {
-            Ok(o) => String::from_utf8_lossy(&o.stderr).into_owned(),
-            Err(e) => e.to_string(),
-        };
-        assert_ne!(
-            std::env::var("CI").as_deref(),
-            Ok("true"),
-            "a_full_disk: cannot mount a tmpfs under CI: {why}"
-        );
-        eprintln!("SKIPPED a_full_disk: cannot mount a tmpfs (needs root): {why}");
-        return;
-    }
-    // Unmounted however the test ends.
-    struct Unmount<'a>(&'a Path);
-    impl Drop for Unmount<'_> {
-        fn drop(&mut self) {
-            let _ = Command::new("umount").arg(self.0).status();
+    let found = match mounted {
+        Ok(o) if o.status.success() => Ok(()),
+        Ok(o) => Err(String::from_utf8_lossy(&o.stderr).into_owned()),
+        Err(e) => Err(e.to_string()),
+    };
+    let found = found.map_err(|why| format!("cannot mount a tmpfs (needs root): {why}"));
+    dmu_testkit::require(found, |()| {
+        // Unmounted however the test ends.
+        struct Unmount<'a>(&'a Path);
+        impl Drop for Unmount<'_> {
+            fn drop(&mut self) {
+                let _ = Command::new("umount").arg(self.0).status();
+            }
         }
-    }
-    let _unmount = Unmount(&disk);
-    let store = path(&disk, "model.dmu");
-    timed(&["import", &small, "-o", &store]);
-    let previous = std::fs::read(&store).unwrap();
-    let out = dmu(&["import", &big, "-o", &store]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{err}");
-    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
-    assert_eq!(lines.len(), 1, "one line: {err}");
-    assert!(
-        lines[0].starts_with("dmu: error:") && lines[0].contains("model.dmu"),
-        "{err}"
-    );
-    assert!(lines[0].contains("No space left"), "{err}");
-    assert_eq!(
-        std::fs::read(&store).unwrap(),
-        previous,
-        "the store changed"
-    );
-    assert_eq!(names(&disk), ["model.dmu"], "temporary files left");
+        let _unmount = Unmount(&disk);
+        let store = path(&disk, "model.dmu");
+        timed(&["import", &small, "-o", &store]);
+        let previous = std::fs::read(&store).unwrap();
+        let out = dmu(&["import", &big, "-o", &store]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+        assert_eq!(lines.len(), 1, "one line: {err}");
+        assert!(
+            lines[0].starts_with("dmu: error:") && lines[0].contains("model.dmu"),
+            "{err}"
+        );
+        assert!(lines[0].contains("No space left"), "{err}");
+        assert_eq!(
+            std::fs::read(&store).unwrap(),
+            previous,
+            "the store changed"
+        );
+        assert_eq!(names(&disk), ["model.dmu"], "temporary files left");
+    });
 }

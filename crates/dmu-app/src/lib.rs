@@ -31,7 +31,7 @@
 
 pub mod bcf;
 pub mod explain;
-pub mod far_fields;
+pub mod farfield;
 pub mod hits;
 pub mod load;
 pub mod progress;

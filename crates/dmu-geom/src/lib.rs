@@ -57,6 +57,7 @@ mod plane;
 mod ray;
 mod ray_box;
 mod short;
+mod stats;
 mod triangle;
 mod vector;
 
@@ -69,6 +70,7 @@ pub use plane::Plane;
 pub use ray::{Ray3d, Ray3f};
 pub use ray_box::{RayBoxTest3d, RayBoxTest3f};
 pub use short::Short;
+pub use stats::{median, percentile};
 pub use triangle::{
     RayTriTest3d, RayTriTest3f, TriHit, closest_point_on_triangle, is_degenerate, triangle_area,
     triangle_normal,

@@ -8,8 +8,8 @@
 //!   ([`FrameTarget`]), so the desktop viewer, an XR session and headless
 //!   captures ([`Capture`]) drive it alike.
 //! - Geometry comes through [`GeometrySource`] ("this chunk, if resident"),
-//!   which the in-memory scene implements now and the store's residency manager
-//!   later. Chunks are uploaded once into large pooled buffers ([`GeometryPool`])
+//!   which the in-memory scene implements, and the store's residency manager
+//!   through `dmu_app::ResidentSource` (or `StandInSource`). Chunks are uploaded once into large pooled buffers ([`GeometryPool`])
 //!   with u16 indices where they fit and a base vertex per draw, and shared by
 //!   every part instancing them.
 //! - Parts are never pre-transformed. A draw is one chunk instance, and its

@@ -339,15 +339,8 @@ impl Proxies {
             return;
         }
         self.part_hash.clear();
-        self.part_hash.extend(scene.part_ids().map(|p| {
-            let world = scene.part_world(p);
-            let cols = world.to_cols_array();
-            let mut hash = mix(u64::from(scene.part(p).hidden) + 1);
-            for x in cols {
-                hash = mix(hash ^ x.to_bits());
-            }
-            hash
-        }));
+        self.part_hash
+            .extend(scene.part_ids().map(|p| scene.part_pose_hash(p)));
         let mut signature = vec![0u64; h.len()];
         let mut height = vec![0u8; h.len()];
         for n in post_order(h) {

@@ -15,7 +15,9 @@ use dmu_scene::{PartId, Scene};
 use dmu_tree::Tree;
 
 use crate::culling::small_plant;
-use crate::support::{Rig, camera, image_path};
+use dmu_testkit::image_path;
+
+use crate::support::{Rig, camera};
 
 const SIZE: (u32, u32) = (480, 270);
 
@@ -90,60 +92,60 @@ fn frame(
 /// frame draws a fraction of the chunk triangles.
 #[test]
 fn far_field_image_is_close_to_the_full_one_for_a_fraction_of_the_triangles() {
-    let (scene, tree) = small_plant();
-    let Some(mut rig) = Rig::new(&scene, &tree, SIZE) else {
-        return;
-    };
-    rig.renderer.enable_far_fields(&scene, &tree);
-    let field = capture(&mut rig, &scene, &tree, &BTreeSet::new());
-    assert!(field.triangles() > 0 && !field.seen.is_empty());
-    // The same far field without its meshes: the near field alone.
-    let mut empty = (*field).clone();
-    empty.indices.clear();
-    empty.face_starts = [0; 7];
-    let empty = Arc::new(empty);
-    let pixels = f64::from(SIZE.0 * SIZE.1);
-    for (i, &cam) in cameras(&field.cell).iter().enumerate() {
-        let (full_stats, full) = frame(&mut rig, &scene, &tree, cam, None);
-        let (far_stats, far) = frame(&mut rig, &scene, &tree, cam, Some(&field));
-        let (_, near_only) = frame(&mut rig, &scene, &tree, cam, Some(&empty));
-        far.save(image_path(&format!("farfield-{i}.png"))).unwrap();
-        full.save(image_path(&format!("farfield-{i}-full.png")))
-            .unwrap();
-        let (_, surface) = count_differing(full.as_raw(), far.as_raw());
-        let (_, surface_near) = count_differing(full.as_raw(), near_only.as_raw());
-        println!(
-            "view {i}: full {} triangles, far field {} + {} mesh triangles; {:.2} % differ by more than {SURFACE_CHANGE} ({:.2} % with the near field alone)",
-            full_stats.triangles_drawn,
-            far_stats.triangles_drawn,
-            far_stats.far_field_triangles,
-            100.0 * surface as f64 / pixels,
-            100.0 * surface_near as f64 / pixels,
+    dmu_testkit::with_gpu(|gpu| {
+        let (scene, tree) = small_plant();
+        let mut rig = Rig::new(gpu, &scene, &tree, SIZE);
+        rig.renderer.enable_far_fields(&scene, &tree);
+        let field = capture(&mut rig, &scene, &tree, &BTreeSet::new());
+        assert!(field.triangles() > 0 && !field.seen.is_empty());
+        // The same far field without its meshes: the near field alone.
+        let mut empty = (*field).clone();
+        empty.indices.clear();
+        empty.face_starts = [0; 7];
+        let empty = Arc::new(empty);
+        let pixels = f64::from(SIZE.0 * SIZE.1);
+        for (i, &cam) in cameras(&field.cell).iter().enumerate() {
+            let (full_stats, full) = frame(&mut rig, &scene, &tree, cam, None);
+            let (far_stats, far) = frame(&mut rig, &scene, &tree, cam, Some(&field));
+            let (_, near_only) = frame(&mut rig, &scene, &tree, cam, Some(&empty));
+            far.save(image_path(&format!("farfield-{i}.png"))).unwrap();
+            full.save(image_path(&format!("farfield-{i}-full.png")))
+                .unwrap();
+            let (_, surface) = count_differing(full.as_raw(), far.as_raw());
+            let (_, surface_near) = count_differing(full.as_raw(), near_only.as_raw());
+            println!(
+                "view {i}: full {} triangles, far field {} + {} mesh triangles; {:.2} % differ by more than {SURFACE_CHANGE} ({:.2} % with the near field alone)",
+                full_stats.triangles_drawn,
+                far_stats.triangles_drawn,
+                far_stats.far_field_triangles,
+                100.0 * surface as f64 / pixels,
+                100.0 * surface_near as f64 / pixels,
+            );
+            assert!(far_stats.far_field && !full_stats.far_field);
+            assert!(far_stats.triangles_drawn * 2 < full_stats.triangles_drawn);
+            // Off the centre by 1.7 m with the far field from 8 m on, the skins show
+            // as stretched silhouettes (measured 19 %).
+            let bound = if i < 2 { 0.07 } else { 0.25 };
+            assert!(
+                (surface as f64) < bound * pixels,
+                "view {i}: {surface} pixels show another surface"
+            );
+            assert!(
+                surface * 3 < surface_near * 2,
+                "view {i}: the far field adds little"
+            );
+        }
+        // An eye outside the cell is not served.
+        let c = field.cell.center() + DVec3::new(0.0, 0.0, 3_000.0);
+        let (stats, _) = frame(
+            &mut rig,
+            &scene,
+            &tree,
+            camera(c, c + DVec3::X, 50.0),
+            Some(&field),
         );
-        assert!(far_stats.far_field && !full_stats.far_field);
-        assert!(far_stats.triangles_drawn * 2 < full_stats.triangles_drawn);
-        // Off the centre by 1.7 m with the far field from 8 m on, the skins show
-        // as stretched silhouettes (measured 19 %).
-        let bound = if i < 2 { 0.07 } else { 0.25 };
-        assert!(
-            (surface as f64) < bound * pixels,
-            "view {i}: {surface} pixels show another surface"
-        );
-        assert!(
-            surface * 3 < surface_near * 2,
-            "view {i}: the far field adds little"
-        );
-    }
-    // An eye outside the cell is not served.
-    let c = field.cell.center() + DVec3::new(0.0, 0.0, 3_000.0);
-    let (stats, _) = frame(
-        &mut rig,
-        &scene,
-        &tree,
-        camera(c, c + DVec3::X, 50.0),
-        Some(&field),
-    );
-    assert!(!stats.far_field);
+        assert!(!stats.far_field);
+    });
 }
 
 /// A part seen in the far field moves: the next frame shows it where it is
@@ -153,120 +155,122 @@ fn far_field_image_is_close_to_the_full_one_for_a_fraction_of_the_triangles() {
 /// that far field (which left it out) is captured once more.
 #[test]
 fn a_moved_part_leaves_the_far_field_at_once() {
-    let (mut scene, mut tree) = small_plant();
-    let Some(mut rig) = Rig::new(&scene, &tree, SIZE) else {
-        return;
-    };
-    rig.renderer.enable_far_fields(&scene, &tree);
-    let field = capture(&mut rig, &scene, &tree, &BTreeSet::new());
-    let cam = cameras(&field.cell)[0];
-    // The part showing most in the full image among those the far field saw.
-    let mut view = View::new(cam, SIZE, Culling::Frustum);
-    let ids = rig.ids(&mut view, &scene, &tree);
-    // Entries keep their part when parts move.
-    let entry_part: Vec<u32> = tree.entries().iter().map(|e| e.part.0).collect();
-    let part_of =
-        |ids: &dmu_render::IdImage, x: u32, y: u32| ids.at(x, y).map(|e| entry_part[e.0 as usize]);
-    let mut counts = std::collections::BTreeMap::<u32, u32>::new();
-    for y in 0..SIZE.1 {
-        for x in 0..SIZE.0 {
-            if let Some(p) = part_of(&ids, x, y).filter(|p| field.seen.binary_search(p).is_ok()) {
-                *counts.entry(p).or_default() += 1;
+    dmu_testkit::with_gpu(|gpu| {
+        let (mut scene, mut tree) = small_plant();
+        let mut rig = Rig::new(gpu, &scene, &tree, SIZE);
+        rig.renderer.enable_far_fields(&scene, &tree);
+        let field = capture(&mut rig, &scene, &tree, &BTreeSet::new());
+        let cam = cameras(&field.cell)[0];
+        // The part showing most in the full image among those the far field saw.
+        let mut view = View::new(cam, SIZE, Culling::Frustum);
+        let ids = rig.ids(&mut view, &scene, &tree);
+        // Entries keep their part when parts move.
+        let entry_part: Vec<u32> = tree.entries().iter().map(|e| e.part.0).collect();
+        let part_of = |ids: &dmu_render::IdImage, x: u32, y: u32| {
+            ids.at(x, y).map(|e| entry_part[e.0 as usize])
+        };
+        let mut counts = std::collections::BTreeMap::<u32, u32>::new();
+        for y in 0..SIZE.1 {
+            for x in 0..SIZE.0 {
+                if let Some(p) = part_of(&ids, x, y).filter(|p| field.seen.binary_search(p).is_ok())
+                {
+                    *counts.entry(p).or_default() += 1;
+                }
             }
         }
-    }
-    let (&part, &count) = counts
-        .iter()
-        .max_by_key(|(_, c)| **c)
-        .expect("a far part in view");
-    assert!(count > 50, "the far part covers {count} pixels");
-    let old: Vec<(u32, u32)> = (0..SIZE.1)
-        .flat_map(|y| (0..SIZE.0).map(move |x| (x, y)))
-        .filter(|&(x, y)| part_of(&ids, x, y) == Some(part))
-        .collect();
-    let p = PartId::from_index(part as usize);
-    let home = scene.part_world(p);
-    // The first of a few moves after which the part still shows.
-    let ids_after = [
-        DVec3::new(0.0, 0.0, 2_500.0),
-        DVec3::new(0.0, 1_500.0, 0.0),
-        DVec3::new(0.0, -1_500.0, 0.0),
-        DVec3::new(-3_000.0, 0.0, 0.0),
-        DVec3::new(0.0, 0.0, -1_000.0),
-    ]
-    .into_iter()
-    .find_map(|offset| {
-        tree.move_part(&mut scene, p, DAffine3::from_translation(offset) * home);
-        let ids = rig.ids(&mut View::new(cam, SIZE, Culling::Frustum), &scene, &tree);
-        let shows = ids
-            .ids
+        let (&part, &count) = counts
             .iter()
-            .filter(|&&e| e > 0 && entry_part[e as usize - 1] == part);
-        (shows.count() > 20).then_some(ids)
-    })
-    .expect("a move after which the part shows");
-    let (full_stats, full) = frame(&mut rig, &scene, &tree, cam, None);
-    let (stats, far) = frame(&mut rig, &scene, &tree, cam, Some(&field));
-    assert!(full_stats.triangles_drawn > 0);
-    assert_eq!(stats.far_field_moved_parts, 1);
-    let moved = rig.renderer.moved_parts();
-    assert!(moved.contains(&part) && field.is_stale(&moved));
-    // Where the part is now, the frame shows what the full image shows.
-    let (mut new_pixels, mut shown) = (0, 0);
-    for y in 0..SIZE.1 {
-        for x in 0..SIZE.0 {
-            if part_of(&ids_after, x, y) == Some(part) {
-                new_pixels += 1;
-                shown += usize::from(far.get_pixel(x, y) == full.get_pixel(x, y));
+            .max_by_key(|(_, c)| **c)
+            .expect("a far part in view");
+        assert!(count > 50, "the far part covers {count} pixels");
+        let old: Vec<(u32, u32)> = (0..SIZE.1)
+            .flat_map(|y| (0..SIZE.0).map(move |x| (x, y)))
+            .filter(|&(x, y)| part_of(&ids, x, y) == Some(part))
+            .collect();
+        let p = PartId::from_index(part as usize);
+        let home = scene.part_world(p);
+        // The first of a few moves after which the part still shows.
+        let ids_after = [
+            DVec3::new(0.0, 0.0, 2_500.0),
+            DVec3::new(0.0, 1_500.0, 0.0),
+            DVec3::new(0.0, -1_500.0, 0.0),
+            DVec3::new(-3_000.0, 0.0, 0.0),
+            DVec3::new(0.0, 0.0, -1_000.0),
+        ]
+        .into_iter()
+        .find_map(|offset| {
+            tree.move_part(&mut scene, p, DAffine3::from_translation(offset) * home);
+            let ids = rig.ids(&mut View::new(cam, SIZE, Culling::Frustum), &scene, &tree);
+            let shows = ids
+                .ids
+                .iter()
+                .filter(|&&e| e > 0 && entry_part[e as usize - 1] == part);
+            (shows.count() > 20).then_some(ids)
+        })
+        .expect("a move after which the part shows");
+        let (full_stats, full) = frame(&mut rig, &scene, &tree, cam, None);
+        let (stats, far) = frame(&mut rig, &scene, &tree, cam, Some(&field));
+        assert!(full_stats.triangles_drawn > 0);
+        assert_eq!(stats.far_field_moved_parts, 1);
+        let moved = rig.renderer.moved_parts();
+        assert!(moved.contains(&part) && field.is_stale(&moved));
+        // Where the part is now, the frame shows what the full image shows.
+        let (mut new_pixels, mut shown) = (0, 0);
+        for y in 0..SIZE.1 {
+            for x in 0..SIZE.0 {
+                if part_of(&ids_after, x, y) == Some(part) {
+                    new_pixels += 1;
+                    shown += usize::from(far.get_pixel(x, y) == full.get_pixel(x, y));
+                }
             }
         }
-    }
-    // Skins (triangles across a depth step, 4 pixels wide) may pass in
-    // front of it.
-    println!("the moved part: {shown} of {new_pixels} pixels as in the full image");
-    assert!(
-        shown * 10 >= new_pixels * 9,
-        "{shown} of {new_pixels} pixels show the part"
-    );
-    assert!(
-        new_pixels > 20,
-        "the moved part shows in {new_pixels} pixels"
-    );
-    // Where it was, the frame shows the background or what the full image
-    // shows there: never the part's old image.
-    let background = *full
-        .enumerate_pixels()
-        .find(|&(x, y, _)| part_of(&ids_after, x, y).is_none())
-        .expect("sky in view")
-        .2;
-    let stale_pixels = old
-        .iter()
-        .filter(|&&(x, y)| {
-            let px = far.get_pixel(x, y);
-            *px != background && !close(px, full.get_pixel(x, y))
-        })
-        .count();
-    assert!(
-        stale_pixels * 50 < old.len(),
-        "{stale_pixels} of {} pixels still show the part where it was",
-        old.len()
-    );
+        // Skins (triangles across a depth step, 4 pixels wide) may pass in
+        // front of it.
+        println!("the moved part: {shown} of {new_pixels} pixels as in the full image");
+        assert!(
+            shown * 10 >= new_pixels * 9,
+            "{shown} of {new_pixels} pixels show the part"
+        );
+        assert!(
+            new_pixels > 20,
+            "the moved part shows in {new_pixels} pixels"
+        );
+        // Where it was, the frame shows the background or what the full image
+        // shows there: never the part's old image.
+        let background = *full
+            .enumerate_pixels()
+            .find(|&(x, y, _)| part_of(&ids_after, x, y).is_none())
+            .expect("sky in view")
+            .2;
+        let stale_pixels = old
+            .iter()
+            .filter(|&&(x, y)| {
+                let px = far.get_pixel(x, y);
+                *px != background && !close(px, full.get_pixel(x, y))
+            })
+            .count();
+        assert!(
+            stale_pixels * 50 < old.len(),
+            "{stale_pixels} of {} pixels still show the part where it was",
+            old.len()
+        );
 
-    // Captured again, without the moved part: current, and close to full.
-    let rebuilt = capture(&mut rig, &scene, &tree, &moved);
-    assert!(!rebuilt.is_stale(&moved));
-    let (_, far) = frame(&mut rig, &scene, &tree, cam, Some(&rebuilt));
-    let (_, surface) = count_differing(full.as_raw(), far.as_raw());
-    println!("rebuilt: {surface} pixels show another surface");
-    assert!((surface as f64) < 0.07 * f64::from(SIZE.0 * SIZE.1));
+        // Captured again, without the moved part: current, and close to full.
+        let rebuilt = capture(&mut rig, &scene, &tree, &moved);
+        assert!(!rebuilt.is_stale(&moved));
+        let (_, far) = frame(&mut rig, &scene, &tree, cam, Some(&rebuilt));
+        let (_, surface) = count_differing(full.as_raw(), far.as_raw());
+        println!("rebuilt: {surface} pixels show another surface");
+        assert!((surface as f64) < 0.07 * f64::from(SIZE.0 * SIZE.1));
 
-    // Moved back: no part moved; the rebuilt far field, which left it out,
-    // is stale and the part is drawn as geometry meanwhile.
-    tree.move_part(&mut scene, p, home);
-    let (stats, _) = frame(&mut rig, &scene, &tree, cam, Some(&rebuilt));
-    assert!(rig.renderer.moved_parts().is_empty());
-    assert!(rebuilt.is_stale(&rig.renderer.moved_parts()));
-    assert_eq!(stats.far_field_moved_parts, 1);
+        // Moved back: no part moved; the rebuilt far field, which left it out,
+        // is stale and the part is drawn as geometry meanwhile.
+        tree.move_part(&mut scene, p, home);
+        let (stats, _) = frame(&mut rig, &scene, &tree, cam, Some(&rebuilt));
+        assert!(rig.renderer.moved_parts().is_empty());
+        assert!(rebuilt.is_stale(&rig.renderer.moved_parts()));
+        assert_eq!(stats.far_field_moved_parts, 1);
+    });
 }
 
 fn close(a: &image::Rgba<u8>, b: &image::Rgba<u8>) -> bool {
@@ -280,23 +284,23 @@ fn close(a: &image::Rgba<u8>, b: &image::Rgba<u8>) -> bool {
 /// panic; part ids past the model's are refused.
 #[test]
 fn encoded_far_fields_read_back_or_are_refused() {
-    let (scene, tree) = small_plant();
-    let Some(mut rig) = Rig::new(&scene, &tree, SIZE) else {
-        return;
-    };
-    let field = capture(&mut rig, &scene, &tree, &BTreeSet::from([3, 7]));
-    let bytes = field.encode();
-    let parts = scene.parts().len();
-    assert_eq!(FarField::decode(&bytes, parts).expect("decode"), *field);
-    println!("{} bytes encoded", bytes.len());
-    assert!(FarField::decode(&bytes[..bytes.len() - 1], parts).is_err());
-    assert!(FarField::decode(&[bytes.as_slice(), &[0]].concat(), parts).is_err());
-    assert!(FarField::decode(&bytes, field.seen.last().map_or(0, |&p| p as usize)).is_err());
-    let mut rng = dmu_samples::Rng::new(7);
-    for _ in 0..300 {
-        let mut bad = bytes.clone();
-        let at = rng.below(bad.len().min(4096) as u64) as usize;
-        bad[at] ^= 1 << rng.below(8);
-        let _ = FarField::decode(&bad, parts);
-    }
+    dmu_testkit::with_gpu(|gpu| {
+        let (scene, tree) = small_plant();
+        let mut rig = Rig::new(gpu, &scene, &tree, SIZE);
+        let field = capture(&mut rig, &scene, &tree, &BTreeSet::from([3, 7]));
+        let bytes = field.encode();
+        let parts = scene.parts().len();
+        assert_eq!(FarField::decode(&bytes, parts).expect("decode"), *field);
+        println!("{} bytes encoded", bytes.len());
+        assert!(FarField::decode(&bytes[..bytes.len() - 1], parts).is_err());
+        assert!(FarField::decode(&[bytes.as_slice(), &[0]].concat(), parts).is_err());
+        assert!(FarField::decode(&bytes, field.seen.last().map_or(0, |&p| p as usize)).is_err());
+        let mut rng = dmu_samples::Rng::new(7);
+        for _ in 0..300 {
+            let mut bad = bytes.clone();
+            let at = rng.below(bad.len().min(4096) as u64) as usize;
+            bad[at] ^= 1 << rng.below(8);
+            let _ = FarField::decode(&bad, parts);
+        }
+    });
 }

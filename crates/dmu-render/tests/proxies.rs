@@ -2,12 +2,14 @@
 //! from afar, a bounded pixel error, and edits that show at once.
 
 use dmu_geom::glam::{DAffine3, DVec3};
-use dmu_render::{Camera, Culling, Proxies, ProxyOptions, SURFACE_CHANGE, View, count_differing};
+use dmu_render::{Camera, Culling, SURFACE_CHANGE, View, count_differing};
 use dmu_scene::{PartId, Scene};
 use dmu_tree::Tree;
 
 use crate::culling::{small_plant, viewpoints};
-use crate::support::{Rig, camera, image_path};
+use dmu_testkit::image_path;
+
+use crate::support::{Rig, camera};
 
 /// The plant seen whole from outside, as the viewer opens it.
 fn overview(tree: &Tree) -> Camera {
@@ -17,80 +19,71 @@ fn overview(tree: &Tree) -> Camera {
     camera(c + DVec3::new(-0.55, -0.75, 0.45) * d, c, d * 1e-4)
 }
 
-fn with_proxies(scene: &Scene, tree: &Tree, size: (u32, u32)) -> Option<Rig> {
-    let mut rig = Rig::with_lods(scene, tree, size)?;
-    let proxies = Proxies::build(scene, tree, scene, ProxyOptions::default(), &mut |_, _| {});
-    rig.renderer.set_proxies(proxies);
-    Some(rig)
-}
-
 /// Seen from outside, proxies cut the draws to a fraction of drawing chunk
 /// by chunk (with LODs at the same bound) while pixels showing another
 /// surface stay within 2 % of the image per pixel of LOD error;
 /// at τ = 0 nothing is approximated and the image is the exact one.
 #[test]
 fn proxies_draw_far_subtrees_in_few_calls_within_the_pixel_bound() {
-    let (scene, tree) = small_plant();
-    let size = (480, 270);
-    let Some(mut rig) = with_proxies(&scene, &tree, size) else {
-        return;
-    };
-    let Some(mut plain) = Rig::with_lods(&scene, &tree, size) else {
-        return;
-    };
-    let pixels = f64::from(size.0 * size.1);
-    let mut cams = viewpoints();
-    cams.push(overview(&tree));
-    for (i, &cam) in cams.iter().enumerate() {
-        let exact = plain.shot(cam, Culling::Frustum, &scene, &tree);
-        for tau in [0.0, 1.0, 2.0] {
-            let mut view = View::new(cam, size, Culling::Frustum);
-            view.options.lod_error_px = tau;
-            let with = rig.frame(&mut view, &scene, &tree);
-            let image = rig.image();
-            let mut chunk_view = View::new(cam, size, Culling::Frustum);
-            chunk_view.options.lod_error_px = tau;
-            let without = plain.frame(&mut chunk_view, &scene, &tree);
-            let (any, surface) = count_differing(exact.as_raw(), image.as_raw());
-            // Draws, whether recorded one by one or in an indirect multi-draw.
-            let draws = |s: &dmu_render::FrameStats| s.chunks_drawn + s.proxies_drawn;
-            println!(
-                "view {i} tau {tau}: {} proxies, {} draws ({} without), {} triangles ({} without), {:.3} % differ, {:.3} % by more than {SURFACE_CHANGE}",
-                with.proxies_drawn,
-                draws(&with),
-                draws(&without),
-                with.triangles_drawn,
-                without.triangles_drawn,
-                100.0 * any as f64 / pixels,
-                100.0 * surface as f64 / pixels,
-            );
-            if tau == 0.0 {
-                assert_eq!(with.proxies_drawn, 0, "view {i}");
-                assert_eq!(any, 0, "view {i}: proxies set change the exact image");
-                continue;
-            }
-            assert!(draws(&with) <= draws(&without), "view {i} tau {tau}");
-            // Measured here: 0.5-1.1 % at 1 px (chunk levels alone:
-            // 0.3-0.9 %), 1.2-2.6 % at 2 px; the simplifier's estimate is
-            // not a bound.
-            assert!(
-                surface as f64 <= 0.02 * tau * pixels,
-                "view {i} tau {tau}: {surface} pixels show another surface"
-            );
-            if i == cams.len() - 1 {
-                assert!(with.proxies_drawn > 0, "the overview draws proxies");
-                assert!(
-                    draws(&with) * 4 <= draws(&without),
-                    "tau {tau}: {} draws against {}",
+    dmu_testkit::with_gpu(|gpu| {
+        let (scene, tree) = small_plant();
+        let size = (480, 270);
+        let mut rig = Rig::with_proxies(gpu, &scene, &tree, size);
+        let mut plain = Rig::with_lods(gpu, &scene, &tree, size);
+        let pixels = f64::from(size.0 * size.1);
+        let mut cams = viewpoints();
+        cams.push(overview(&tree));
+        for (i, &cam) in cams.iter().enumerate() {
+            let exact = plain.shot(cam, Culling::Frustum, &scene, &tree);
+            for tau in [0.0, 1.0, 2.0] {
+                let mut view = View::new(cam, size, Culling::Frustum);
+                view.options.lod_error_px = tau;
+                let with = rig.frame(&mut view, &scene, &tree);
+                let image = rig.image();
+                let mut chunk_view = View::new(cam, size, Culling::Frustum);
+                chunk_view.options.lod_error_px = tau;
+                let without = plain.frame(&mut chunk_view, &scene, &tree);
+                let (any, surface) = count_differing(exact.as_raw(), image.as_raw());
+                // Draws, whether recorded one by one or in an indirect multi-draw.
+                let draws = |s: &dmu_render::FrameStats| s.chunks_drawn + s.proxies_drawn;
+                println!(
+                    "view {i} tau {tau}: {} proxies, {} draws ({} without), {} triangles ({} without), {:.3} % differ, {:.3} % by more than {SURFACE_CHANGE}",
+                    with.proxies_drawn,
                     draws(&with),
-                    draws(&without)
+                    draws(&without),
+                    with.triangles_drawn,
+                    without.triangles_drawn,
+                    100.0 * any as f64 / pixels,
+                    100.0 * surface as f64 / pixels,
                 );
-                image
-                    .save(image_path(&format!("plant_proxies_{tau}px.png")))
-                    .unwrap();
+                if tau == 0.0 {
+                    assert_eq!(with.proxies_drawn, 0, "view {i}");
+                    assert_eq!(any, 0, "view {i}: proxies set change the exact image");
+                    continue;
+                }
+                assert!(draws(&with) <= draws(&without), "view {i} tau {tau}");
+                // Measured here: 0.5-1.1 % at 1 px (chunk levels alone:
+                // 0.3-0.9 %), 1.2-2.6 % at 2 px; the simplifier's estimate is
+                // not a bound.
+                assert!(
+                    surface as f64 <= 0.02 * tau * pixels,
+                    "view {i} tau {tau}: {surface} pixels show another surface"
+                );
+                if i == cams.len() - 1 {
+                    assert!(with.proxies_drawn > 0, "the overview draws proxies");
+                    assert!(
+                        draws(&with) * 4 <= draws(&without),
+                        "tau {tau}: {} draws against {}",
+                        draws(&with),
+                        draws(&without)
+                    );
+                    image
+                        .save(image_path(&format!("plant_proxies_{tau}px.png")))
+                        .unwrap();
+                }
             }
         }
-    }
+    });
 }
 
 /// The exact image's pixels owned by `part`'s chunk instances.
@@ -124,62 +117,60 @@ fn surface_changes(
 /// drawn), and once the edit is calm they are made again and drawn.
 #[test]
 fn an_edited_part_leaves_its_proxies_at_once() {
-    let (mut scene, mut tree) = small_plant();
-    let size = (480, 270);
-    let Some(mut rig) = with_proxies(&scene, &tree, size) else {
-        return;
-    };
-    let Some(mut plain) = Rig::new(&scene, &tree, size) else {
-        return;
-    };
-    let cam = overview(&tree);
-    let mut view = View::new(cam, size, Culling::Frustum);
-    view.options.lod_error_px = 1.0;
-    let before = rig.frame(&mut view, &scene, &tree);
-    assert!(before.proxies_drawn > 0 && before.proxies_stale == 0);
-    // The part with the most pixels in the exact image.
-    let mut ids = View::new(cam, size, Culling::Frustum);
-    let image_ids = plain.ids(&mut ids, &scene, &tree);
-    let mut count = vec![0usize; scene.parts().len()];
-    for &id in image_ids.ids.iter().filter(|&&id| id != 0) {
-        count[tree.entries()[id as usize - 1].part.index()] += 1;
-    }
-    let part = PartId((0..count.len()).max_by_key(|&p| count[p]).unwrap() as u32);
-    let region = owned_by(&mut plain, cam, &scene, &tree, part);
-    assert!(region.len() > 100, "{} pixels", region.len());
+    dmu_testkit::with_gpu(|gpu| {
+        let (mut scene, mut tree) = small_plant();
+        let size = (480, 270);
+        let mut rig = Rig::with_proxies(gpu, &scene, &tree, size);
+        let mut plain = Rig::new(gpu, &scene, &tree, size);
+        let cam = overview(&tree);
+        let mut view = View::new(cam, size, Culling::Frustum);
+        view.options.lod_error_px = 1.0;
+        let before = rig.frame(&mut view, &scene, &tree);
+        assert!(before.proxies_drawn > 0 && before.proxies_stale == 0);
+        // The part with the most pixels in the exact image.
+        let mut ids = View::new(cam, size, Culling::Frustum);
+        let image_ids = plain.ids(&mut ids, &scene, &tree);
+        let mut count = vec![0usize; scene.parts().len()];
+        for &id in image_ids.ids.iter().filter(|&&id| id != 0) {
+            count[tree.entries()[id as usize - 1].part.index()] += 1;
+        }
+        let part = PartId((0..count.len()).max_by_key(|&p| count[p]).unwrap() as u32);
+        let region = owned_by(&mut plain, cam, &scene, &tree, part);
+        assert!(region.len() > 100, "{} pixels", region.len());
 
-    for edit in ["move", "hide"] {
-        match edit {
-            "move" => {
-                let up = DAffine3::from_translation(DVec3::new(0.0, 0.0, 1e6));
-                let world = up * scene.part_world(part);
-                tree.move_part(&mut scene, part, world);
+        for edit in ["move", "hide"] {
+            match edit {
+                "move" => {
+                    let up = DAffine3::from_translation(DVec3::new(0.0, 0.0, 1e6));
+                    let world = up * scene.part_world(part);
+                    tree.move_part(&mut scene, part, world);
+                }
+                _ => scene.set_part_hidden(part, true),
             }
-            _ => scene.set_part_hidden(part, true),
+            let stats = rig.frame(&mut view, &scene, &tree);
+            let exact = plain.shot(cam, Culling::Frustum, &scene, &tree);
+            let changed = surface_changes(&exact, &rig.image(), &region);
+            println!(
+                "{edit}: {} stale, {} proxies, {changed} of {} pixels where the part was show another surface",
+                stats.proxies_stale,
+                stats.proxies_drawn,
+                region.len()
+            );
+            assert!(stats.proxies_stale > 0, "{edit}");
+            assert!(
+                changed * 20 <= region.len(),
+                "{edit}: the part still shows where it was"
+            );
+            let mut last = stats;
+            for _ in 0..4 * dmu_render::CALM_TICKS + 40 {
+                last = rig.frame(&mut view, &scene, &tree);
+            }
+            let changed = surface_changes(&exact, &rig.image(), &region);
+            assert_eq!(last.proxies_stale, 0, "{edit}: made again once calm");
+            assert!(last.proxies_drawn > 0);
+            assert!(changed * 20 <= region.len(), "{edit}, calm: {changed}");
         }
-        let stats = rig.frame(&mut view, &scene, &tree);
-        let exact = plain.shot(cam, Culling::Frustum, &scene, &tree);
-        let changed = surface_changes(&exact, &rig.image(), &region);
-        println!(
-            "{edit}: {} stale, {} proxies, {changed} of {} pixels where the part was show another surface",
-            stats.proxies_stale,
-            stats.proxies_drawn,
-            region.len()
-        );
-        assert!(stats.proxies_stale > 0, "{edit}");
-        assert!(
-            changed * 20 <= region.len(),
-            "{edit}: the part still shows where it was"
-        );
-        let mut last = stats;
-        for _ in 0..4 * dmu_render::CALM_TICKS + 40 {
-            last = rig.frame(&mut view, &scene, &tree);
-        }
-        let changed = surface_changes(&exact, &rig.image(), &region);
-        assert_eq!(last.proxies_stale, 0, "{edit}: made again once calm");
-        assert!(last.proxies_drawn > 0);
-        assert!(changed * 20 <= region.len(), "{edit}, calm: {changed}");
-    }
+    });
 }
 
 /// A chc view where proxies draw measures frames without queries before it
@@ -187,27 +178,27 @@ fn an_edited_part_leaves_its_proxies_at_once() {
 /// proxies, and the decision it reports then weighs those frames.
 #[test]
 fn a_chc_view_times_its_proxies_before_keeping_queries() {
-    let (scene, tree) = small_plant();
-    let size = (480, 270);
-    let Some(mut rig) = with_proxies(&scene, &tree, size) else {
-        return;
-    };
-    let mut view = View::new(overview(&tree), size, Culling::Occlusion);
-    view.options.lod_error_px = 1.0;
-    let stats: Vec<_> = (0..12)
-        .map(|_| rig.frame(&mut view, &scene, &tree))
-        .collect();
-    assert!(stats[0].occlusion.enabled && stats[0].queries > 0);
-    let off = stats
-        .iter()
-        .position(|s| !s.occlusion.enabled)
-        .expect("the probe ends");
-    assert!(off <= 8, "after the probe's 8 frames: {off}");
-    assert!(
-        stats[off + 1..]
+    dmu_testkit::with_gpu(|gpu| {
+        let (scene, tree) = small_plant();
+        let size = (480, 270);
+        let mut rig = Rig::with_proxies(gpu, &scene, &tree, size);
+        let mut view = View::new(overview(&tree), size, Culling::Occlusion);
+        view.options.lod_error_px = 1.0;
+        let stats: Vec<_> = (0..12)
+            .map(|_| rig.frame(&mut view, &scene, &tree))
+            .collect();
+        assert!(stats[0].occlusion.enabled && stats[0].queries > 0);
+        let off = stats
             .iter()
-            .all(|s| s.proxies_drawn > 0 && s.queries == 0)
-    );
+            .position(|s| !s.occlusion.enabled)
+            .expect("the probe ends");
+        assert!(off <= 8, "after the probe's 8 frames: {off}");
+        assert!(
+            stats[off + 1..]
+                .iter()
+                .all(|s| s.proxies_drawn > 0 && s.queries == 0)
+        );
+    });
 }
 
 /// Occlusion culling draws proxies too: with queries kept on, a converged
@@ -216,45 +207,45 @@ fn a_chc_view_times_its_proxies_before_keeping_queries() {
 /// leaves out is hidden), at every viewpoint.
 #[test]
 fn chc_draws_visible_proxies_and_converges_to_the_frustum_image() {
-    let (scene, tree) = small_plant();
-    let size = (480, 270);
-    let Some(mut rig) = with_proxies(&scene, &tree, size) else {
-        return;
-    };
-    let pixels = f64::from(size.0 * size.1);
-    let mut cams = viewpoints();
-    cams.push(overview(&tree));
-    let mut drew_proxies = false;
-    for (i, &cam) in cams.iter().enumerate() {
-        let mut frustum = View::new(cam, size, Culling::Frustum);
-        frustum.options.lod_error_px = 1.0;
-        let f = rig.frame(&mut frustum, &scene, &tree);
-        let reference = rig.image();
-        let mut chc = View::new(cam, size, Culling::Occlusion);
-        chc.options.lod_error_px = 1.0;
-        chc.options.adaptive = false;
-        let mut last = rig.frame(&mut chc, &scene, &tree);
-        for _ in 0..6 {
-            last = rig.frame(&mut chc, &scene, &tree);
+    dmu_testkit::with_gpu(|gpu| {
+        let (scene, tree) = small_plant();
+        let size = (480, 270);
+        let mut rig = Rig::with_proxies(gpu, &scene, &tree, size);
+        let pixels = f64::from(size.0 * size.1);
+        let mut cams = viewpoints();
+        cams.push(overview(&tree));
+        let mut drew_proxies = false;
+        for (i, &cam) in cams.iter().enumerate() {
+            let mut frustum = View::new(cam, size, Culling::Frustum);
+            frustum.options.lod_error_px = 1.0;
+            let f = rig.frame(&mut frustum, &scene, &tree);
+            let reference = rig.image();
+            let mut chc = View::new(cam, size, Culling::Occlusion);
+            chc.options.lod_error_px = 1.0;
+            chc.options.adaptive = false;
+            let mut last = rig.frame(&mut chc, &scene, &tree);
+            for _ in 0..6 {
+                last = rig.frame(&mut chc, &scene, &tree);
+            }
+            let (any, surface) = count_differing(reference.as_raw(), rig.image().as_raw());
+            println!(
+                "view {i}: chc {} proxies {} draws {} queries {} triangles; frustum {} proxies {} draws {} triangles; {any} differ, {surface} another surface",
+                last.proxies_drawn,
+                last.draw_calls,
+                last.queries,
+                last.triangles_drawn,
+                f.proxies_drawn,
+                f.draw_calls,
+                f.triangles_drawn
+            );
+            assert!(last.queries > 0, "view {i}: queries stay on");
+            assert!(last.triangles_drawn <= f.triangles_drawn, "view {i}");
+            // Depth ties between touching pieces may resolve differently.
+            assert!(surface as f64 <= 0.001 * pixels, "view {i}: {surface}");
+            drew_proxies |= last.proxies_drawn > 0;
         }
-        let (any, surface) = count_differing(reference.as_raw(), rig.image().as_raw());
-        println!(
-            "view {i}: chc {} proxies {} draws {} queries {} triangles; frustum {} proxies {} draws {} triangles; {any} differ, {surface} another surface",
-            last.proxies_drawn,
-            last.draw_calls,
-            last.queries,
-            last.triangles_drawn,
-            f.proxies_drawn,
-            f.draw_calls,
-            f.triangles_drawn
-        );
-        assert!(last.queries > 0, "view {i}: queries stay on");
-        assert!(last.triangles_drawn <= f.triangles_drawn, "view {i}");
-        // Depth ties between touching pieces may resolve differently.
-        assert!(surface as f64 <= 0.001 * pixels, "view {i}: {surface}");
-        drew_proxies |= last.proxies_drawn > 0;
-    }
-    assert!(drew_proxies, "chc drew proxies somewhere");
+        assert!(drew_proxies, "chc drew proxies somewhere");
+    });
 }
 
 /// Selecting a part drawn inside proxies tints it there, and nothing else:
@@ -264,69 +255,69 @@ fn chc_draws_visible_proxies_and_converges_to_the_frustum_image() {
 /// deselected the image is the first one again.
 #[test]
 fn a_selected_part_is_tinted_inside_its_proxies_and_nothing_else_is() {
-    let (scene, tree) = small_plant();
-    let size = (480, 270);
-    let Some(mut rig) = with_proxies(&scene, &tree, size) else {
-        return;
-    };
-    let cam = overview(&tree);
-    // The part owning the most pixels of the exact image.
-    let mut view = View::new(cam, size, Culling::Frustum);
-    let ids = rig.ids(&mut view, &scene, &tree);
-    let mut pixels_of = vec![0usize; scene.parts().len()];
-    for &id in ids.ids.iter().filter(|&&id| id != 0) {
-        pixels_of[tree.entries()[id as usize - 1].part.index()] += 1;
-    }
-    let part = PartId::from_index((0..pixels_of.len()).max_by_key(|&p| pixels_of[p]).unwrap());
-    let region = owned_by(&mut rig, cam, &scene, &tree, part);
-    // Frustum culling draws proxies in its one round, hzb in its second pass.
-    for culling in [Culling::Frustum, Culling::Hzb] {
-        let shot = |rig: &mut Rig| {
-            let mut view = View::new(cam, size, culling);
-            view.options.lod_error_px = 2.0;
-            let stats = rig.frame(&mut view, &scene, &tree);
-            (stats, rig.image())
-        };
-        let (stats, before) = shot(&mut rig);
-        assert!(
-            stats.proxies_drawn > 0,
-            "{culling:?}: the overview draws proxies"
-        );
-        rig.renderer.set_selected(part, true);
-        let (selected_stats, selected) = shot(&mut rig);
-        assert_eq!(selected_stats.proxies_drawn, stats.proxies_drawn);
-        let (a, b) = (before.as_raw(), selected.as_raw());
-        let changed: Vec<usize> = (0..a.len() / 4)
-            .filter(|&i| a[4 * i..4 * i + 3] != b[4 * i..4 * i + 3])
-            .collect();
-        let inside = (changed.iter())
-            .filter(|i| region.binary_search(i).is_ok())
-            .count();
-        println!(
-            "{culling:?}, part {part:?}: {} pixels, {} changed when selected, {inside} of them its own; {} proxies, {} chunks",
-            region.len(),
-            changed.len(),
-            stats.proxies_drawn,
-            stats.chunks_drawn
-        );
-        // Its pixels in the proxy image are not exactly its pixels in the
-        // exact one (simplified silhouettes): most of them, and only pixels
-        // near them, change.
-        assert!(
-            2 * inside >= region.len(),
-            "{culling:?}: {inside} of {} pixels tinted",
-            region.len()
-        );
-        assert!(
-            changed.len() <= region.len() + region.len() / 4 + 50,
-            "{culling:?}: {} pixels changed",
-            changed.len()
-        );
-        rig.renderer.set_selected(part, false);
-        let (_, after) = shot(&mut rig);
-        assert!(
-            after.as_raw() == before.as_raw(),
-            "{culling:?}: deselected, the image is the first"
-        );
-    }
+    dmu_testkit::with_gpu(|gpu| {
+        let (scene, tree) = small_plant();
+        let size = (480, 270);
+        let mut rig = Rig::with_proxies(gpu, &scene, &tree, size);
+        let cam = overview(&tree);
+        // The part owning the most pixels of the exact image.
+        let mut view = View::new(cam, size, Culling::Frustum);
+        let ids = rig.ids(&mut view, &scene, &tree);
+        let mut pixels_of = vec![0usize; scene.parts().len()];
+        for &id in ids.ids.iter().filter(|&&id| id != 0) {
+            pixels_of[tree.entries()[id as usize - 1].part.index()] += 1;
+        }
+        let part = PartId::from_index((0..pixels_of.len()).max_by_key(|&p| pixels_of[p]).unwrap());
+        let region = owned_by(&mut rig, cam, &scene, &tree, part);
+        // Frustum culling draws proxies in its one round, hzb in its second pass.
+        for culling in [Culling::Frustum, Culling::Hzb] {
+            let shot = |rig: &mut Rig| {
+                let mut view = View::new(cam, size, culling);
+                view.options.lod_error_px = 2.0;
+                let stats = rig.frame(&mut view, &scene, &tree);
+                (stats, rig.image())
+            };
+            let (stats, before) = shot(&mut rig);
+            assert!(
+                stats.proxies_drawn > 0,
+                "{culling:?}: the overview draws proxies"
+            );
+            rig.renderer.set_selected(part, true);
+            let (selected_stats, selected) = shot(&mut rig);
+            assert_eq!(selected_stats.proxies_drawn, stats.proxies_drawn);
+            let (a, b) = (before.as_raw(), selected.as_raw());
+            let changed: Vec<usize> = (0..a.len() / 4)
+                .filter(|&i| a[4 * i..4 * i + 3] != b[4 * i..4 * i + 3])
+                .collect();
+            let inside = (changed.iter())
+                .filter(|i| region.binary_search(i).is_ok())
+                .count();
+            println!(
+                "{culling:?}, part {part:?}: {} pixels, {} changed when selected, {inside} of them its own; {} proxies, {} chunks",
+                region.len(),
+                changed.len(),
+                stats.proxies_drawn,
+                stats.chunks_drawn
+            );
+            // Its pixels in the proxy image are not exactly its pixels in the
+            // exact one (simplified silhouettes): most of them, and only pixels
+            // near them, change.
+            assert!(
+                2 * inside >= region.len(),
+                "{culling:?}: {inside} of {} pixels tinted",
+                region.len()
+            );
+            assert!(
+                changed.len() <= region.len() + region.len() / 4 + 50,
+                "{culling:?}: {} pixels changed",
+                changed.len()
+            );
+            rig.renderer.set_selected(part, false);
+            let (_, after) = shot(&mut rig);
+            assert!(
+                after.as_raw() == before.as_raw(),
+                "{culling:?}: deselected, the image is the first"
+            );
+        }
+    });
 }

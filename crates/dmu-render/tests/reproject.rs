@@ -10,7 +10,9 @@ use dmu_scene::Scene;
 use dmu_tree::Tree;
 
 use crate::culling::{small_plant, viewpoints};
-use crate::support::{Rig, image_path};
+use dmu_testkit::image_path;
+
+use crate::support::Rig;
 
 /// Each eye's image.
 const SIZE: (u32, u32) = (320, 240);
@@ -184,65 +186,65 @@ fn over(a: &image::RgbaImage, b: &image::RgbaImage, shift: i32, levels: u8) -> u
 /// right), and a pair without eye separation gets the left image's window.
 #[test]
 fn the_reprojected_eye_matches_its_reference_and_the_drawn_eye() {
-    let (scene, tree) = small_plant();
-    let Some(mut rig) = Rig::new(&scene, &tree, SIZE) else {
-        return;
-    };
-    let pixels = (SIZE.0 * SIZE.1) as usize;
-    for (i, center) in viewpoints().into_iter().enumerate().take(3) {
-        for (ipd, offset) in [(65.0, 0.37), (65.0, 3.0), (0.0, 0.0)] {
-            let pair = Pair {
-                center,
-                ipd,
-                offset,
-            };
-            let right = right_eye(&mut rig, &pair, &scene, &tree);
-            let mismatched = right
-                .reprojected
-                .as_raw()
-                .chunks(4)
-                .zip(right.reference.chunks(4))
-                .filter(|(a, b)| a != b)
-                .count();
-            assert_eq!(
-                mismatched, 0,
-                "viewpoint {i}, ipd {ipd}, offset {offset}: pixels unlike the CPU reference"
-            );
-            if i == 0 && offset == 0.37 {
-                right
+    dmu_testkit::with_gpu(|gpu| {
+        let (scene, tree) = small_plant();
+        let mut rig = Rig::new(gpu, &scene, &tree, SIZE);
+        let pixels = (SIZE.0 * SIZE.1) as usize;
+        for (i, center) in viewpoints().into_iter().enumerate().take(3) {
+            for (ipd, offset) in [(65.0, 0.37), (65.0, 3.0), (0.0, 0.0)] {
+                let pair = Pair {
+                    center,
+                    ipd,
+                    offset,
+                };
+                let right = right_eye(&mut rig, &pair, &scene, &tree);
+                let mismatched = right
                     .reprojected
-                    .save(image_path("reprojected-right.png"))
-                    .expect("save");
-                right
-                    .drawn
-                    .save(image_path("drawn-right.png"))
-                    .expect("save");
-            }
-            let wrong = |shift| over(&right.reprojected, &right.drawn, shift, SURFACE_CHANGE);
-            let (at, left, right_shift) = (wrong(0), wrong(-1), wrong(1));
-            eprintln!(
-                "viewpoint {i}, ipd {ipd}, offset {offset}: {} gaps, {at} pixels another surface ({left} and {right_shift} a column off)",
-                right.gaps
-            );
-            if ipd == 0.0 {
-                assert_eq!(right.gaps, 0, "viewpoint {i}: nothing moves");
-                let window = image::imageops::crop_imm(&right.wide, 0, 0, SIZE.0, SIZE.1);
-                assert!(
-                    window.to_image() == right.reprojected,
-                    "viewpoint {i}: the left image's window, unmoved"
+                    .as_raw()
+                    .chunks(4)
+                    .zip(right.reference.chunks(4))
+                    .filter(|(a, b)| a != b)
+                    .count();
+                assert_eq!(
+                    mismatched, 0,
+                    "viewpoint {i}, ipd {ipd}, offset {offset}: pixels unlike the CPU reference"
                 );
-                // The drawn eye differs only where another projection of
-                // the same rays rasterizes an edge the other way.
-                assert!(at <= pixels / 10_000, "viewpoint {i}: {at}");
-                continue;
+                if i == 0 && offset == 0.37 {
+                    right
+                        .reprojected
+                        .save(image_path("reprojected-right.png"))
+                        .expect("save");
+                    right
+                        .drawn
+                        .save(image_path("drawn-right.png"))
+                        .expect("save");
+                }
+                let wrong = |shift| over(&right.reprojected, &right.drawn, shift, SURFACE_CHANGE);
+                let (at, left, right_shift) = (wrong(0), wrong(-1), wrong(1));
+                eprintln!(
+                    "viewpoint {i}, ipd {ipd}, offset {offset}: {} gaps, {at} pixels another surface ({left} and {right_shift} a column off)",
+                    right.gaps
+                );
+                if ipd == 0.0 {
+                    assert_eq!(right.gaps, 0, "viewpoint {i}: nothing moves");
+                    let window = image::imageops::crop_imm(&right.wide, 0, 0, SIZE.0, SIZE.1);
+                    assert!(
+                        window.to_image() == right.reprojected,
+                        "viewpoint {i}: the left image's window, unmoved"
+                    );
+                    // The drawn eye differs only where another projection of
+                    // the same rays rasterizes an edge the other way.
+                    assert!(at <= pixels / 10_000, "viewpoint {i}: {at}");
+                    continue;
+                }
+                assert!(right.gaps > 0, "viewpoint {i}: near structure leaves gaps");
+                assert!(
+                    at * 10 < pixels && at * 2 < left.min(right_shift),
+                    "viewpoint {i}, offset {offset}: {at} pixels another surface, {left} and {right_shift} a column off"
+                );
             }
-            assert!(right.gaps > 0, "viewpoint {i}: near structure leaves gaps");
-            assert!(
-                at * 10 < pixels && at * 2 < left.min(right_shift),
-                "viewpoint {i}, offset {offset}: {at} pixels another surface, {left} and {right_shift} a column off"
-            );
         }
-    }
+    });
 }
 
 /// A lamp placed at the eye ([`View::light`]) is the headlight the view has
@@ -250,25 +252,25 @@ fn the_reprojected_eye_matches_its_reference_and_the_drawn_eye() {
 /// view differently.
 #[test]
 fn a_lamp_at_the_eye_is_the_headlight() {
-    let (scene, tree) = small_plant();
-    let Some(mut rig) = Rig::new(&scene, &tree, SIZE) else {
-        return;
-    };
-    let camera = viewpoints()[0];
-    let mut shot = |light| {
-        let mut view = View::new(camera, SIZE, Culling::Frustum);
-        view.light = light;
-        rig.frame(&mut view, &scene, &tree);
-        rig.image()
-    };
-    let headlight = shot(None);
-    let at_eye = shot(Some(camera.eye));
-    let above = shot(Some(camera.eye + dmu_geom::glam::DVec3::Z * 5_000.0));
-    let pixels = (SIZE.0 * SIZE.1) as usize;
-    assert_eq!(over(&at_eye, &headlight, 0, 1), 0);
-    let moved = over(&above, &headlight, 0, 8);
-    assert!(
-        moved * 10 > pixels,
-        "{moved} of {pixels} pixels lit differently"
-    );
+    dmu_testkit::with_gpu(|gpu| {
+        let (scene, tree) = small_plant();
+        let mut rig = Rig::new(gpu, &scene, &tree, SIZE);
+        let camera = viewpoints()[0];
+        let mut shot = |light| {
+            let mut view = View::new(camera, SIZE, Culling::Frustum);
+            view.light = light;
+            rig.frame(&mut view, &scene, &tree);
+            rig.image()
+        };
+        let headlight = shot(None);
+        let at_eye = shot(Some(camera.eye));
+        let above = shot(Some(camera.eye + dmu_geom::glam::DVec3::Z * 5_000.0));
+        let pixels = (SIZE.0 * SIZE.1) as usize;
+        assert_eq!(over(&at_eye, &headlight, 0, 1), 0);
+        let moved = over(&above, &headlight, 0, 8);
+        assert!(
+            moved * 10 > pixels,
+            "{moved} of {pixels} pixels lit differently"
+        );
+    });
 }

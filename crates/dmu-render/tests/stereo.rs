@@ -5,16 +5,18 @@ use std::collections::BTreeSet;
 
 use dmu_geom::Aabb3d;
 use dmu_geom::glam::DVec3;
+use dmu_render::wgpu::Features;
 use dmu_render::{
     Capture, Culling, FrameStats, RendererOptions, StereoCamera, StereoMode, StereoView, View,
     save_png,
 };
 use dmu_samples::grid;
 use dmu_scene::Scene;
+use dmu_testkit::{Adapter, Gpu, GpuTest, image_path};
 use dmu_tree::{EntryId, Tree, TreeOptions};
 
 use crate::culling::{small_plant, viewpoints};
-use crate::support::{Rig, camera, differing, image_path};
+use crate::support::{Rig, camera, differing};
 
 /// A small deterministic generator (SplitMix64) for sample points and boxes.
 struct Rng(u64);
@@ -90,36 +92,22 @@ fn enclosing_frustum_contains_both_eyes() {
     }
 }
 
-/// A rig whose renderer draws stereo pairs in `mode`, and a stereo capture;
-/// `None` after printing why the test skips (no device, which fails under
-/// `CI=true`, or no multiview for a test that needs it).
+/// A rig whose renderer draws stereo pairs in `mode`, and a stereo capture
+/// (multiview only where the device has it: see [`Gpu::supports`]).
 fn stereo_rig(
+    gpu: &Gpu,
     scene: &Scene,
     tree: &Tree,
     size: (u32, u32),
     mode: StereoMode,
-) -> Option<(Rig, Capture)> {
+) -> (Rig, Capture) {
     let options = RendererOptions {
         stereo: mode,
         ..Default::default()
     };
-    let rig = Rig::with_options(scene, tree, size, options)?;
-    if mode == StereoMode::Multiview
-        && !rig
-            .device
-            .features()
-            .contains(dmu_render::wgpu::Features::MULTIVIEW)
-    {
-        // A feature the present driver lacks, not a missing prerequisite: this
-        // skips even under `CI=true` (lavapipe has no multiview in some Mesa
-        // versions; the test needs one that has).
-        let thread = std::thread::current();
-        let test = thread.name().unwrap_or("test");
-        eprintln!("SKIPPED {test}: the device has no multiview");
-        return None;
-    }
+    let rig = Rig::with_options(gpu, scene, tree, size, options);
     let capture = Capture::stereo(&rig.device, size);
-    Some((rig, capture))
+    (rig, capture)
 }
 
 /// One stereo frame.
@@ -225,22 +213,26 @@ fn visible_in_either_eye(
 /// and a layer at a time.
 #[test]
 fn stereo_layers_equal_single_views_on_the_grid() {
-    let scene = grid(3, 10.0, 4.0, 2048);
-    let tree = Tree::build(&scene, TreeOptions::default());
-    let center = camera(DVec3::new(-25.0, -35.0, 40.0), DVec3::splat(10.0), 0.5);
-    let stereo = StereoCamera { center, ipd: 3.0 };
-    for mode in [StereoMode::Multiview, StereoMode::LayerPasses] {
-        let Some((mut rig, capture)) = stereo_rig(&scene, &tree, (320, 240), mode) else {
-            continue;
-        };
-        assert_eq!(rig.renderer.stereo_mode(), mode);
-        let what = format!("grid, {mode:?}");
-        let (_, _, [left, right]) = check_pair(&mut rig, &capture, stereo, &scene, &tree, &what);
-        if mode == StereoMode::Multiview {
-            save_png(&left, &image_path("stereo_grid_left.png")).unwrap();
-            save_png(&right, &image_path("stereo_grid_right.png")).unwrap();
+    dmu_testkit::with_gpu(|gpu| {
+        let scene = grid(3, 10.0, 4.0, 2048);
+        let tree = Tree::build(&scene, TreeOptions::default());
+        let center = camera(DVec3::new(-25.0, -35.0, 40.0), DVec3::splat(10.0), 0.5);
+        let stereo = StereoCamera { center, ipd: 3.0 };
+        for mode in [StereoMode::Multiview, StereoMode::LayerPasses] {
+            if mode == StereoMode::Multiview && !gpu.supports(Features::MULTIVIEW) {
+                continue;
+            }
+            let (mut rig, capture) = stereo_rig(gpu, &scene, &tree, (320, 240), mode);
+            assert_eq!(rig.renderer.stereo_mode(), mode);
+            let what = format!("grid, {mode:?}");
+            let (_, _, [left, right]) =
+                check_pair(&mut rig, &capture, stereo, &scene, &tree, &what);
+            if mode == StereoMode::Multiview {
+                save_png(&left, &image_path("stereo_grid_left.png")).unwrap();
+                save_png(&right, &image_path("stereo_grid_right.png")).unwrap();
+            }
         }
-    }
+    });
 }
 
 /// On the plant, from viewpoints inside it, both layers of every culling mode
@@ -248,56 +240,49 @@ fn stereo_layers_equal_single_views_on_the_grid() {
 /// draws every chunk instance that owns a pixel in either eye.
 #[test]
 fn stereo_layers_equal_single_views_on_the_plant() {
-    let (scene, tree) = small_plant();
-    let Some((mut rig, capture)) = stereo_rig(&scene, &tree, (480, 270), StereoMode::Auto) else {
-        return;
-    };
-    eprintln!("stereo mode: {:?}", rig.renderer.stereo_mode());
-    for (i, center) in viewpoints().into_iter().enumerate() {
-        // Millimetres: a human interpupillary distance.
-        let stereo = StereoCamera { center, ipd: 65.0 };
-        let what = format!("plant view {i}");
-        let (view, stats, [left, right]) =
-            check_pair(&mut rig, &capture, stereo, &scene, &tree, &what);
-        if i == 0 {
-            save_png(&left, &image_path("stereo_left.png")).unwrap();
-            save_png(&right, &image_path("stereo_right.png")).unwrap();
+    dmu_testkit::with_gpu(|gpu| {
+        let (scene, tree) = small_plant();
+        let (mut rig, capture) = stereo_rig(gpu, &scene, &tree, (480, 270), StereoMode::Auto);
+        eprintln!("stereo mode: {:?}", rig.renderer.stereo_mode());
+        for (i, center) in viewpoints().into_iter().enumerate() {
+            // Millimetres: a human interpupillary distance.
+            let stereo = StereoCamera { center, ipd: 65.0 };
+            let what = format!("plant view {i}");
+            let (view, stats, [left, right]) =
+                check_pair(&mut rig, &capture, stereo, &scene, &tree, &what);
+            if i == 0 {
+                save_png(&left, &image_path("stereo_left.png")).unwrap();
+                save_png(&right, &image_path("stereo_right.png")).unwrap();
+            }
+            let drawn: BTreeSet<EntryId> = view.view.drawn_entries().collect();
+            let exact = visible_in_either_eye(&mut rig, &stereo, &scene, &tree);
+            let missing: Vec<_> = exact.difference(&drawn).collect();
+            assert!(
+                missing.is_empty(),
+                "{what}: visible but not drawn: {missing:?}"
+            );
+            assert!(
+                stats.triangles_drawn < stats.triangles_in_frustum,
+                "{what}: nothing occluded: {stats:?}"
+            );
+            assert!(
+                i == 3 || stats.culled_frustum > 0,
+                "{what}: nothing culled by the frustum"
+            );
         }
-        let drawn: BTreeSet<EntryId> = view.view.drawn_entries().collect();
-        let exact = visible_in_either_eye(&mut rig, &stereo, &scene, &tree);
-        let missing: Vec<_> = exact.difference(&drawn).collect();
-        assert!(
-            missing.is_empty(),
-            "{what}: visible but not drawn: {missing:?}"
-        );
-        assert!(
-            stats.triangles_drawn < stats.triangles_in_frustum,
-            "{what}: nothing occluded: {stats:?}"
-        );
-        assert!(
-            i == 3 || stats.culled_frustum > 0,
-            "{what}: nothing culled by the frustum"
-        );
-    }
+    });
 }
 
-/// The probe that picks multiview or layer passes predicts the driver: where
-/// it accepts multiview, boxes cut by the near plane come out right in both
-/// layers; where it rejects it, multiview really does get them wrong.
-#[test]
-fn multiview_probe_predicts_the_driver() {
+/// Whether the renderer's probe accepts multiview on `gpu`, and how many
+/// pixels multiview gets wrong where the near plane cuts boxes (both eyes in
+/// one place, so any difference between the layers is the driver's).
+fn multiview_on_near_clipped_boxes(gpu: &Gpu) -> (bool, usize) {
     let scene = grid(3, 10.0, 4.0, 2048);
     let tree = Tree::build(&scene, TreeOptions::default());
     let size = (320, 240);
-    let Some((auto, _)) = stereo_rig(&scene, &tree, size, StereoMode::Auto) else {
-        return;
-    };
-    let Some((mut rig, capture)) = stereo_rig(&scene, &tree, size, StereoMode::Multiview) else {
-        return;
-    };
+    let (auto, _) = stereo_rig(gpu, &scene, &tree, size, StereoMode::Auto);
+    let (mut rig, capture) = stereo_rig(gpu, &scene, &tree, size, StereoMode::Multiview);
     let accepted = auto.renderer.stereo_mode() == StereoMode::Multiview;
-    // The near plane cuts the nearest boxes; both eyes in one place, so any
-    // difference between the layers is the driver's.
     let center = camera(DVec3::new(-25.0, -35.0, 40.0), DVec3::splat(10.0), 45.0);
     let single = rig.shot(center, Culling::None, &scene, &tree);
     let mut view = StereoView::new(StereoCamera { center, ipd: 0.0 }, size, Culling::None);
@@ -311,41 +296,68 @@ fn multiview_probe_predicts_the_driver() {
         })
         .sum();
     eprintln!("multiview accepted: {accepted}; {wrong} pixels wrong with multiview");
-    assert_eq!(accepted, wrong == 0, "{wrong} pixels wrong");
+    (accepted, wrong)
+}
+
+/// The probe that picks multiview or layer passes predicts the driver: where
+/// it accepts multiview, boxes cut by the near plane come out right in both
+/// layers; where it rejects it, multiview really does get them wrong.
+#[test]
+fn multiview_probe_predicts_the_driver() {
+    GpuTest::new().features(Features::MULTIVIEW).run(|gpu| {
+        let (accepted, wrong) = multiview_on_near_clipped_boxes(gpu);
+        assert_eq!(accepted, wrong == 0, "{wrong} pixels wrong");
+    });
+}
+
+/// Multiview draws boxes cut by the near plane into both layers as single
+/// views draw them, but on the driver declared to get them wrong.
+#[test]
+fn multiview_draws_near_clipped_boxes_right() {
+    GpuTest::new()
+        .features(Features::MULTIVIEW)
+        .fails_on(
+            Adapter::lavapipe("Mesa 22.3"),
+            "Mesa 22.3's lavapipe draws near-clipped triangles of view 1 into layer 0",
+        )
+        .run(|gpu| {
+            let (_, wrong) = multiview_on_near_clipped_boxes(gpu);
+            assert_eq!(wrong, 0, "pixels wrong with multiview");
+        });
 }
 
 /// Culling once for the pair draws what the union of the eyes' own frustum
 /// culling draws, plus at most what lies in the wedge neither eye sees.
 #[test]
 fn stereo_frustum_culling_covers_both_eyes() {
-    let (scene, tree) = small_plant();
-    let size = (320, 180);
-    let Some((mut rig, capture)) = stereo_rig(&scene, &tree, size, StereoMode::Auto) else {
-        return;
-    };
-    for center in viewpoints() {
-        let stereo = StereoCamera { center, ipd: 65.0 };
-        let mut pair = StereoView::new(stereo, size, Culling::Frustum);
-        stereo_frame(&mut rig, &capture, &mut pair, &scene, &tree);
-        let drawn: BTreeSet<EntryId> = pair.view.drawn_entries().collect();
-        let mut either = BTreeSet::new();
-        for eye in stereo.eyes() {
-            let mut view = View::new(eye, size, Culling::Frustum);
-            rig.frame(&mut view, &scene, &tree);
-            either.extend(view.drawn_entries());
+    dmu_testkit::with_gpu(|gpu| {
+        let (scene, tree) = small_plant();
+        let size = (320, 180);
+        let (mut rig, capture) = stereo_rig(gpu, &scene, &tree, size, StereoMode::Auto);
+        for center in viewpoints() {
+            let stereo = StereoCamera { center, ipd: 65.0 };
+            let mut pair = StereoView::new(stereo, size, Culling::Frustum);
+            stereo_frame(&mut rig, &capture, &mut pair, &scene, &tree);
+            let drawn: BTreeSet<EntryId> = pair.view.drawn_entries().collect();
+            let mut either = BTreeSet::new();
+            for eye in stereo.eyes() {
+                let mut view = View::new(eye, size, Culling::Frustum);
+                rig.frame(&mut view, &scene, &tree);
+                either.extend(view.drawn_entries());
+            }
+            assert!(
+                either.is_subset(&drawn),
+                "the pair culled what an eye draws"
+            );
+            // The blind wedge is 65 mm wide at the eyes: it adds next to nothing.
+            assert!(
+                drawn.len() <= either.len() + either.len() / 100,
+                "pair draws {}, the eyes {}",
+                drawn.len(),
+                either.len()
+            );
         }
-        assert!(
-            either.is_subset(&drawn),
-            "the pair culled what an eye draws"
-        );
-        // The blind wedge is 65 mm wide at the eyes: it adds next to nothing.
-        assert!(
-            drawn.len() <= either.len() + either.len() / 100,
-            "pair draws {}, the eyes {}",
-            drawn.len(),
-            either.len()
-        );
-    }
+    });
 }
 
 /// A pair sharing an off-centre field of view (`View::fov`, as a headset's
@@ -355,49 +367,49 @@ fn stereo_frustum_culling_covers_both_eyes() {
 /// either eye's own frustum culling draws.
 #[test]
 fn stereo_with_an_off_centre_fov_equals_single_views() {
-    let (scene, tree) = small_plant();
-    let size = (320, 240);
-    let Some((mut rig, capture)) = stereo_rig(&scene, &tree, size, StereoMode::Auto) else {
-        return;
-    };
-    let fov = dmu_geom::Fov {
-        left: -0.80,
-        right: 0.62,
-        down: -0.78,
-        up: 0.70,
-    };
-    for (i, center) in viewpoints().into_iter().enumerate() {
-        let stereo = StereoCamera { center, ipd: 65.0 };
-        let mut either = BTreeSet::new();
-        let single = stereo.eyes().map(|eye| {
-            let mut culled = View::new(eye, size, Culling::Frustum);
-            culled.fov = Some(fov);
-            rig.frame(&mut culled, &scene, &tree);
-            either.extend(culled.drawn_entries());
-            let mut view = View::new(eye, size, Culling::None);
-            view.fov = Some(fov);
-            rig.frame(&mut view, &scene, &tree);
-            rig.image()
-        });
-        let mut pair = StereoView::new(stereo, size, Culling::Frustum);
-        pair.view.fov = Some(fov);
-        stereo_frame(&mut rig, &capture, &mut pair, &scene, &tree);
-        let drawn: BTreeSet<EntryId> = pair.view.drawn_entries().collect();
-        assert!(
-            either.is_subset(&drawn),
-            "view {i}: the pair culled what an eye draws"
-        );
-        for (eye, reference) in single.iter().enumerate() {
-            let layer = capture
-                .read_color_layer(&rig.device, &rig.queue, eye as u32)
-                .expect("read layer");
-            let diff = differing(reference, &layer);
+    dmu_testkit::with_gpu(|gpu| {
+        let (scene, tree) = small_plant();
+        let size = (320, 240);
+        let (mut rig, capture) = stereo_rig(gpu, &scene, &tree, size, StereoMode::Auto);
+        let fov = dmu_geom::Fov {
+            left: -0.80,
+            right: 0.62,
+            down: -0.78,
+            up: 0.70,
+        };
+        for (i, center) in viewpoints().into_iter().enumerate() {
+            let stereo = StereoCamera { center, ipd: 65.0 };
+            let mut either = BTreeSet::new();
+            let single = stereo.eyes().map(|eye| {
+                let mut culled = View::new(eye, size, Culling::Frustum);
+                culled.fov = Some(fov);
+                rig.frame(&mut culled, &scene, &tree);
+                either.extend(culled.drawn_entries());
+                let mut view = View::new(eye, size, Culling::None);
+                view.fov = Some(fov);
+                rig.frame(&mut view, &scene, &tree);
+                rig.image()
+            });
+            let mut pair = StereoView::new(stereo, size, Culling::Frustum);
+            pair.view.fov = Some(fov);
+            stereo_frame(&mut rig, &capture, &mut pair, &scene, &tree);
+            let drawn: BTreeSet<EntryId> = pair.view.drawn_entries().collect();
             assert!(
-                diff.is_empty(),
-                "view {i}, eye {eye}: {} pixels differ, first {:?}",
-                diff.len(),
-                diff.first()
+                either.is_subset(&drawn),
+                "view {i}: the pair culled what an eye draws"
             );
+            for (eye, reference) in single.iter().enumerate() {
+                let layer = capture
+                    .read_color_layer(&rig.device, &rig.queue, eye as u32)
+                    .expect("read layer");
+                let diff = differing(reference, &layer);
+                assert!(
+                    diff.is_empty(),
+                    "view {i}, eye {eye}: {} pixels differ, first {:?}",
+                    diff.len(),
+                    diff.first()
+                );
+            }
         }
-    }
+    });
 }

@@ -1,35 +1,13 @@
-//! Shared test helpers: the device (or a clear skip, a failure under `CI=true`),
-//! cameras, image output.
-
-use std::path::PathBuf;
+//! Shared test helpers: rigs on the binary's device (`dmu_testkit`), cameras,
+//! image output.
 
 use dmu_geom::glam::DVec3;
-use dmu_render::{Camera, Capture, Culling, FrameStats, Renderer, RendererOptions, View};
+use dmu_render::{
+    Camera, Capture, Culling, FrameStats, Proxies, ProxyOptions, Renderer, RendererOptions, View,
+};
 use dmu_scene::Scene;
+use dmu_testkit::Gpu;
 use dmu_tree::Tree;
-
-/// Ends a test whose prerequisite is missing: under `CI=true` (where the test
-/// script installs lavapipe) it fails with `reason`; elsewhere it prints
-/// `SKIPPED <test>: <reason>` and the test returns.
-pub fn skip(reason: &str) {
-    let thread = std::thread::current();
-    let test = thread.name().unwrap_or("test");
-    if std::env::var("CI").as_deref() == Ok("true") {
-        panic!("{test}: {reason} (CI=true: a missing prerequisite is a failure)");
-    }
-    eprintln!("SKIPPED {test}: {reason}");
-}
-
-/// The real driver's device, or `None` after [`skip`] (a panic under `CI=true`).
-pub fn gpu() -> Option<(dmu_render::wgpu::Device, dmu_render::wgpu::Queue)> {
-    match dmu_render::headless_device() {
-        Ok((device, queue, _)) => Some((device, queue)),
-        Err(e) => {
-            skip(&format!("no Vulkan adapter ({e})"));
-            None
-        }
-    }
-}
 
 pub fn camera(eye: DVec3, target: DVec3, near: f64) -> Camera {
     Camera {
@@ -41,13 +19,6 @@ pub fn camera(eye: DVec3, target: DVec3, near: f64) -> Camera {
     }
 }
 
-/// Where tests write the images they render, to be looked at.
-pub fn image_path(name: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target/test-images");
-    std::fs::create_dir_all(&dir).expect("create target/test-images");
-    dir.join(name)
-}
-
 /// A renderer, a capture and one frame of a fresh view.
 pub struct Rig {
     pub device: dmu_render::wgpu::Device,
@@ -57,34 +28,43 @@ pub struct Rig {
 }
 
 impl Rig {
-    pub fn new(scene: &Scene, tree: &Tree, size: (u32, u32)) -> Option<Rig> {
-        Self::with_options(scene, tree, size, Default::default())
+    pub fn new(gpu: &Gpu, scene: &Scene, tree: &Tree, size: (u32, u32)) -> Rig {
+        Self::with_options(gpu, scene, tree, size, Default::default())
     }
 
     /// A rig whose chunks get their simplified levels.
-    pub fn with_lods(scene: &Scene, tree: &Tree, size: (u32, u32)) -> Option<Rig> {
+    pub fn with_lods(gpu: &Gpu, scene: &Scene, tree: &Tree, size: (u32, u32)) -> Rig {
         let options = RendererOptions {
             lod_levels: true,
             ..Default::default()
         };
-        Self::with_options(scene, tree, size, options)
+        Self::with_options(gpu, scene, tree, size, options)
+    }
+
+    /// A rig drawing chunk LODs and the scene's proxies.
+    pub fn with_proxies(gpu: &Gpu, scene: &Scene, tree: &Tree, size: (u32, u32)) -> Rig {
+        let mut rig = Self::with_lods(gpu, scene, tree, size);
+        let proxies = Proxies::build(scene, tree, scene, ProxyOptions::default(), &mut |_, _| {});
+        rig.renderer.set_proxies(proxies);
+        rig
     }
 
     pub fn with_options(
+        gpu: &Gpu,
         scene: &Scene,
         tree: &Tree,
         size: (u32, u32),
         options: RendererOptions,
-    ) -> Option<Rig> {
-        let (device, queue) = gpu()?;
+    ) -> Rig {
+        let (device, queue) = (gpu.device.clone(), gpu.queue.clone());
         let renderer = Renderer::new(&device, &queue, scene, tree, options);
         let capture = Capture::new(&device, size);
-        Some(Rig {
+        Rig {
             device,
             queue,
             renderer,
             capture,
-        })
+        }
     }
 
     pub fn frame(&mut self, view: &mut View, scene: &Scene, tree: &Tree) -> FrameStats {

@@ -58,6 +58,10 @@ pub struct PlantOptions {
     pub origin: DVec3,
     /// Maximum triangles per chunk.
     pub chunk_triangles: u32,
+    /// Triangles of distinct meshes after which plots re-use earlier unit
+    /// plans whole, so geometry stays bounded as instances grow (24M by
+    /// default).
+    pub unique_triangles: u64,
 }
 
 impl Default for PlantOptions {
@@ -69,14 +73,13 @@ impl Default for PlantOptions {
             seed: 1,
             origin: DVec3::new(4_512_000.0, 5_341_000.0, 12_000.0),
             chunk_triangles: DEFAULT_CHUNK_TRIANGLES,
+            unique_triangles: 24_000_000,
         }
     }
 }
 
 /// Plot size: one building (or tank farm) and its rack section.
 const PLOT: f64 = 48_000.0;
-/// Unique triangles after which plots re-use earlier unit plans.
-const UNIQUE_BUDGET: u64 = 24_000_000;
 /// Triangles per batch of meshes chunked in parallel (bounds the transient copy).
 const CHUNK_BATCH: u64 = 2_000_000;
 
@@ -178,7 +181,7 @@ impl Generator {
             let (col, row) = (plot % columns, plot / columns);
             let corner = options.origin + DVec3::new(col as f64 * PLOT, row as f64 * PLOT, 0.0);
             let mut rng = Rng::new(options.seed ^ (plot + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15));
-            let replicate = self.unique >= UNIQUE_BUDGET;
+            let replicate = self.unique >= options.unique_triangles;
             let farm = self.target >= 3_000_000 && plot % 6 == 4;
             let before = self.total;
 

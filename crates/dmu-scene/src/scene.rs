@@ -451,6 +451,32 @@ impl Scene {
         self.part_mesh(id).bounds.transformed(&self.part_world(id))
     }
 
+    /// A hash of part `id`'s pose (its world transform's bits and its hidden
+    /// flag), for change detectors: equal poses hash equal.
+    pub fn part_pose_hash(&self, id: PartId) -> u64 {
+        xxhash_rust::xxh3::xxh3_64(&self.pose_bytes(id))
+    }
+
+    /// A hash of every part's pose in part order (xxh3 of their
+    /// [`Scene::part_pose_hash`] bytes one after another). Stores keep it
+    /// beside their far fields to tell the model they were made from, so its
+    /// value must not change.
+    pub fn pose_hash(&self) -> u64 {
+        let mut hash = xxhash_rust::xxh3::Xxh3::new();
+        for p in self.part_ids() {
+            hash.update(&self.pose_bytes(p));
+        }
+        hash.digest()
+    }
+
+    /// A part's world transform (12 `f64`, column-major) and hidden flag.
+    fn pose_bytes(&self, id: PartId) -> [u8; 97] {
+        let mut bytes = [0; 97];
+        bytes[..96].copy_from_slice(bytemuck::cast_slice(&self.part_world(id).to_cols_array()));
+        bytes[96] = u8::from(self.part(id).hidden);
+        bytes
+    }
+
     /// A chunk's world box when instanced by `part`.
     pub fn chunk_world_bounds(&self, part: PartId, chunk: ChunkId) -> Aabb3d {
         self.chunk(chunk).bounds.transformed(&self.part_world(part))

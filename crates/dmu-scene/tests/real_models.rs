@@ -7,7 +7,7 @@ use std::path::Path;
 
 use dmu_scene::{ImportError, ImportOptions, Scene, export_gltf, import_gltf};
 
-use crate::support::{assimp_models, shared_data};
+use dmu_testkit::{Data, with_data};
 
 fn import(path: &Path) -> Result<Scene, ImportError> {
     import_gltf(path, &ImportOptions::default()).map(|(s, _)| s)
@@ -72,59 +72,56 @@ fn round_trip(scene: &Scene, ext: &str) -> Scene {
 
 #[test]
 fn shared_models_import_with_their_published_counts_and_round_trip() {
-    let Some(data) = shared_data("shared_models_import_with_their_published_counts_and_round_trip")
-    else {
-        return;
-    };
-    let table: &[(&str, usize, u64)] = &[
-        ("bim/steel_structure_mini_project.glb", 2_636, 241_016),
-        ("bim/duplex.glb", 286, 27_740),
-        ("bim/fzk_haus.glb", 107, 24_168),
-        ("pcb/video_board_step_assembly.glb", 167, 382_729),
-        ("pcb/video_board.glb", 166, 198_182),
-        ("pcb/stickhub_board.glb", 37, 14_060),
-        ("compressed/engine_quant.glb", 67, 110_342),
-        ("compressed/engine_meshopt.glb", 67, 110_342),
-    ];
-    for &(file, parts, triangles) in table {
-        let scene = import(&data.join(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
-        scene.validate().unwrap();
-        assert_eq!(
-            (scene.parts().len(), scene.triangle_count()),
-            (parts, triangles),
-            "{file}"
-        );
-        let back = round_trip(&scene, "glb");
-        assert_same_scene(&scene, &back);
-        assert_eq!(
-            back.meshes().len(),
-            scene.meshes().len(),
-            "{file}: instancing kept"
-        );
-    }
+    with_data(Data::Shared, |data| {
+        let table: &[(&str, usize, u64)] = &[
+            ("bim/steel_structure_mini_project.glb", 2_636, 241_016),
+            ("bim/duplex.glb", 286, 27_740),
+            ("bim/fzk_haus.glb", 107, 24_168),
+            ("pcb/video_board_step_assembly.glb", 167, 382_729),
+            ("pcb/video_board.glb", 166, 198_182),
+            ("pcb/stickhub_board.glb", 37, 14_060),
+            ("compressed/engine_quant.glb", 67, 110_342),
+            ("compressed/engine_meshopt.glb", 67, 110_342),
+        ];
+        for &(file, parts, triangles) in table {
+            let scene = import(&data.join(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
+            scene.validate().unwrap();
+            assert_eq!(
+                (scene.parts().len(), scene.triangle_count()),
+                (parts, triangles),
+                "{file}"
+            );
+            let back = round_trip(&scene, "glb");
+            assert_same_scene(&scene, &back);
+            assert_eq!(
+                back.meshes().len(),
+                scene.meshes().len(),
+                "{file}: instancing kept"
+            );
+        }
+    });
 }
 
 #[test]
 fn meshopt_compressed_equals_uncompressed() {
-    let Some(data) = shared_data("meshopt_compressed_equals_uncompressed") else {
-        return;
-    };
-    let quant = import(&data.join("compressed/engine_quant.glb")).unwrap();
-    let meshopt = import(&data.join("compressed/engine_meshopt.glb")).unwrap();
-    assert_same_scene(&quant, &meshopt);
-    // gltfpack orders vertices differently in the two files: compare each mesh's
-    // triangles as a sorted list, each in its lexicographically smallest rotation
-    // (which keeps the winding, and is unique also for degenerate triangles with a
-    // repeated corner, which the meshopt codec stores rotated).
-    for (m, (a, b)) in quant.meshes().iter().zip(meshopt.meshes()).enumerate() {
-        let (ta, tb) = (triangles(&quant, a), triangles(&meshopt, b));
-        let differing = ta.iter().zip(&tb).filter(|(x, y)| x != y).count();
-        assert!(
-            ta.len() == tb.len() && differing == 0,
-            "mesh {m}: {differing} of {} triangles differ",
-            ta.len()
-        );
-    }
+    with_data(Data::Shared, |data| {
+        let quant = import(&data.join("compressed/engine_quant.glb")).unwrap();
+        let meshopt = import(&data.join("compressed/engine_meshopt.glb")).unwrap();
+        assert_same_scene(&quant, &meshopt);
+        // gltfpack orders vertices differently in the two files: compare each mesh's
+        // triangles as a sorted list, each in its lexicographically smallest rotation
+        // (which keeps the winding, and is unique also for degenerate triangles with a
+        // repeated corner, which the meshopt codec stores rotated).
+        for (m, (a, b)) in quant.meshes().iter().zip(meshopt.meshes()).enumerate() {
+            let (ta, tb) = (triangles(&quant, a), triangles(&meshopt, b));
+            let differing = ta.iter().zip(&tb).filter(|(x, y)| x != y).count();
+            assert!(
+                ta.len() == tb.len() && differing == 0,
+                "mesh {m}: {differing} of {} triangles differ",
+                ta.len()
+            );
+        }
+    });
 }
 
 fn triangles(scene: &Scene, mesh: &dmu_scene::Mesh) -> Vec<[[u32; 3]; 3]> {
@@ -149,71 +146,69 @@ fn triangles(scene: &Scene, mesh: &dmu_scene::Mesh) -> Vec<[[u32; 3]; 3]> {
 
 #[test]
 fn gltf_text_round_trip_with_embedded_buffer() {
-    let Some(data) = shared_data("gltf_text_round_trip_with_embedded_buffer") else {
-        return;
-    };
-    let scene = import(&data.join("pcb/stickhub_board.glb")).unwrap();
-    assert_same_scene(&scene, &round_trip(&scene, "gltf"));
+    with_data(Data::Shared, |data| {
+        let scene = import(&data.join("pcb/stickhub_board.glb")).unwrap();
+        assert_same_scene(&scene, &round_trip(&scene, "gltf"));
+    });
 }
 
 #[test]
 fn debian_assimp_models() {
-    let Some(dir) = assimp_models("debian_assimp_models") else {
-        return;
-    };
-    let engine = import(&dir.join("2CylinderEngine-glTF-Binary/2CylinderEngine.glb")).unwrap();
-    assert_eq!(
-        (engine.parts().len(), engine.triangle_count()),
-        (67, 121_496)
-    );
-    assert_eq!(engine.materials().len(), 34);
-    assert_same_scene(&engine, &round_trip(&engine, "glb"));
+    with_data(Data::Assimp, |dir| {
+        let engine = import(&dir.join("2CylinderEngine-glTF-Binary/2CylinderEngine.glb")).unwrap();
+        assert_eq!(
+            (engine.parts().len(), engine.triangle_count()),
+            (67, 121_496)
+        );
+        assert_eq!(engine.materials().len(), 34);
+        assert_same_scene(&engine, &round_trip(&engine, "glb"));
 
-    match import(&dir.join("draco/2CylinderEngine.gltf")) {
-        Err(ImportError::UnsupportedExtension { name }) => {
-            assert_eq!(name, "KHR_draco_mesh_compression")
+        match import(&dir.join("draco/2CylinderEngine.gltf")) {
+            Err(ImportError::UnsupportedExtension { name }) => {
+                assert_eq!(name, "KHR_draco_mesh_compression")
+            }
+            other => panic!("draco must be refused by name, got {other:?}"),
         }
-        other => panic!("draco must be refused by name, got {other:?}"),
-    }
 
-    // Asset generator primitive modes: 00-03 and 07-10 are points and lines.
-    for i in 0..16 {
-        let path = dir.join(format!(
-            "glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_{i:02}.gltf"
-        ));
-        let (scene, report) = import_gltf(&path, &ImportOptions::default()).unwrap();
-        let lines_or_points = matches!(i, 0..=3 | 7..=10);
-        assert_eq!(
-            scene.triangle_count(),
-            if lines_or_points { 0 } else { 2 },
-            "mode file {i:02}"
-        );
-        assert_eq!(
-            report.point_primitives_skipped + report.line_primitives_skipped,
-            usize::from(lines_or_points)
-        );
-    }
+        // Asset generator primitive modes: 00-03 and 07-10 are points and lines.
+        for i in 0..16 {
+            let path = dir.join(format!(
+                "glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_{i:02}.gltf"
+            ));
+            let (scene, report) = import_gltf(&path, &ImportOptions::default()).unwrap();
+            let lines_or_points = matches!(i, 0..=3 | 7..=10);
+            assert_eq!(
+                scene.triangle_count(),
+                if lines_or_points { 0 } else { 2 },
+                "mode file {i:02}"
+            );
+            assert_eq!(
+                report.point_primitives_skipped + report.line_primitives_skipped,
+                usize::from(lines_or_points)
+            );
+        }
 
-    for broken in [
-        "IndexOutOfRange/IndexOutOfRange.gltf",
-        "IndexOutOfRange/AllIndicesOutOfRange.gltf",
-        "RecursiveNodes/RecursiveNodes.gltf",
-        "BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb",
-        "wrongTypes/badNumber.gltf",
-        "wrongTypes/badObject.gltf",
-        "wrongTypes/badUint.gltf",
-        "wrongTypes/badArray.gltf",
-        "wrongTypes/badString.gltf",
-    ] {
-        let err = import(&dir.join(broken))
-            .err()
-            .unwrap_or_else(|| panic!("{broken} must fail"));
-        assert!(!err.to_string().is_empty());
-    }
-    // Everything else in the folder: an answer, never a panic.
-    for entry in walk(&dir) {
-        let _ = import(&entry);
-    }
+        for broken in [
+            "IndexOutOfRange/IndexOutOfRange.gltf",
+            "IndexOutOfRange/AllIndicesOutOfRange.gltf",
+            "RecursiveNodes/RecursiveNodes.gltf",
+            "BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb",
+            "wrongTypes/badNumber.gltf",
+            "wrongTypes/badObject.gltf",
+            "wrongTypes/badUint.gltf",
+            "wrongTypes/badArray.gltf",
+            "wrongTypes/badString.gltf",
+        ] {
+            let err = import(&dir.join(broken))
+                .err()
+                .unwrap_or_else(|| panic!("{broken} must fail"));
+            assert!(!err.to_string().is_empty());
+        }
+        // Everything else in the folder: an answer, never a panic.
+        for entry in walk(dir) {
+            let _ = import(&entry);
+        }
+    });
 }
 
 fn walk(dir: &Path) -> Vec<std::path::PathBuf> {
@@ -234,71 +229,70 @@ fn walk(dir: &Path) -> Vec<std::path::PathBuf> {
 /// validator finds no error in must import.
 #[test]
 fn gltf_validator_suite() {
-    let Some(data) = shared_data("gltf_validator_suite") else {
-        return;
-    };
-    let (mut clean, mut with_errors, mut refused, mut no_data) = (0, 0, 0, 0);
-    let export_dir = tempfile::tempdir().unwrap();
-    let mut exported = 0;
-    for file in walk(&data.join("gltf-validator")) {
-        let report_path = file.with_file_name(format!(
-            "{}.report.json",
-            file.file_name().unwrap().to_string_lossy()
-        ));
-        let report: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(&report_path).unwrap()).unwrap();
-        let errors = report["issues"]["numErrors"].as_u64().unwrap();
-        let result = import(&file);
-        if let Ok(scene) = &result {
-            // Whatever imports exports a glTF that imports again, the same.
-            let out = export_dir.path().join("round.glb");
-            export_gltf(scene, &out)
-                .unwrap_or_else(|e| panic!("{}: export failed: {e:#}", file.display()));
-            let back = import(&out).unwrap_or_else(|e| {
-                panic!("{}: its export does not re-import: {e:#}", file.display())
-            });
-            assert_eq!(
-                back.triangle_count(),
-                scene.triangle_count(),
-                "{}",
-                file.display()
-            );
-            assert_eq!(
-                back.parts().len(),
-                scene.parts().len(),
-                "{}",
-                file.display()
-            );
-            exported += 1;
-        }
-        if errors == 0 {
-            clean += 1;
-            match &result {
-                Ok(_) => {}
-                // A .gltf whose buffer has no uri carries no data at all; the
-                // validator checks only its JSON. Refusing to invent geometry is right.
-                Err(e)
-                    if e.to_string()
-                        .contains("has no data (no uri, and no GLB BIN chunk)") =>
-                {
-                    no_data += 1
-                }
-                Err(e) => panic!("{} has no validator error but failed: {e}", file.display()),
+    with_data(Data::Shared, |data| {
+        let (mut clean, mut with_errors, mut refused, mut no_data) = (0, 0, 0, 0);
+        let export_dir = tempfile::tempdir().unwrap();
+        let mut exported = 0;
+        for file in walk(&data.join("gltf-validator")) {
+            let report_path = file.with_file_name(format!(
+                "{}.report.json",
+                file.file_name().unwrap().to_string_lossy()
+            ));
+            let report: serde_json::Value =
+                serde_json::from_slice(&std::fs::read(&report_path).unwrap()).unwrap();
+            let errors = report["issues"]["numErrors"].as_u64().unwrap();
+            let result = import(&file);
+            if let Ok(scene) = &result {
+                // Whatever imports exports a glTF that imports again, the same.
+                let out = export_dir.path().join("round.glb");
+                export_gltf(scene, &out)
+                    .unwrap_or_else(|e| panic!("{}: export failed: {e:#}", file.display()));
+                let back = import(&out).unwrap_or_else(|e| {
+                    panic!("{}: its export does not re-import: {e:#}", file.display())
+                });
+                assert_eq!(
+                    back.triangle_count(),
+                    scene.triangle_count(),
+                    "{}",
+                    file.display()
+                );
+                assert_eq!(
+                    back.parts().len(),
+                    scene.parts().len(),
+                    "{}",
+                    file.display()
+                );
+                exported += 1;
             }
-        } else {
-            with_errors += 1;
-            refused += usize::from(result.is_err());
+            if errors == 0 {
+                clean += 1;
+                match &result {
+                    Ok(_) => {}
+                    // A .gltf whose buffer has no uri carries no data at all; the
+                    // validator checks only its JSON. Refusing to invent geometry is right.
+                    Err(e)
+                        if e.to_string()
+                            .contains("has no data (no uri, and no GLB BIN chunk)") =>
+                    {
+                        no_data += 1
+                    }
+                    Err(e) => panic!("{} has no validator error but failed: {e}", file.display()),
+                }
+            } else {
+                with_errors += 1;
+                refused += usize::from(result.is_err());
+            }
         }
-    }
-    eprintln!(
-        "validator suite: {clean} clean files ({no_data} of them without buffer data, refused); {refused} of {with_errors} files with errors refused; {exported} exported and re-imported"
-    );
-    assert!(
-        no_data <= 2,
-        "{no_data} clean files lacked buffer data: more than the two known JSON-only cases"
-    );
-    assert!(
-        clean > 100 && with_errors > 200,
-        "suite looks incomplete: {clean} clean, {with_errors} with errors"
-    );
+        eprintln!(
+            "validator suite: {clean} clean files ({no_data} of them without buffer data, refused); {refused} of {with_errors} files with errors refused; {exported} exported and re-imported"
+        );
+        assert!(
+            no_data <= 2,
+            "{no_data} clean files lacked buffer data: more than the two known JSON-only cases"
+        );
+        assert!(
+            clean > 100 && with_errors > 200,
+            "suite looks incomplete: {clean} clean, {with_errors} with errors"
+        );
+    });
 }

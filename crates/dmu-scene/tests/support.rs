@@ -1,7 +1,5 @@
-//! Test support: a minimal glTF writer independent of dmu's exporter, and paths
-//! to the shared real-world models.
-
-use std::path::PathBuf;
+//! Test support: a minimal glTF writer independent of dmu's exporter (the
+//! shared real-world models are found by `dmu_testkit::Data`).
 
 use base64::Engine as _;
 use dmu_scene::{ImportError, ImportOptions, ImportReport, Scene, import_gltf_slice};
@@ -143,45 +141,4 @@ pub fn one_quad_doc() -> Doc {
     );
     d.node(json!({ "name": "quad", "mesh": mesh }), true);
     d
-}
-
-/// `../shared/data` from the workspace root, or `None` after [`skip`] when
-/// absent, as in a user's clone.
-pub fn shared_data(test: &str) -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        skip(
-            test,
-            "../shared/data is absent (it exists beside the project checkout in CI)",
-        );
-        None
-    }
-}
-
-/// The glTF2 folder of Debian's assimp-testmodels, fetched by
-/// `scripts/fetch-testdata.sh` into `target/testdata`, or `None` after [`skip`].
-pub fn assimp_models(test: &str) -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../target/testdata/assimp/usr/share/assimp/models/glTF2");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        skip(
-            test,
-            "Debian's assimp-testmodels are absent (run scripts/fetch-testdata.sh)",
-        );
-        None
-    }
-}
-
-/// Ends a test whose prerequisite is missing: under `CI=true` (where the
-/// prerequisites are installed) it fails with `reason`; elsewhere it prints
-/// `SKIPPED <test>: <reason>` and the test returns.
-pub fn skip(test: &str, reason: &str) {
-    if std::env::var("CI").as_deref() == Ok("true") {
-        panic!("{test}: {reason} (CI=true: a missing prerequisite is a failure)");
-    }
-    eprintln!("SKIPPED {test}: {reason}");
 }

@@ -1,6 +1,7 @@
 //! The dmu store: a model in one file of checksummed segments, written
-//! streaming, read through a memory map, and a residency manager that keeps the
-//! chunk geometry a view needs in memory within a byte budget.
+//! streaming, read with positioned reads (`pread`, never a memory map), and a
+//! residency manager that keeps the chunk geometry a view needs in memory
+//! within a byte budget.
 //!
 //! Design choices:
 //! - One file: a header (magic, version, byte order), segments, and a table of

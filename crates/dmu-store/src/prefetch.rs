@@ -43,7 +43,7 @@ impl PrefetchOptions {
     /// median cell's largest extent), one second ahead, fast when covering a
     /// cell in under a second, rebuilt past a 30-degree turn.
     pub fn for_tree(tree: &Tree, min_pixels: f64) -> Self {
-        let mut sizes: Vec<f64> = tree
+        let sizes: Vec<f64> = tree
             .cell_ids()
             .map(|c| tree.cell_bounds(c).extent().max_element())
             .filter(|s| s.is_finite())
@@ -51,9 +51,7 @@ impl PrefetchOptions {
         let spacing = if sizes.is_empty() {
             1.0
         } else {
-            let mid = sizes.len() / 2;
-            sizes.select_nth_unstable_by(mid, f64::total_cmp);
-            sizes[mid].max(f64::MIN_POSITIVE)
+            dmu_geom::median(sizes).max(f64::MIN_POSITIVE)
         };
         Self {
             spacing,

@@ -10,7 +10,9 @@ use dmu_scene::{
     import_gltf_streaming,
 };
 
-use crate::support::{shared_data, small_plant};
+use dmu_testkit::{Data, with_data};
+
+use crate::support::small_plant;
 
 fn streamed(path: &Path) -> Result<Streamed, ImportError> {
     let options = StreamOptions {
@@ -63,27 +65,26 @@ fn a_streamed_plant_has_the_whole_imports_structure() {
 
 #[test]
 fn real_models_stream_to_the_whole_imports_structure() {
-    let Some(data) = shared_data("real_models_stream_to_the_whole_imports_structure") else {
-        return;
-    };
-    for file in [
-        "bim/steel_structure_mini_project.glb",
-        "bim/duplex.glb",
-        "bim/fzk_haus.glb",
-        "pcb/video_board_step_assembly.glb",
-        "pcb/video_board.glb",
-        "pcb/stickhub_board.glb",
-        "compressed/engine_quant.glb",
-        "compressed/engine_meshopt.glb",
-    ] {
-        let s = assert_same_structure(&data.join(file));
-        eprintln!(
-            "{file}: {} nodes, {} parts, {} chunks, the same streamed",
-            s.nodes.len(),
-            s.parts.len(),
-            s.chunks.len()
-        );
-    }
+    with_data(Data::Shared, |data| {
+        for file in [
+            "bim/steel_structure_mini_project.glb",
+            "bim/duplex.glb",
+            "bim/fzk_haus.glb",
+            "pcb/video_board_step_assembly.glb",
+            "pcb/video_board.glb",
+            "pcb/stickhub_board.glb",
+            "compressed/engine_quant.glb",
+            "compressed/engine_meshopt.glb",
+        ] {
+            let s = assert_same_structure(&data.join(file));
+            eprintln!(
+                "{file}: {} nodes, {} parts, {} chunks, the same streamed",
+                s.nodes.len(),
+                s.parts.len(),
+                s.chunks.len()
+            );
+        }
+    });
 }
 
 fn gltf_files(dir: &Path, out: &mut Vec<PathBuf>) {
@@ -101,29 +102,28 @@ fn gltf_files(dir: &Path, out: &mut Vec<PathBuf>) {
 /// same structure, or both refuse the file), and nothing panics.
 #[test]
 fn validator_cases_stream_as_the_whole_import_reads_them() {
-    let Some(data) = shared_data("validator_cases_stream_as_the_whole_import_reads_them") else {
-        return;
-    };
-    let mut files = Vec::new();
-    gltf_files(&data.join("gltf-validator"), &mut files);
-    files.sort();
-    assert!(files.len() > 300, "{} validator cases", files.len());
-    let (mut same, mut refused) = (0, 0);
-    for path in &files {
-        match (whole(path), streamed(path)) {
-            (Ok(reference), Ok(s)) => {
-                assert_eq!(s.structure, reference, "{path:?}");
-                same += 1;
+    with_data(Data::Shared, |data| {
+        let mut files = Vec::new();
+        gltf_files(&data.join("gltf-validator"), &mut files);
+        files.sort();
+        assert!(files.len() > 300, "{} validator cases", files.len());
+        let (mut same, mut refused) = (0, 0);
+        for path in &files {
+            match (whole(path), streamed(path)) {
+                (Ok(reference), Ok(s)) => {
+                    assert_eq!(s.structure, reference, "{path:?}");
+                    same += 1;
+                }
+                (Err(_), Err(_)) => refused += 1,
+                (w, s) => panic!(
+                    "{path:?}: the whole import gives {:?}, the streaming one {:?}",
+                    w.err().map(|e| e.to_string()),
+                    s.err().map(|e| e.to_string())
+                ),
             }
-            (Err(_), Err(_)) => refused += 1,
-            (w, s) => panic!(
-                "{path:?}: the whole import gives {:?}, the streaming one {:?}",
-                w.err().map(|e| e.to_string()),
-                s.err().map(|e| e.to_string())
-            ),
         }
-    }
-    eprintln!("{same} cases import the same structure, {refused} are refused by both");
+        eprintln!("{same} cases import the same structure, {refused} are refused by both");
+    });
 }
 
 /// What the streaming import holds for the structure (its flat arrays,

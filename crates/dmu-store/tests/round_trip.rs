@@ -8,7 +8,9 @@ use dmu_scene::{ChunkedMesh, ImportOptions, MeshId, Scene, StreamOptions, export
 use dmu_store::{Store, WriteOptions, save_edits};
 use glam::{DAffine3, DVec3};
 
-use crate::support::{assert_same_scene, shared_data, small_plant, stored};
+use dmu_testkit::{Data, with_data};
+
+use crate::support::{assert_same_scene, small_plant, stored};
 
 fn import_whole(path: &Path) -> Scene {
     dmu_scene::import_gltf(path, &ImportOptions::default())
@@ -67,25 +69,24 @@ fn imported_store_equals_the_glb_scene() {
 
 #[test]
 fn shared_models_import_into_stores_unchanged() {
-    let Some(data) = shared_data("shared_models_import_into_stores_unchanged") else {
-        return;
-    };
-    for file in [
-        "pcb/stickhub_board.glb",
-        "pcb/video_board.glb",
-        "bim/duplex.glb",
-        "compressed/engine_quant.glb",
-        "compressed/engine_meshopt.glb",
-    ] {
-        let glb = data.join(file);
-        let reference = import_whole(&glb);
-        let (_d, scene) = import_store(&glb, 256 << 20);
-        assert_same_scene(&scene, &reference);
-        eprintln!(
-            "{file}: {} triangles through a store",
-            scene.triangle_count()
-        );
-    }
+    with_data(Data::Shared, |data| {
+        for file in [
+            "pcb/stickhub_board.glb",
+            "pcb/video_board.glb",
+            "bim/duplex.glb",
+            "compressed/engine_quant.glb",
+            "compressed/engine_meshopt.glb",
+        ] {
+            let glb = data.join(file);
+            let reference = import_whole(&glb);
+            let (_d, scene) = import_store(&glb, 256 << 20);
+            assert_same_scene(&scene, &reference);
+            eprintln!(
+                "{file}: {} triangles through a store",
+                scene.triangle_count()
+            );
+        }
+    });
 }
 
 /// With a batch of one byte every mesh is decoded alone, from a fresh mapping:

@@ -55,31 +55,6 @@ pub fn assert_same_scene(a: &Scene, b: &Scene) {
     assert_eq!(a.meshes(), b.meshes(), "geometry");
 }
 
-/// `../shared/data` from the workspace root, or `None` after [`skip`] when
-/// absent, as in a user's clone.
-pub fn shared_data(test: &str) -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        skip(
-            test,
-            "../shared/data is absent (it exists beside the project checkout in CI)",
-        );
-        None
-    }
-}
-
-/// Ends a test whose prerequisite is missing: under `CI=true` (where the
-/// prerequisites are installed) it fails with `reason`; elsewhere it prints
-/// `SKIPPED <test>: <reason>` and the test returns.
-pub fn skip(test: &str, reason: &str) {
-    if std::env::var("CI").as_deref() == Ok("true") {
-        panic!("{test}: {reason} (CI=true: a missing prerequisite is a failure)");
-    }
-    eprintln!("SKIPPED {test}: {reason}");
-}
-
 /// Segment kinds as the table of contents names them (`format.rs`).
 pub const KIND_SKELETON: u32 = 1;
 /// A far-field index segment.

@@ -1,4 +1,4 @@
-mod far_field;
+mod farfield;
 mod files;
 #[path = "../../../fuzz/replay.rs"]
 mod fuzz_replay;

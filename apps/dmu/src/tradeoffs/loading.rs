@@ -184,7 +184,7 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
         bench.progress.inc(1);
         Ok(Point::new(
             setting,
-            super::median(ms),
+            dmu_geom::median(ms),
             t.warm_frames_with_miss as f64,
             "warm frames with a miss",
         )

@@ -20,7 +20,7 @@
 //!   regenerated report cannot contradict its plots.
 
 mod collide;
-mod far_field;
+mod farfield;
 mod loading;
 mod numerics;
 mod plot;
@@ -236,7 +236,7 @@ pub fn run_sections(bench: &Bench<'_>) -> (Vec<Knob>, Vec<(String, String)>, Opt
         }),
     );
     bench.progress.set_message("far fields");
-    keep("far fields", far_field::run(bench));
+    keep("far fields", farfield::run(bench));
     bench.progress.set_message("loading");
     keep("loading", loading::run(bench));
     bench.progress.set_message("loading, rendered");
@@ -253,7 +253,7 @@ pub fn run_sections(bench: &Bench<'_>) -> (Vec<Knob>, Vec<(String, String)>, Opt
 /// Steps of the progress bar: one per measured setting (per knob in numerics).
 pub fn steps(quick: bool) -> u64 {
     render::steps(quick)
-        + far_field::steps(quick)
+        + farfield::steps(quick)
         + loading::steps(quick)
         + tree::steps(quick)
         + collide::steps(quick)
@@ -265,9 +265,4 @@ pub fn timed<T>(f: impl FnOnce() -> T) -> (T, f64) {
     let start = Instant::now();
     let out = f();
     (out, start.elapsed().as_secs_f64() * 1e3)
-}
-
-/// The median (NaN when empty).
-pub fn median(mut v: Vec<f64>) -> f64 {
-    crate::cmd_bench::median(&mut v)
 }

@@ -159,10 +159,10 @@ pub fn transform_error(offset: f64) -> f64 {
 
 /// The median time of `reps` runs of `f`, ms.
 fn per_call<T>(reps: usize, mut f: impl FnMut() -> T) -> f64 {
-    super::median(
+    dmu_geom::median(
         (0..reps.max(1))
             .map(|_| timed(|| black_box(f())).1)
-            .collect(),
+            .collect::<Vec<_>>(),
     )
 }
 

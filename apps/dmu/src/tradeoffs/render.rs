@@ -237,7 +237,7 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<(Vec<Knob>, String)> {
             points.push(
                 Point::new(
                     setting,
-                    super::median(ms),
+                    dmu_geom::median(ms),
                     pixels as f64 / frames,
                     "differing pixels a frame",
                 )

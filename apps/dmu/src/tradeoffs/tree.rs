@@ -10,7 +10,9 @@ use dmu_scene::{PartId, Scene};
 use dmu_tree::{Tree, TreeOptions};
 use glam::{DAffine3, DVec3};
 
-use super::{Bench, Knob, Point, median, timed};
+use dmu_geom::median;
+
+use super::{Bench, Knob, Point, timed};
 
 const CELLS_QUICK: &[u32] = &[1024, 4096, 16384];
 const CELLS_FULL: &[u32] = &[256, 1024, 4096, 16384, 65536];
@@ -133,7 +135,7 @@ fn measure(
     let pick_ms = median(
         rays.iter()
             .map(|r| timed(|| tree.pick(scene, r)).1)
-            .collect(),
+            .collect::<Vec<_>>(),
     );
     let mut rng = Rng::new(7);
     let reach = tree.bounds().extent().length() * 0.01;

@@ -6,7 +6,7 @@
 //!
 //! Design choices:
 //! - **The cells of `dmu farfield build`**: the grid of cubes of
-//!   `dmu_app::far_fields` (1/24 of the model's largest extent, that
+//!   `dmu_app::farfield` (1/24 of the model's largest extent, that
 //!   command's default cell), each cull box found by `cull_box`'s bisection
 //!   on a budget of a tenth of the model's triangles, so the near field is
 //!   the same fraction of the model at any size.
@@ -28,7 +28,7 @@
 use std::sync::Arc;
 
 use anyhow::Context as _;
-use dmu_app::far_fields::{cell_box, cells_along, cull_box};
+use dmu_app::farfield::{cell_box, cells_along, cull_box};
 use dmu_geom::Aabb3d;
 use dmu_render::{
     Camera, Capture, Culling, FarField, FarFieldOptions, Renderer, RendererOptions, View,
@@ -415,7 +415,7 @@ impl Sweep<'_> {
             |pixels: u64| 100.0 * pixels as f64 / (frames * f64::from(self.size.0 * self.size.1));
         Ok(Point::new(
             0.0,
-            super::median(tally.ms),
+            dmu_geom::median(tally.ms),
             share(tally.surface),
             ERROR_UNIT,
         )

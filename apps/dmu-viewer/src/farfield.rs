@@ -26,7 +26,7 @@
 use std::collections::BTreeSet;
 use std::sync::Arc;
 
-use dmu_app::far_fields::{FarAuto, FarFieldSet, FarUse};
+use dmu_app::farfield::{FarAuto, FarFieldSet, FarUse};
 use dmu_render::{FarField, FrameStats, Renderer, RendererOptions};
 use glam::DVec3;
 use serde_json::{Value, json};

@@ -143,16 +143,6 @@ impl FarFieldIndex {
     }
 }
 
-/// A signature of every part's world transform and visibility.
-pub fn model_signature(scene: &Scene) -> u64 {
-    let mut h = xxhash_rust::xxh3::Xxh3::new();
-    for p in scene.part_ids() {
-        h.update(bytemuck::cast_slice(&scene.part_world(p).to_cols_array()));
-        h.update(&[u8::from(scene.part(p).hidden)]);
-    }
-    h.digest()
-}
-
 /// Triangles of the chunk instances touching `b`.
 pub fn triangles_touching(tree: &Tree, b: &Aabb3d) -> u64 {
     let mut ids = Vec::new();
@@ -206,7 +196,7 @@ impl FarFieldSet {
         };
         let index =
             FarFieldIndex::decode(&bytes).with_context(|| format!("{}", store.path().display()))?;
-        if index.model_signature != model_signature(scene) {
+        if index.model_signature != scene.pose_hash() {
             bail!(
                 "{}: its far fields were made from other part poses; build them again with `dmu farfield build`",
                 store.path().display()
@@ -394,7 +384,7 @@ pub const FAR_AUTO_PROBE_EVERY: u64 = 60;
 /// (by their means) is kept until the next probe.
 ///
 /// ```
-/// use dmu_app::far_fields::FarAuto;
+/// use dmu_app::farfield::FarAuto;
 ///
 /// let mut auto = FarAuto::default();
 /// for frame in 0..6 {
@@ -598,7 +588,7 @@ pub fn build(
     index.mesh_error_px = options.capture.mesh_error_px;
     index.grid_step = options.capture.grid_step;
     index.skins = options.capture.skins;
-    index.model_signature = model_signature(scene);
+    index.model_signature = scene.pose_hash();
     let mut encoded = Vec::with_capacity(cells.len());
     for &g in cells {
         let cell = index.cell_box(g);
@@ -699,7 +689,7 @@ mod tests {
         let mut index = grid(&tree, 5.0);
         index.resolution = *dmu_render::FAR_FIELD_RESOLUTIONS.start();
         index.mesh_error_px = 1.0;
-        index.model_signature = model_signature(&scene);
+        index.model_signature = scene.pose_hash();
         let mut blobs = Vec::new();
         for (i, g) in [[0, 0, 0], [1, 0, 0]].into_iter().enumerate() {
             let cell = index.cell_box(g);
