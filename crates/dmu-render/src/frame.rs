@@ -133,11 +133,11 @@ impl Renderer {
     }
 
     /// Renders one frame of a stereo pair into `target`'s two layers: culls
-    /// once, against [`StereoCamera::enclosing_frustum`] (coverage and
+    /// once, against [`crate::StereoCamera::enclosing_frustum`] (coverage and
     /// occlusion alike, a sample in either eye counting as visible), and
     /// draws what survives in one multiview pass (or a pass per layer, per
     /// [`Renderer::stereo_mode`]). Each layer is the image a single-view
-    /// [`Renderer::render`] of that eye ([`StereoCamera::eyes`]) draws, given
+    /// [`Renderer::render`] of that eye ([`crate::StereoCamera::eyes`]) draws, given
     /// the same drawn set; draws are ordered from the eyes' midpoint, so only
     /// coplanar overlapping faces in different cells could resolve otherwise.
     ///

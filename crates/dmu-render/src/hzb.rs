@@ -10,6 +10,9 @@
 //!
 //! Each candidate's result comes back with the frame (4 bytes a candidate)
 //! and decides which pass draws it next frame.
+//!
+//! This is the GPU side (the pyramid, the tests, the second pass); which
+//! candidates each pass draws is the strategy's, in `culling/hzb.rs`.
 
 use std::collections::HashMap;
 

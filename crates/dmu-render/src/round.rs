@@ -131,22 +131,7 @@ pub(crate) struct RoundResult {
 /// its results back needs ([`Renderer::finish_round`]).
 #[derive(Debug)]
 pub(crate) struct SubmittedRound {
-    /// All but the query results and times.
-    result: RoundResult,
-    passes: Vec<Pass>,
-    /// Per draw in recorded order: wrapped in a query.
-    queried: Vec<bool>,
-    /// Per draw in the given order: its place among the queried draws.
-    rank: Vec<usize>,
-    /// Per draw in recorded order: its place among the resident draws given.
-    order: Vec<usize>,
-    /// Per queried draw given, in the given order: its geometry was resident.
-    queried_resident: Vec<bool>,
-    per_eye: usize,
-    queried_draws: usize,
-    /// Bytes of query results to read.
-    need: u64,
-    query_count: u32,
+    plan: Plan,
     /// Passes with timestamps.
     timed: usize,
 }
@@ -466,19 +451,7 @@ impl Renderer {
         self.read_back(&mut encoder, gpu, &plan, timed);
         self.queue.submit([encoder.finish()]);
         plan.result.passes = plan.passes.len() as u32;
-        SubmittedRound {
-            result: plan.result,
-            passes: plan.passes,
-            queried: plan.queried,
-            rank: plan.rank,
-            order: plan.order,
-            queried_resident: plan.queried_resident,
-            per_eye: plan.per_eye,
-            queried_draws: plan.queried_draws,
-            need: plan.need,
-            query_count: plan.query_count,
-            timed,
-        }
+        SubmittedRound { plan, timed }
     }
 
     /// Plans a round: resolves its draws' geometry (uploading what is
@@ -861,6 +834,7 @@ impl Renderer {
         gpu: &ViewGpu,
         round: SubmittedRound,
     ) -> Result<RoundResult, RenderError> {
+        let SubmittedRound { plan: round, timed } = round;
         let mut result = round.result;
         if round.query_count > 0 {
             let samples: Vec<u64> = map_read(
@@ -908,16 +882,16 @@ impl Renderer {
                 .collect();
         }
         if let (Some((_, _, readback)), Some(period)) = (&gpu.timestamps, self.timestamp_period_ns)
-            && round.timed > 0
+            && timed > 0
         {
             let ticks: Vec<u64> = map_read(
                 &self.device,
                 readback,
-                16 * round.timed as u64,
+                16 * timed as u64,
                 "timestamps",
                 bytemuck::pod_collect_to_vec,
             )?;
-            for (p, pass_plan) in round.passes.iter().take(round.timed).enumerate() {
+            for (p, pass_plan) in round.passes.iter().take(timed).enumerate() {
                 let ms = ticks[2 * p + 1].saturating_sub(ticks[2 * p]) as f64 * period * 1e-6;
                 result.gpu_ms += ms;
                 if !pass_plan.draws.is_empty() {
@@ -1043,6 +1017,7 @@ pub(crate) struct Round<'a> {
 
 /// A planned round ([`Renderer::plan_round`]): its resident draws in
 /// recorded order, their passes, and what reading the results back needs.
+#[derive(Debug)]
 struct Plan {
     /// All but the query results, times and draw calls so far.
     result: RoundResult,

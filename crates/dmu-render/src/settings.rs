@@ -20,12 +20,12 @@ pub enum Culling {
     /// visible drawn in the same frame through indirect draws. Single views
     /// only; a stereo pair, or a device or target without what it needs
     /// (indirect draws with a first instance, a depth target a shader can
-    /// read), is culled by frustum instead ([`FrameStats::culling`]).
+    /// read), is culled by frustum instead ([`crate::FrameStats::culling`]).
     Hzb,
     /// Per view, whichever of frustum, chc and hzb draws its frames fastest
     /// here: each is timed in turn, the fastest is kept, and the others are
     /// timed again every [`AUTO_PROBE_EVERY`] frames; the stats say which
-    /// ran and what each took ([`FrameStats::auto`]).
+    /// ran and what each took ([`crate::FrameStats::auto`]).
     Auto,
 }
 

@@ -15,6 +15,7 @@ use dmu_geom::Aabb3d;
 
 use crate::cull::{Frame, Walk, add_round, sort_draws};
 use crate::error::RenderError;
+use crate::farfield::FarCut;
 use crate::hierarchy::NodeKind;
 use crate::renderer::Renderer;
 use crate::round::{Draw, ProxyRound, Round, Shading};
@@ -38,7 +39,7 @@ pub(crate) struct Chc;
 
 impl Strategy for Chc {
     fn draw(&self, renderer: &mut Renderer, f: &mut Frame<'_>) -> Result<(), RenderError> {
-        let near_field = matches!(f.cull.far, crate::farfield::FarCut::Near(_));
+        let near_field = matches!(f.cull.far, FarCut::Near(_));
         if !f.view.state.chc.decision.enabled || near_field {
             return Frustum.draw(renderer, f);
         }
