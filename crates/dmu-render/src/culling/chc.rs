@@ -33,6 +33,7 @@ const PROBE_FRAMES: u32 = 8;
 const WARMUP_FRAMES: u32 = 3;
 /// Frames a view draws without queries before trying them again.
 const RETRY_FRAMES: u32 = 60;
+
 /// [`Culling::Occlusion`]: queries where the view's decision keeps them on
 /// and no far field is drawn, else frustum culling.
 pub(crate) struct Chc;
@@ -58,20 +59,17 @@ impl Strategy for Chc {
         // The frame minus drawing: culling, uploads and, with queries, the query
         // passes and the waits between rounds.
         let overhead_ms = (stats.cpu_ms - draw_ms).max(0.0);
+        let chc = &mut view.state.chc;
         if stats.triangles_drawn >= 10_000 {
             let ns = draw_ms * 1e6 / stats.triangles_drawn as f64;
-            view.state.chc.ns_per_triangle = blend(
-                view.state.chc.ns_per_triangle,
-                ns,
-                view.state.chc.ns_per_triangle == 0.0,
-            );
+            chc.ns_per_triangle = blend(chc.ns_per_triangle, ns, chc.ns_per_triangle == 0.0);
         }
         let proxies = renderer.proxies.is_some() && stats.lod_error_px > 0.0;
-        let d = &mut view.state.chc.decision;
+        let d = &mut chc.decision;
         if d.enabled {
-            view.state.chc.probe_frames += 1;
-            if view.state.chc.probe_frames > WARMUP_FRAMES {
-                let first = view.state.chc.probe_frames == WARMUP_FRAMES + 1;
+            chc.probe_frames += 1;
+            if chc.probe_frames > WARMUP_FRAMES {
+                let first = chc.probe_frames == WARMUP_FRAMES + 1;
                 let culled = stats
                     .triangles_in_frustum
                     .saturating_sub(stats.triangles_drawn);
@@ -79,20 +77,17 @@ impl Strategy for Chc {
                     // What a frame without queries would draw beyond this
                     // one's drawing (its overhead aside), so that cost >
                     // saved is "slower than without".
-                    (view.state.chc.frustum_frame_ms
-                        - view.state.chc.baseline_overhead_ms
-                        - draw_ms)
-                        .max(0.0)
+                    (chc.frustum_frame_ms - chc.baseline_overhead_ms - draw_ms).max(0.0)
                 } else {
-                    culled as f64 * view.state.chc.ns_per_triangle * 1e-6
+                    culled as f64 * chc.ns_per_triangle * 1e-6
                 };
-                let cost = (overhead_ms - view.state.chc.baseline_overhead_ms).max(0.0);
+                let cost = (overhead_ms - chc.baseline_overhead_ms).max(0.0);
                 d.saved_ms = blend(d.saved_ms, saved, first);
                 d.cost_ms = blend(d.cost_ms, cost, first);
             }
-            let unmeasured = proxies && view.state.chc.frustum_frame_ms == 0.0;
+            let unmeasured = proxies && chc.frustum_frame_ms == 0.0;
             if view.options.adaptive
-                && view.state.chc.probe_frames >= PROBE_FRAMES
+                && chc.probe_frames >= PROBE_FRAMES
                 && (d.cost_ms > d.saved_ms || unmeasured)
             {
                 d.enabled = false;
@@ -100,21 +95,21 @@ impl Strategy for Chc {
             }
         } else {
             if proxies {
-                view.state.chc.frustum_frame_ms = blend(
-                    view.state.chc.frustum_frame_ms,
+                chc.frustum_frame_ms = blend(
+                    chc.frustum_frame_ms,
                     stats.cpu_ms,
-                    view.state.chc.frustum_frame_ms == 0.0,
+                    chc.frustum_frame_ms == 0.0,
                 );
             }
-            view.state.chc.baseline_overhead_ms = blend(
-                view.state.chc.baseline_overhead_ms,
+            chc.baseline_overhead_ms = blend(
+                chc.baseline_overhead_ms,
                 overhead_ms,
-                view.state.chc.baseline_overhead_ms == 0.0,
+                chc.baseline_overhead_ms == 0.0,
             );
             d.retry_in_frames = d.retry_in_frames.saturating_sub(1);
             if d.retry_in_frames == 0 {
                 d.enabled = true;
-                view.state.chc.probe_frames = 0;
+                chc.probe_frames = 0;
                 view.state.entries.clear();
             }
         }
