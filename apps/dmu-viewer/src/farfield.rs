@@ -290,9 +290,11 @@ impl FarFields {
             scene,
             tree,
             scene,
-            old.cell,
-            old.near_box,
-            &self.moved,
+            dmu_render::FarFieldRegion {
+                cell: old.cell,
+                near_box: old.near_box,
+                excluded: &self.moved,
+            },
             &options,
         )?;
         let ms = field.build_ms;

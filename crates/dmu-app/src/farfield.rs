@@ -23,7 +23,7 @@ use std::sync::{Arc, Mutex};
 
 use anyhow::{Context as _, bail};
 use dmu_geom::{Aabb3d, Short};
-use dmu_render::{FarField, FarFieldOptions};
+use dmu_render::{FarField, FarFieldOptions, FarFieldRegion};
 use dmu_scene::Scene;
 use dmu_store::Store;
 use dmu_tree::Tree;
@@ -215,7 +215,9 @@ impl FarFieldSet {
                     let result = store
                         .far_field_cell(cell)
                         .map_err(|e| e.to_string())
-                        .and_then(|bytes| FarField::decode(&bytes, parts));
+                        .and_then(|bytes| {
+                            FarField::decode(&bytes, parts).map_err(|e| e.to_string())
+                        });
                     match result {
                         Ok(field) => {
                             // A far field captured again while this one
@@ -597,9 +599,11 @@ pub fn build(
             scene,
             tree,
             scene,
-            cell,
-            near_box,
-            &BTreeSet::new(),
+            FarFieldRegion {
+                cell,
+                near_box,
+                excluded: &BTreeSet::new(),
+            },
             &options.capture,
         )?;
         let bytes = field.encode();

@@ -14,7 +14,7 @@
 //! machine, and its lag is one frame, which the walk measures (frames over
 //! budget).
 
-use crate::view::CullingOptions;
+use crate::settings::CullingOptions;
 
 /// The most LOD error a budget may choose, pixels.
 pub const MAX_LOD_ERROR_PX: f64 = 8.0;

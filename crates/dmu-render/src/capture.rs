@@ -8,6 +8,7 @@ use dmu_tree::EntryId;
 
 use crate::RenderError;
 use crate::device::map_read;
+use crate::target::{FrameTarget, StereoTarget};
 
 /// Colour format of captures: sRGB, so linear material colours are encoded as
 /// a PNG viewer expects.
@@ -96,13 +97,13 @@ impl Capture {
 
     /// The colour and depth views to render a frame into (layer 0 of a stereo
     /// capture).
-    pub fn frame_target(&self) -> crate::FrameTarget<'_> {
+    pub fn frame_target(&self) -> FrameTarget<'_> {
         self.layer_target(0)
     }
 
-    fn layer_target(&self, layer: usize) -> crate::FrameTarget<'_> {
+    fn layer_target(&self, layer: usize) -> FrameTarget<'_> {
         let (color, depth) = &self.layers[layer];
-        crate::FrameTarget { color, depth }
+        FrameTarget { color, depth }
     }
 
     /// The depth view of one layer.
@@ -114,12 +115,12 @@ impl Capture {
     ///
     /// # Panics
     /// When the capture was not made by [`Capture::stereo`].
-    pub fn stereo_target(&self) -> crate::StereoTarget<'_> {
+    pub fn stereo_target(&self) -> StereoTarget<'_> {
         let (color, depth) = self
             .array
             .as_ref()
             .expect("stereo_target needs a capture made by Capture::stereo");
-        crate::StereoTarget {
+        StereoTarget {
             color,
             depth,
             eyes: [self.layer_target(0), self.layer_target(1)],
@@ -127,8 +128,8 @@ impl Capture {
     }
 
     /// The id and depth views for the oracle.
-    pub fn id_target(&self) -> crate::FrameTarget<'_> {
-        crate::FrameTarget {
+    pub fn id_target(&self) -> FrameTarget<'_> {
+        FrameTarget {
             color: &self.ids_view,
             depth: &self.layers[0].1,
         }

@@ -3,6 +3,8 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use crate::settings::MAX_SECTION_PLANES;
+
 /// The WGSL source of every single-view pipeline.
 pub(crate) const SHADER: &str = include_str!("../../../shaders/mesh.wgsl");
 /// The WGSL source of the multiview pipeline: `mesh.wgsl` plus the entry point
@@ -35,9 +37,9 @@ pub(crate) struct ViewUniform {
     /// Section planes `(n, d)` in each eye's view space, eye `k`'s at
     /// `k * MAX_SECTION_PLANES`; a point is cut away where `n·p + d < 0`.
     /// Unused slots are `(0, 0, 0, 1)`, which keep everything.
-    pub clip: [[f32; 4]; 2 * crate::MAX_SECTION_PLANES],
+    pub clip: [[f32; 4]; 2 * MAX_SECTION_PLANES],
 }
-const _: () = assert!(size_of::<ViewUniform>() == 160 + 16 * 2 * crate::MAX_SECTION_PLANES);
+const _: () = assert!(size_of::<ViewUniform>() == 160 + 16 * 2 * MAX_SECTION_PLANES);
 
 /// `Instance`: what the vertices of one chunk draw share, read by the mesh
 /// pipelines as instance-rate vertex attributes (the draw's instance index

@@ -10,61 +10,26 @@
 //!
 //! Each candidate's result comes back with the frame (4 bytes a candidate)
 //! and decides which pass draws it next frame.
+//!
+//! This is the GPU side (the pyramid, the tests, the second pass); which
+//! candidates each pass draws is the strategy's, in `culling/hzb.rs`.
 
 use std::collections::HashMap;
 
-use dmu_scene::Scene;
-use dmu_tree::Tree;
-
 use crate::RenderError;
 use crate::device::map_read;
-use crate::geometry::{ChunkSlot, GeometrySource};
-use crate::gpu::{HZB_DRAWN, HZB_FORCED, HZB_SHADER, HzbCandidate, HzbParams, QueryBox};
-use crate::renderer::{Draw, Faces, LodPick, Renderer, ViewGpu};
+use crate::geometry::ChunkSlot;
+use crate::gpu::{HZB_DRAWN, HZB_FORCED, HzbCandidate, HzbParams, QueryBox};
+use crate::pipelines::{Faces, HzbPipelines};
+use crate::renderer::Renderer;
+use crate::round::{Draw, LodPick, Model, ViewGpu, pass_over};
+use crate::target::FrameTarget;
 
 /// Bytes of one `DrawIndexedIndirectArgs`.
 const ARGS_BYTES: u64 = 20;
 /// Timestamps of a second submission: the compute pass's and the second
 /// render pass's begin and end.
 const TIMESTAMPS: u64 = 4;
-
-/// The compute pipelines, made on a renderer's first `hzb` frame.
-#[derive(Debug)]
-pub(crate) struct HzbPipelines {
-    reduce_depth: wgpu::ComputePipeline,
-    reduce_level: wgpu::ComputePipeline,
-    test: wgpu::ComputePipeline,
-    /// Nearest and clamped to the edge, for gathering 2x2 blocks of depth.
-    gather: wgpu::Sampler,
-}
-
-impl HzbPipelines {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("dmu hzb.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(HZB_SHADER.into()),
-        });
-        let pipeline = |entry| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: None,
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
-        Self {
-            reduce_depth: pipeline("reduce_depth"),
-            reduce_level: pipeline("reduce_level"),
-            test: pipeline("test_boxes"),
-            gather: device.create_sampler(&wgpu::SamplerDescriptor {
-                label: Some("dmu hzb gather"),
-                ..Default::default()
-            }),
-        }
-    }
-}
 
 /// A view's depth pyramid and the buffers of its box tests.
 #[derive(Debug)]
@@ -202,33 +167,16 @@ enum GroupKey {
     Proxy(u32),
 }
 
-/// What an `hzb` frame found visible: chunk instances (entry ids) and
-/// proxies (mirror nodes); its frame number, the tree's revision then
-/// (`None`: no frame yet), and per mirror node whether its proxy fitted the
-/// LOD error (`Renderer::frame_fit`).
-#[derive(Clone, Debug, Default)]
-pub(crate) struct HzbVisible {
-    pub frame: u64,
-    pub revision: Option<dmu_tree::Revision>,
-    pub entries: Vec<u32>,
-    pub nodes: Vec<u32>,
-    /// Per node of `nodes`, its proxy's clusters found visible (bit c:
-    /// cluster c; all bits where the proxy was tested whole).
-    pub clusters: Vec<u64>,
-    pub fit: Vec<bool>,
-}
-
-/// What a colour round without queries draws (a frame without occlusion
-/// culling, or an `hzb` frame's first pass): chunk instances in canonical
-/// order, and proxies (mirror nodes) front to back with their frames.
-#[derive(Debug, Default)]
-pub(crate) struct ColorDraws {
-    pub draws: Vec<Draw>,
-    pub nodes: Vec<u32>,
-    pub frames: Vec<QueryBox>,
-    /// Per node, the clusters of its proxy drawn (bit c: cluster c); empty:
-    /// every proxy whole.
-    pub clusters: Vec<u64>,
+/// What an `hzb` frame's second pass tests and draws: the candidates, the
+/// proxies' mirror nodes and frames (by place), how chunk levels are picked,
+/// and the view's projection (which the box tests use).
+#[derive(Clone, Copy)]
+pub(crate) struct SecondPassInput<'a> {
+    pub projection: glam::DMat4,
+    pub candidates: &'a [Candidate],
+    pub proxy_nodes: &'a [u32],
+    pub proxy_frames: &'a [QueryBox],
+    pub lod: Option<LodPick>,
 }
 
 /// A candidate of the frame: a chunk instance or a proxy, its box and
@@ -289,23 +237,26 @@ impl Renderer {
     /// drawn by the first pass) into `target`, in one submission. The
     /// proxies' frames are `proxy_frames` (by place), the chunk levels picked
     /// with `lod`.
-    #[expect(
-        clippy::too_many_arguments,
-        reason = "the frame's context, passed through once"
-    )]
     pub(crate) fn hzb_second_pass(
         &mut self,
         gpu: &mut ViewGpu,
-        target: crate::FrameTarget<'_>,
-        projection: glam::DMat4,
-        geometry: &dyn GeometrySource,
-        scene: &Scene,
-        tree: &Tree,
-        candidates: &[Candidate],
-        proxy_nodes: &[u32],
-        proxy_frames: &[QueryBox],
-        lod: Option<LodPick>,
+        pyramid: &mut Option<HzbGpu>,
+        target: FrameTarget<'_>,
+        model: Model<'_>,
+        input: &SecondPassInput<'_>,
     ) -> Result<SecondPass, RenderError> {
+        let Model {
+            scene,
+            tree,
+            geometry,
+        } = model;
+        let SecondPassInput {
+            projection,
+            candidates,
+            proxy_nodes,
+            proxy_frames,
+            lod,
+        } = *input;
         let size = {
             let t = target.depth.texture();
             (t.width(), t.height())
@@ -313,7 +264,7 @@ impl Renderer {
         if self.hzb.is_none() {
             self.hzb = Some(HzbPipelines::new(&self.device));
         }
-        let mut state = match gpu.hzb.take() {
+        let mut state = match pyramid.take() {
             Some(s) if s.size == size => s,
             _ => HzbGpu::new(&self.device, size, self.has_timestamps()),
         };
@@ -469,8 +420,7 @@ impl Renderer {
                     beginning_of_pass_write_index: begin,
                     end_of_pass_write_index: end,
                 });
-            let mut pass =
-                crate::renderer::pass_over(&mut encoder, "dmu hzb second pass", target, timestamps);
+            let mut pass = pass_over(&mut encoder, "dmu hzb second pass", target, timestamps);
             pass.set_bind_group(0, &gpu.bind_groups[0], &[]);
             let mut bound_pipeline = None;
             for (g, &(key, len)) in groups.iter().enumerate() {
@@ -481,8 +431,8 @@ impl Renderer {
                 };
                 if bound_pipeline != Some(pipeline) {
                     pass.set_pipeline(match pipeline {
-                        (Some(tinted), faces) => self.proxy_pipeline(tinted, faces),
-                        (None, faces) => &self.shade[faces as usize],
+                        (Some(tinted), faces) => self.pipelines.proxy(tinted, faces),
+                        (None, faces) => &self.pipelines.shade[faces as usize],
                     });
                     bound_pipeline = Some(pipeline);
                 }
@@ -573,7 +523,7 @@ impl Renderer {
             out.compute_ms = ms(0);
             out.draw_ms = if total > 0 { ms(2) } else { 0.0 };
         }
-        gpu.hzb = Some(state);
+        *pyramid = Some(state);
         out.visible = visible.iter().map(|&v| v != 0).collect();
         out.triangles = candidates
             .iter()

@@ -91,21 +91,28 @@
 //! # Ok::<(), dmu_render::RenderError>(())
 //! ```
 
-mod adapt;
 mod budget;
 mod capture;
 mod cull;
+mod culling;
 mod device;
 mod error;
 mod farfield;
+mod frame;
 mod geometry;
 mod gpu;
 mod hierarchy;
 mod hzb;
+mod pipelines;
 mod proxy;
 mod renderer;
 mod reproject;
+mod round;
+mod settings;
+mod state;
+mod stats;
 mod stereo;
+mod target;
 mod view;
 
 pub use budget::{KnobsInEffect, MAX_LOD_ERROR_PX, MAX_MIN_PIXELS};
@@ -116,15 +123,18 @@ pub use capture::{
 pub use device::{OPTIONAL_FEATURES, headless_device, instance_descriptor, memory_hints};
 pub use dmu_geom::Camera;
 pub use error::RenderError;
-pub use farfield::{FAR_FIELD_RESOLUTIONS, FarField, FarFieldBuild, FarFieldOptions};
+pub use farfield::codec::FarFieldDecodeError;
+pub use farfield::{
+    FAR_FIELD_RESOLUTIONS, FarField, FarFieldBuild, FarFieldOptions, FarFieldRegion,
+};
 pub use geometry::{GeometryPool, GeometrySource};
 pub use hierarchy::Hierarchy;
 pub use proxy::{CALM_TICKS, Proxies, ProxyOptions, ProxyStats};
-pub use renderer::{FrameTarget, Renderer, RendererOptions};
+pub use renderer::{Renderer, RendererOptions};
 pub use reproject::{Reprojection, Reprojector};
-pub use stereo::{StereoCamera, StereoMode, StereoTarget, StereoView};
-pub use view::{
-    AUTO_PROBE_EVERY, AutoChoice, Culling, CullingOptions, FrameStats, MAX_SECTION_PLANES,
-    OcclusionDecision, View,
-};
+pub use settings::{AUTO_PROBE_EVERY, Culling, CullingOptions, MAX_SECTION_PLANES};
+pub use stats::{AutoChoice, FrameStats, OcclusionDecision};
+pub use stereo::{StereoCamera, StereoMode};
+pub use target::{FrameTarget, StereoTarget};
+pub use view::{StereoView, View};
 pub use wgpu;

@@ -700,6 +700,13 @@ pub(crate) fn proxy_fits(
     diagonal > 0.0 && coverage.size_px(bounds) * error / diagonal <= max_error_px
 }
 
+/// Proxies and the vertex and index buffer of each current one (by mirror node).
+#[derive(Debug)]
+pub(crate) struct ProxyGpu {
+    pub cpu: Proxies,
+    pub buffers: Vec<Option<(wgpu::Buffer, wgpu::Buffer)>>,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -2,15 +2,9 @@
 //! both, and drawn in one multiview pass into a 2-layer target (or a pass per
 //! layer where multiview is missing or broken).
 
-use dmu_geom::Frustum;
-use dmu_scene::Scene;
-use dmu_tree::Tree;
+use dmu_geom::{Camera, Frustum};
 
 use crate::capture::attachment_texture;
-use crate::renderer::{FrameTarget, Renderer, RoundTarget};
-use crate::view::{Culling, FrameStats, View};
-use crate::{GeometrySource, RenderError};
-use dmu_geom::Camera;
 
 /// Two eyes either side of a centre camera, `ipd` apart along its screen right,
 /// looking along parallel axes with the centre camera's projection (its
@@ -172,80 +166,4 @@ pub(crate) fn multiview_clips_correctly(
         (coverage(0), coverage(1)),
         (Some((a, true)), Some((b, true))) if a > 0 && a == b
     )
-}
-
-/// A stereo pair's view: the eyes, and the size, culling and visibility
-/// state that the pair shares (culled once for both eyes).
-#[derive(Debug)]
-pub struct StereoView {
-    /// The eyes.
-    pub camera: StereoCamera,
-    /// Size (of each eye's layer), culling, options, stats and visibility of
-    /// the pair. Its camera is the centre eye, set from `camera` every frame.
-    pub view: View,
-}
-
-impl StereoView {
-    /// A stereo view with fresh visibility state.
-    pub fn new(camera: StereoCamera, size: (u32, u32), culling: Culling) -> Self {
-        Self {
-            camera,
-            view: View::new(camera.center, size, culling),
-        }
-    }
-}
-
-/// Where a stereo frame goes: colour and depth array views of two layers
-/// (layer 0 the left eye) for the multiview pass, and each layer alone for
-/// the per-eye passes (occlusion queries; everything without multiview), all
-/// of the view's size.
-#[derive(Clone, Copy, Debug)]
-pub struct StereoTarget<'a> {
-    /// Colour: a `D2Array` view of both layers, of the renderer's colour format.
-    pub color: &'a wgpu::TextureView,
-    /// Depth: a `D2Array` view of both layers, [`crate::DEPTH_FORMAT`].
-    pub depth: &'a wgpu::TextureView,
-    /// Layer 0 (left eye) and layer 1 (right eye) alone, as `D2` views.
-    pub eyes: [FrameTarget<'a>; 2],
-}
-
-impl Renderer {
-    /// Renders one frame of a stereo pair into `target`'s two layers: culls
-    /// once, against [`StereoCamera::enclosing_frustum`] (coverage and
-    /// occlusion alike, a sample in either eye counting as visible), and
-    /// draws what survives in one multiview pass (or a pass per layer, per
-    /// [`Renderer::stereo_mode`]). Each layer is the image a single-view
-    /// [`Renderer::render`] of that eye ([`StereoCamera::eyes`]) draws, given
-    /// the same drawn set; draws are ordered from the eyes' midpoint, so only
-    /// coplanar overlapping faces in different cells could resolve otherwise.
-    ///
-    /// # Errors
-    /// [`RenderError::Unsupported`] when [`StereoMode::Multiview`] was asked
-    /// for on a device without multiview; readback errors as
-    /// [`Renderer::render`].
-    pub fn render_stereo(
-        &mut self,
-        view: &mut StereoView,
-        scene: &Scene,
-        tree: &Tree,
-        geometry: &dyn GeometrySource,
-        target: StereoTarget<'_>,
-    ) -> Result<FrameStats, RenderError> {
-        if self.stereo_unsupported() {
-            return Err(RenderError::Unsupported {
-                feature: "multiview (asked for stereo pairs)",
-            });
-        }
-        let multiview = self.stereo_mode() == StereoMode::Multiview;
-        view.view.camera = view.camera.center;
-        let keep_color = view.view.keep_color;
-        self.render_frame(
-            &mut view.view,
-            Some(view.camera.ipd),
-            scene,
-            tree,
-            geometry,
-            RoundTarget::stereo(&target, multiview).keeping_color(keep_color),
-        )
-    }
 }

@@ -9,7 +9,8 @@ use std::sync::Arc;
 use dmu_geom::Aabb3d;
 use dmu_geom::glam::{DAffine3, DVec3};
 use dmu_render::{
-    Camera, Culling, FarField, FarFieldOptions, SURFACE_CHANGE, View, count_differing,
+    Camera, Culling, FarField, FarFieldOptions, FarFieldRegion, SURFACE_CHANGE, View,
+    count_differing,
 };
 use dmu_scene::{PartId, Scene};
 use dmu_tree::Tree;
@@ -55,9 +56,11 @@ fn capture(rig: &mut Rig, scene: &Scene, tree: &Tree, excluded: &BTreeSet<u32>) 
             scene,
             tree,
             scene,
-            cell,
-            near_box,
-            excluded,
+            FarFieldRegion {
+                cell,
+                near_box,
+                excluded,
+            },
             &FarFieldOptions::default(),
         )
         .expect("capture");

@@ -364,9 +364,11 @@ impl Sweep<'_> {
                     self.scene,
                     self.tree,
                     self.scene,
-                    c.cell,
-                    c.near_box,
-                    &Default::default(),
+                    dmu_render::FarFieldRegion {
+                        cell: c.cell,
+                        near_box: c.near_box,
+                        excluded: &Default::default(),
+                    },
                     &options,
                 )
                 .context("capturing a far field")?;
