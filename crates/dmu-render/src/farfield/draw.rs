@@ -19,20 +19,6 @@ use crate::view::View;
 
 use super::{FarField, FarFieldGpu, FarState, NearField, UPLOADED_FAR_FIELDS};
 
-fn part_hash(scene: &Scene, p: dmu_scene::PartId) -> u64 {
-    let m = scene.part_world(p);
-    let mut h = fnv(bytemuck::cast_slice(&m.to_cols_array()));
-    h ^= u64::from(scene.part(p).hidden);
-    h
-}
-
-/// FNV-1a over bytes: a change detector, not a checksum.
-fn fnv(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
-    })
-}
-
 /// The far-field pipeline's uniform.
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -63,7 +49,7 @@ impl Renderer {
         self.far_pipeline
             .get_or_insert_with(|| FarPipeline::new(&self.device, self.options.color_format));
         self.far = Some(FarState {
-            base: scene.part_ids().map(|p| part_hash(scene, p)).collect(),
+            base: scene.part_ids().map(|p| scene.part_pose_hash(p)).collect(),
             revision: tree.revision(),
             hidden: scene.parts().iter().map(|p| p.hidden).collect(),
             moved: BTreeSet::new(),
@@ -103,7 +89,7 @@ impl Renderer {
             }
         }
         for p in check {
-            let now = part_hash(scene, dmu_scene::PartId::from_index(p as usize));
+            let now = scene.part_pose_hash(dmu_scene::PartId::from_index(p as usize));
             let changed = if now == far.base[p as usize] {
                 far.moved.remove(&p)
             } else {
