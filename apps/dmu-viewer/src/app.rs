@@ -8,7 +8,6 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use dmu_app::resident::{ResidentSource, StandInSource};
 use dmu_collide::Report;
 use dmu_geom::Ray3d;
 use dmu_render::{Culling, FrameStats, Renderer};
@@ -1233,51 +1232,37 @@ impl App {
             self.panes[0].view.far_field = far.for_frame(self.panes[0].view.camera.eye)?;
         }
         let (scene, tree) = (&self.review.scene, &self.review.tree);
-        if let Some(streaming) = self.streaming.as_mut() {
-            let camera = self.panes[0].view.camera;
-            streaming.begin_frame(renderer.geometry_pool(), tree, scene, &camera, dt)?;
-            let streaming = &*streaming;
-            let stand_ins = streaming
-                .stand_ins()
-                .then(|| StandInSource::new(streaming.residency(), scene));
-            // Without stand-ins only: a table per chunk, made per frame.
-            let mut resident = None;
-            let source: &dyn dmu_render::GeometrySource = match &stand_ins {
-                Some(s) => s,
-                None => &*resident.insert(ResidentSource::new(
-                    streaming.residency(),
-                    scene.chunks().len(),
-                )),
-            };
-            for (i, pane) in self.panes.iter_mut().enumerate() {
-                stats.push(renderer.render(
-                    &mut pane.view,
-                    scene,
-                    tree,
-                    source,
-                    gfx.views[i].frame_target(),
-                )?);
+        let source = match self.streaming.as_mut() {
+            Some(streaming) => {
+                let camera = self.panes[0].view.camera;
+                streaming.begin_frame(renderer.geometry_pool(), tree, scene, &camera, dt)?;
+                Some(streaming.source(scene))
             }
-            let stood_in = stand_ins.map(StandInSource::stood_in).unwrap_or_default();
-            drop(resident);
+            None => None,
+        };
+        let geometry: &dyn dmu_render::GeometrySource = match &source {
+            Some(s) => s,
+            None => scene,
+        };
+        for (i, pane) in self.panes.iter_mut().enumerate() {
+            stats.push(renderer.render(
+                &mut pane.view,
+                scene,
+                tree,
+                geometry,
+                gfx.views[i].frame_target(),
+            )?);
+        }
+        if let Some(source) = source {
+            let stood_in = source.stood_in();
             let drawn: Vec<Vec<EntryId>> = self
                 .panes
                 .iter()
                 .map(|p| p.view.drawn_entries().collect())
                 .collect();
             let not_resident = stats.iter().map(|s| s.not_resident).sum();
-            let streaming = self.streaming.as_mut().expect("checked above");
+            let streaming = self.streaming.as_mut().expect("it made the source");
             streaming.end_frame(tree, stood_in, &drawn, not_resident);
-        } else {
-            for (i, pane) in self.panes.iter_mut().enumerate() {
-                stats.push(renderer.render(
-                    &mut pane.view,
-                    scene,
-                    tree,
-                    scene,
-                    gfx.views[i].frame_target(),
-                )?);
-            }
         }
         if let Some(far) = self.far.as_mut() {
             far.after_render(&stats[0], self.frames_drawn);

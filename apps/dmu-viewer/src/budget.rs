@@ -11,7 +11,7 @@
 
 use std::sync::Arc;
 
-use dmu_app::resident::StandIns;
+use dmu_app::resident::{FrameSource, StreamedFrames};
 use dmu_render::{Camera, GeometryPool};
 use dmu_scene::{ChunkId, Scene};
 use dmu_store::{
@@ -48,14 +48,13 @@ pub struct Streaming {
     store: Arc<Store>,
     viewport: Viewport,
     min_pixels: f64,
-    stand_ins: bool,
-    /// The chunks whose stand-ins the GPU pool holds.
-    standing: StandIns,
+    /// The GPU pool's side of the streaming: evictions, stand-ins.
+    frames: StreamedFrames,
     budget_bytes: u64,
     residency_budget_bytes: u64,
     fixed_bytes: u64,
     sized: bool,
-    frames: u64,
+    frames_drawn: u64,
     frames_with_hole: u64,
     frames_with_standin: u64,
     holes: u64,
@@ -81,13 +80,12 @@ impl Streaming {
             store,
             viewport,
             min_pixels,
-            stand_ins,
-            standing: StandIns::new(chunks),
+            frames: StreamedFrames::new(chunks, stand_ins),
             budget_bytes,
             residency_budget_bytes: 0,
             fixed_bytes: 0,
             sized: false,
-            frames: 0,
+            frames_drawn: 0,
             frames_with_hole: 0,
             frames_with_standin: 0,
             holes: 0,
@@ -152,14 +150,10 @@ impl Streaming {
         Ok(())
     }
 
-    /// Whether chunks not resident are drawn as their boxes.
-    pub fn stand_ins(&self) -> bool {
-        self.stand_ins
-    }
-
-    /// The residency manager.
-    pub fn residency(&self) -> &dmu_store::Residency {
-        self.streamer.residency()
+    /// The frame's geometry (after [`Streaming::begin_frame`]), stand-ins
+    /// made from `scene`'s chunk boxes.
+    pub fn source<'a>(&'a self, scene: &'a Scene) -> FrameSource<'a> {
+        self.frames.source(self.streamer.residency(), scene)
     }
 
     /// Before a frame: sizes the residency after the first
@@ -180,17 +174,14 @@ impl Streaming {
         // not share out. (The resident set at one moment misses a frame's
         // transient memory: at 500M, sampled before the paint it was 90 MB
         // short, after it up to 110 MB.)
-        if !self.sized && self.frames > 0 {
+        if !self.sized && self.frames_drawn > 0 {
             self.size(tree, dmu_app::progress::peak_rss_bytes().unwrap_or(0))?;
         }
         let residency = self.streamer.residency();
         if let Some(e) = residency.first_error() {
             anyhow::bail!("{e}");
         }
-        for c in residency.take_evicted() {
-            pool.evict(c);
-        }
-        self.standing.release(residency, pool);
+        self.frames.begin(residency, pool);
         let frame = CameraFrame {
             eye: camera.eye,
             target: camera.target,
@@ -213,18 +204,15 @@ impl Streaming {
         drawn: &[Vec<EntryId>],
         not_resident: u64,
     ) {
-        self.standing.note(stood_in);
         let chunk = |e: &EntryId| tree.entries()[e.0 as usize].chunk;
-        let stand_ins = drawn
-            .iter()
-            .flatten()
-            .filter(|e| self.standing.is_standing(chunk(e)))
-            .count() as u64;
-        self.frames += 1;
-        self.holes += not_resident;
-        self.stand_ins_drawn += stand_ins;
-        self.frames_with_hole += u64::from(not_resident > 0);
-        self.frames_with_standin += u64::from(stand_ins > 0);
+        let misses = self
+            .frames
+            .end(stood_in, drawn.iter().flatten().map(chunk), not_resident);
+        self.frames_drawn += 1;
+        self.holes += misses.holes;
+        self.stand_ins_drawn += misses.stand_ins;
+        self.frames_with_hole += u64::from(misses.holes > 0);
+        self.frames_with_standin += u64::from(misses.stand_ins > 0);
         let visible: Vec<ChunkId> = drawn.first().into_iter().flatten().map(chunk).collect();
         self.streamer.drawn(&visible);
     }
@@ -262,7 +250,7 @@ impl Streaming {
             "pool_resident_bytes": pool.resident_bytes(),
             "pool_handed_out_bytes": pool.handed_out_bytes(),
             "pool_pages": pool.pages(),
-            "pool_stand_ins": self.standing.count(),
+            "pool_stand_ins": self.frames.stand_ins_held(),
         })
     }
 
@@ -273,8 +261,8 @@ impl Streaming {
             "memory_budget_bytes": self.budget_bytes,
             "fixed_bytes": self.fixed_bytes,
             "residency_budget_bytes": self.residency_budget_bytes,
-            "stand_ins": if self.stand_ins { "box" } else { "none" },
-            "frames": self.frames,
+            "stand_ins": if self.frames.stand_ins() { "box" } else { "none" },
+            "frames": self.frames_drawn,
             "frames_with_hole": self.frames_with_hole,
             "frames_with_standin": self.frames_with_standin,
             "holes": self.holes,
