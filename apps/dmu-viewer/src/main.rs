@@ -53,7 +53,8 @@ use anyhow::Context as _;
 use clap::Parser;
 use dmu_app::far_fields::{FarFieldSet, FarUse};
 use dmu_viewer::{
-    clashes, gizmo, issues, measure, nav, record, review, script, section, settings, viewpoints,
+    clashes, command, gizmo, issues, measure, nav, record, review, script, section, settings,
+    tools, viewpoints,
 };
 use serde_json::json;
 
