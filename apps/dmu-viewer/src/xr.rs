@@ -33,13 +33,15 @@ use dmu_render::{
     Capture, Culling, CullingOptions, Renderer, RendererOptions, StereoCamera, StereoView, View,
 };
 use dmu_scene::PartId;
+use dmu_viewer::command::ReviewCommand;
 use dmu_viewer::nav::Navigator;
 use dmu_viewer::xr_input::{CLASH_PULSE_AMPLITUDE, CLASH_PULSE_S, Event, Interaction};
 use dmu_viewer::xr_script::{Runner, XrAction, XrScript};
 use dmu_xr::{ControllerInput, Eye, Hand, Placement, Pose, Status, XrOptions, XrSession};
+use serde::Serialize;
 use serde_json::{Value, json};
 
-use crate::app::{clashes_json, retint, selection_json, summary};
+use crate::app::{Summary, clashes_json, retint, selection_json};
 use dmu_viewer::review::Review;
 
 /// How long the runtime may take to start the session (IDLE to READY).
@@ -310,7 +312,7 @@ pub fn run(mut review: Review, args: XrArgs, facts: Value) -> anyhow::Result<Val
         }
         if let Some(step) = &scripted {
             if matches!(step.action, XrAction::Redo) {
-                review.redo();
+                hands.apply(&mut review, ReviewCommand::Redo);
             }
             if step.last {
                 let mut entry = step_result(&mut log, &review, &hands, step.action);
@@ -423,80 +425,187 @@ pub fn run(mut review: Review, args: XrArgs, facts: Value) -> anyhow::Result<Val
         );
         last_eyes = Some(cameras);
     };
-    let mut report = facts;
-    if let Some(dir) = &args.save_eyes {
-        save_eyes(&device, &queue, &capture, dir)?;
-        report["eyes_saved"] = json!({
-            "left": dir.join("left.png"),
-            "right": dir.join("right.png"),
-        });
-    }
-    if let Some(rec) = review.recorder.take() {
-        let (path, lines) = (rec.path().to_owned(), rec.lines());
-        rec.finish()?;
-        report["recording"] = json!({
-            "path": path,
-            "lines": lines,
-            "clearance": review.settings.clearance,
-            "steps": log.recorded_steps,
-        });
-    }
-    if let Some(e) = &review.record_error {
-        report["record_error"] = json!(e);
-    }
-    report["runtime"] = json!(session.runtime());
-    report["adapter"] = json!(session.adapter().name);
-    report["max_session_state"] = json!(session.max_state().as_str());
-    report["final_state"] = json!(session.state().as_str());
-    report["frames_submitted"] = json!(session.frames_submitted());
-    report["frames_not_rendered"] = json!(skipped);
-    report["eye_size"] = json!(size);
-    report["recommended_eye_size"] = json!(session.recommended_eye_size());
-    report["eye_frame_ms"] =
-        json!({ "left": summary(&timing.eye_ms[0]), "right": summary(&timing.eye_ms[1]) });
-    report["frame_ms"] = summary(&timing.frame_ms);
-    report["render_ms"] = json!({
-        "per_eye": summary(&timing.render_ms[0]),
-        "culled_once": summary(&timing.render_ms[1]),
-    });
-    report["stereo"] = json!({
-        "mode": args.stereo.as_str(),
-        "frames_culled_once": timing.render_ms[1].len(),
-        "frames_per_eye": timing.render_ms[0].len(),
-        "multiview": renderer.stereo_mode() == dmu_render::StereoMode::Multiview,
-    });
-    report["frames_late"] = json!(timing.late);
-    report["displays_missed"] = json!(timing.missed_displays);
-    report["budget"] = args.budget.as_json();
-    report["frames"] = json!(timing.frames);
-    report["triangles_drawn"] = json!({
-        "per_eye": summary(&timing.triangles[0]),
-        "culled_once": summary(&timing.triangles[1]),
-    });
-    report["session_s"] = json!(started.elapsed().as_secs_f64());
-    report["steps"] = json!(log.steps);
-    report["grabbed_part"] = json!(log.grabbed_part);
-    report["grab"] = json!(log.grab);
-    report["clashes"] = json!(
-        log.grab
+    let eyes_saved = match &args.save_eyes {
+        Some(dir) => {
+            save_eyes(&device, &queue, &capture, dir)?;
+            Some(EyesSaved {
+                left: dir.join("left.png"),
+                right: dir.join("right.png"),
+            })
+        }
+        None => None,
+    };
+    let recording = match review.recorder.take() {
+        Some(rec) => {
+            let (path, lines) = (rec.path().to_owned(), rec.lines());
+            rec.finish()?;
+            Some(Recording {
+                path,
+                lines,
+                clearance: review.settings.clearance,
+                steps: &log.recorded_steps,
+            })
+        }
+        None => None,
+    };
+    let per_eye_and_once = |v: &[Vec<f64>; 2]| PerEyeAndOnce {
+        per_eye: Summary::of(&v[0]),
+        culled_once: Summary::of(&v[1]),
+    };
+    let known_start = Instant::now();
+    let known_points = last_eyes
+        .as_ref()
+        .map(|eyes| known_points(&review, eyes, size));
+    let known_points_ms = known_points
+        .is_some()
+        .then(|| known_start.elapsed().as_secs_f64() * 1e3);
+    let run = XrReport {
+        eyes_saved,
+        recording,
+        record_error: review.record_error.as_deref(),
+        runtime: session.runtime(),
+        adapter: &session.adapter().name,
+        max_session_state: session.max_state().as_str(),
+        final_state: session.state().as_str(),
+        frames_submitted: session.frames_submitted(),
+        frames_not_rendered: skipped,
+        eye_size: size,
+        recommended_eye_size: session.recommended_eye_size(),
+        eye_frame_ms: EyePair {
+            left: Summary::of(&timing.eye_ms[0]),
+            right: Summary::of(&timing.eye_ms[1]),
+        },
+        frame_ms: Summary::of(&timing.frame_ms),
+        render_ms: per_eye_and_once(&timing.render_ms),
+        stereo: StereoFacts {
+            mode: args.stereo.as_str(),
+            frames_culled_once: timing.render_ms[1].len(),
+            frames_per_eye: timing.render_ms[0].len(),
+            multiview: renderer.stereo_mode() == dmu_render::StereoMode::Multiview,
+        },
+        frames_late: timing.late,
+        displays_missed: timing.missed_displays,
+        budget: args.budget.as_json(),
+        frames: &timing.frames,
+        triangles_drawn: per_eye_and_once(&timing.triangles),
+        session_s: started.elapsed().as_secs_f64(),
+        steps: &log.steps,
+        grabbed_part: log.grabbed_part.as_deref(),
+        grab: log.grab.as_ref(),
+        clashes: log
+            .grab
             .as_ref()
-            .and_then(|g| g["clashes"].as_array().map(Vec::len))
-    );
-    report["haptic_pulses"] = json!(log.haptic_pulses);
-    report["events"] = json!(log.events);
-    report["controllers"] = controllers_json(&session, &real);
-    report["after"] = selection_json(&review);
-    report["placement"] = placement_json(&placement);
-    if let Some(eyes) = &last_eyes {
-        report["eye_fov"] = json!(eyes.map(|(_, e)| e.fov));
-        report["eye_positions"] = json!(eyes.map(|(c, _)| c.eye.to_array()));
-        report["ipd_m"] = json!(eyes[0].1.pose.position.distance(eyes[1].1.pose.position));
-        let start = Instant::now();
-        report["known_points"] = known_points(&review, eyes, size);
-        report["known_points_ms"] = json!(start.elapsed().as_secs_f64() * 1e3);
+            .and_then(|g| g["clashes"].as_array().map(Vec::len)),
+        haptic_pulses: &log.haptic_pulses,
+        events: &log.events,
+        controllers: controllers_json(&session, &real),
+        after: selection_json(&review),
+        placement: placement_json(&placement),
+        eye_fov: last_eyes.as_ref().map(|e| [e[0].1.fov, e[1].1.fov]),
+        eye_positions: (last_eyes.as_ref()).map(|e| [e[0].0.eye.to_array(), e[1].0.eye.to_array()]),
+        ipd_m: (last_eyes.as_ref()).map(|e| e[0].1.pose.position.distance(e[1].1.pose.position)),
+        known_points,
+        known_points_ms,
+        exit,
+    };
+    let mut report = facts;
+    let Value::Object(run) = serde_json::to_value(run).expect("report parts are plain data") else {
+        unreachable!("a struct serializes as an object");
+    };
+    for (key, value) in run {
+        report[key.as_str()] = value;
     }
-    report["exit"] = json!(exit);
     Ok(report)
+}
+
+/// The eyes' images saved.
+#[derive(Debug, Serialize)]
+struct EyesSaved {
+    left: PathBuf,
+    right: PathBuf,
+}
+
+/// The session's recording: its file, lines, clearance and the clashes at
+/// each step.
+#[derive(Debug, Serialize)]
+struct Recording<'a> {
+    path: PathBuf,
+    lines: u64,
+    clearance: f64,
+    steps: &'a [Value],
+}
+
+/// A summary per eye.
+#[derive(Debug, Serialize)]
+struct EyePair {
+    left: Summary,
+    right: Summary,
+}
+
+/// A summary of the frames drawn per eye and of those culled once.
+#[derive(Debug, Serialize)]
+struct PerEyeAndOnce {
+    per_eye: Summary,
+    culled_once: Summary,
+}
+
+/// How the eyes were drawn.
+#[derive(Debug, Serialize)]
+struct StereoFacts {
+    mode: &'static str,
+    frames_culled_once: usize,
+    frames_per_eye: usize,
+    multiview: bool,
+}
+
+/// The report of an `--xr` session, beside the model and load facts it
+/// began with (keys absent where there is nothing to say).
+#[derive(Debug, Serialize)]
+struct XrReport<'a> {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    eyes_saved: Option<EyesSaved>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    recording: Option<Recording<'a>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    record_error: Option<&'a str>,
+    runtime: &'a str,
+    adapter: &'a str,
+    max_session_state: &'static str,
+    final_state: &'static str,
+    frames_submitted: u64,
+    frames_not_rendered: u64,
+    eye_size: (u32, u32),
+    recommended_eye_size: (u32, u32),
+    eye_frame_ms: EyePair,
+    frame_ms: Summary,
+    render_ms: PerEyeAndOnce,
+    stereo: StereoFacts,
+    frames_late: u64,
+    displays_missed: i64,
+    budget: Value,
+    frames: &'a [Value],
+    triangles_drawn: PerEyeAndOnce,
+    session_s: f64,
+    steps: &'a [Value],
+    grabbed_part: Option<&'a str>,
+    grab: Option<&'a Value>,
+    clashes: Option<usize>,
+    haptic_pulses: &'a [Value],
+    events: &'a [Value],
+    controllers: Value,
+    after: Value,
+    placement: Value,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    eye_fov: Option<[dmu_geom::Fov; 2]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    eye_positions: Option<[[f64; 3]; 2]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ipd_m: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    known_points: Option<Value>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    known_points_ms: Option<f64>,
+    exit: &'static str,
 }
 
 /// The head in the tracking space: the eyes' midpoint, the left eye's

@@ -132,10 +132,12 @@ impl Interaction {
         self.grab.map(|g| (g.hand, g.part))
     }
 
-    /// Applies a command that cannot fail (selection, drag start and end,
-    /// undo): the hands' edits go the desktop's way.
-    fn apply(&mut self, review: &mut Review, command: ReviewCommand) -> Outcome {
-        apply(review, &mut self.tools, command).expect("selection, drags and undo do not fail")
+    /// Applies a command of the hands or an XR script that cannot fail
+    /// (selection, drag start and end, undo, redo): through the one apply,
+    /// as the desktop's.
+    pub fn apply(&mut self, review: &mut Review, command: ReviewCommand) -> Outcome {
+        apply(review, &mut self.tools, command)
+            .expect("selection, drags, undo and redo do not fail")
     }
 
     /// One frame of input: locomotion (moves `placement`), the grabbing

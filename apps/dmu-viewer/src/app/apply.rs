@@ -4,10 +4,13 @@
 //! too.
 
 use anyhow::Context as _;
-use serde_json::{Value, json};
+use serde_json::Value;
 
 use super::App;
-use super::report::{camera_json, rect_json};
+use super::report::{
+    ClashShown, FacePlane, FileEntry, FirstPoint, Missed, PartEntry, PickEntry, RayFacts,
+    camera_json, to_value,
+};
 use crate::command::{Command, Outcome, ReviewCommand, ViewCommand, ViewPoint};
 use crate::measure::{MeasureMode, Measurement, SNAP_PX};
 use crate::ui::ViewInput;
@@ -82,7 +85,8 @@ impl App {
             }
             V::Hover(at) => {
                 self.hover(at);
-                Some(json!({ "part_id": self.hovered.map(|p| p.0) }))
+                let part_id = self.hovered.map(|p| p.0);
+                Some(to_value(PartEntry { part_id }))
             }
             V::Press { at, axis } => {
                 self.begin_pointer_drag(at, axis)?;
@@ -110,7 +114,11 @@ impl App {
             }
             V::ExportBcf(path) if self.export.is_none() => {
                 let topics = self.start_export(path.clone())?;
-                Some(json!({ "path": path, "topics": topics }))
+                Some(to_value(FileEntry {
+                    path: &path,
+                    topics: Some(topics),
+                    format: None,
+                }))
             }
             V::ExportBcf(_) => None,
             V::ImportBcf(path) => Some(self.import_bcf(&path)?),
@@ -164,7 +172,11 @@ impl App {
                 None
             }
             V::Screenshot(path) => {
-                let entry = json!({ "path": path });
+                let entry = to_value(FileEntry {
+                    path: &path,
+                    topics: None,
+                    format: None,
+                });
                 self.screenshot = Some(path);
                 Some(entry)
             }
@@ -200,14 +212,14 @@ impl App {
         }
         let review = &self.review;
         let c = &review.clash_list[index];
-        Ok(json!({
-            "a": review.scene.part_name(a),
-            "b": review.scene.part_name(b),
-            "kind": c.kind,
-            "source": c.source,
-            "distance": separation.map(|s| s.distance),
-            "point_a": separation.map(|s| s.point_a.to_array()),
-            "point_b": separation.map(|s| s.point_b.to_array()),
+        Ok(to_value(ClashShown {
+            a: review.scene.part_name(a),
+            b: review.scene.part_name(b),
+            kind: &c.kind,
+            source: &c.source,
+            distance: separation.map(|s| s.distance),
+            point_a: separation.map(|s| s.point_a.to_array()),
+            point_b: separation.map(|s| s.point_b.to_array()),
         }))
     }
 
@@ -236,14 +248,17 @@ impl App {
         }
         let scene = &self.review.scene;
         let length = ray.dir.length();
-        Ok(json!({
-            "pixel": [at.0, at.1],
-            "viewport": rect_json(self.active_rect()),
-            "pane": self.active,
-            "ray": { "origin": ray.origin.to_array(), "dir": ray.dir.to_array() },
-            "hit": hit.map_or_else(
-                || json!({ "hit": false }),
-                |h| dmu_app::hits::hit_json(scene, &h, length)
+        Ok(to_value(PickEntry {
+            pixel: [at.0, at.1],
+            viewport: self.active_rect().into(),
+            pane: self.active,
+            ray: RayFacts {
+                origin: ray.origin.to_array(),
+                dir: ray.dir.to_array(),
+            },
+            hit: hit.map_or_else(
+                || to_value(Missed { hit: false }),
+                |h| dmu_app::hits::hit_json(scene, &h, length),
             ),
         }))
     }
@@ -263,10 +278,10 @@ impl App {
                 point: hit.point,
                 normal: -hit.normal,
             })?;
-            return Ok(json!({
-                "point": hit.point.to_array(),
-                "normal": (-hit.normal).to_array(),
-                "section": self.review.section.describe(),
+            return Ok(to_value(FacePlane {
+                point: hit.point.to_array(),
+                normal: (-hit.normal).to_array(),
+                section: self.review.section.describe(),
             }));
         }
         if self.tools.measure.mode == MeasureMode::Off {
@@ -274,7 +289,7 @@ impl App {
         }
         let ray = self.ray_at(at);
         let Some(hit) = self.review.pick(&ray) else {
-            return Ok(json!({ "hit": false }));
+            return Ok(to_value(Missed { hit: false }));
         };
         // Snap within SNAP_PX pixels at the hit's depth.
         let pane = &self.panes[self.active];
@@ -288,7 +303,10 @@ impl App {
                 self.ui.status = format!("measured {}", m.label());
                 m.json(&self.review.scene)
             }
-            None => json!({ "first": point.point.to_array(), "snap": point.snap.name() }),
+            None => to_value(FirstPoint {
+                first: point.point.to_array(),
+                snap: point.snap.name(),
+            }),
         })
     }
 

@@ -4,10 +4,10 @@
 
 use std::path::PathBuf;
 
-use serde_json::{Value, json};
+use serde_json::Value;
 
 use super::App;
-use super::report::{BcfExport, to_value};
+use super::report::{FileEntry, FirstImported, Imported, to_value};
 use crate::command::ReviewCommand;
 use crate::script::Overlays;
 
@@ -92,9 +92,10 @@ impl App {
         match written {
             Ok(()) => {
                 self.ui.status = format!("{} issues written to {}", topics.len(), e.path.display());
-                self.facts["bcf_export"] = to_value(BcfExport {
+                self.facts["bcf_export"] = to_value(FileEntry {
                     path: &e.path,
-                    topics: topics.len(),
+                    topics: Some(topics.len()),
+                    format: None,
                 });
             }
             Err(err) if self.options.automated() => self.error = Some(err.into()),
@@ -138,16 +139,18 @@ impl App {
             imported.skipped_topics,
             imported.unknown_components
         );
-        Ok(json!({
-            "topics": topics.len(),
-            "viewpoints": imported.viewpoints.len(),
-            "skipped_topics": imported.skipped_topics,
-            "unknown_components": imported.unknown_components,
-            "first": first.map(|v| json!({
-                "view": v.json(),
-                "section": v.section.json(),
-                "selected": v.selected.map(|p| self.review.scene.part_name(p).to_owned()),
-            })),
+        Ok(to_value(Imported {
+            topics: topics.len(),
+            viewpoints: imported.viewpoints.len(),
+            skipped_topics: imported.skipped_topics,
+            unknown_components: imported.unknown_components,
+            first: first.map(|v| FirstImported {
+                view: v.json(),
+                section: v.section.json(),
+                selected: v
+                    .selected
+                    .map(|p| self.review.scene.part_name(p).to_owned()),
+            }),
         }))
     }
 }

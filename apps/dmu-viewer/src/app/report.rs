@@ -54,11 +54,6 @@ impl Summary {
     }
 }
 
-/// [`Summary::of`] as JSON.
-pub(crate) fn summary(values: &[f64]) -> Value {
-    to_value(Summary::of(values))
-}
-
 /// A clash in a report: part ids, kind, distance.
 #[derive(Debug, Serialize)]
 struct ClashFacts {
@@ -154,7 +149,7 @@ pub(super) fn camera_json(nav: &Navigator) -> Value {
 
 /// A window rectangle in the report.
 #[derive(Debug, Serialize)]
-struct Rect {
+pub(super) struct Rect {
     x: u32,
     y: u32,
     width: u32,
@@ -274,13 +269,103 @@ struct ToolGeometry {
     mesh_loads: u64,
 }
 
-/// A BCF export written.
+/// The report entry of an action that names a part (or none): a selection,
+/// a hover, an undo or redo.
 #[derive(Debug, Serialize)]
-pub(super) struct BcfExport<'a> {
+pub(super) struct PartEntry {
+    /// The part's id.
+    pub part_id: Option<u32>,
+}
+
+/// The report entry of a file written: a screenshot, or a BCF export
+/// (with its topics).
+#[derive(Debug, Serialize)]
+pub(super) struct FileEntry<'a> {
     /// The file.
     pub path: &'a std::path::Path,
-    /// Its topics.
+    /// A BCF file's topics.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub topics: Option<usize>,
+    /// A saved model's format.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub format: Option<dmu_store::SavedFormat>,
+}
+
+/// The report entry of a pick: the pixel, the pane and its rectangle, the
+/// ray, and the hit (`{"hit": false}` for none).
+#[derive(Debug, Serialize)]
+pub(super) struct PickEntry {
+    pub pixel: [f64; 2],
+    pub viewport: Rect,
+    pub pane: usize,
+    pub ray: RayFacts,
+    pub hit: Value,
+}
+
+/// A ray in the report.
+#[derive(Debug, Serialize)]
+pub(super) struct RayFacts {
+    pub origin: [f64; 3],
+    pub dir: [f64; 3],
+}
+
+/// A click that hit nothing.
+#[derive(Debug, Serialize)]
+pub(super) struct Missed {
+    /// Always false.
+    pub hit: bool,
+}
+
+/// A section plane placed on a face.
+#[derive(Debug, Serialize)]
+pub(super) struct FacePlane {
+    pub point: [f64; 3],
+    pub normal: [f64; 3],
+    pub section: String,
+}
+
+/// The first click of a measurement.
+#[derive(Debug, Serialize)]
+pub(super) struct FirstPoint {
+    pub first: [f64; 3],
+    pub snap: &'static str,
+}
+
+/// A listed clash shown.
+#[derive(Debug, Serialize)]
+pub(super) struct ClashShown<'a, K: Serialize> {
+    pub a: &'a str,
+    pub b: &'a str,
+    pub kind: &'a K,
+    pub source: &'a str,
+    pub distance: Option<f64>,
+    pub point_a: Option<[f64; 3]>,
+    pub point_b: Option<[f64; 3]>,
+}
+
+/// Clashes loaded from a report into the list.
+#[derive(Debug, Serialize)]
+pub(super) struct ClashesLoaded {
+    pub added: usize,
+    pub listed: usize,
+}
+
+/// A BCF file read.
+#[derive(Debug, Serialize)]
+pub(super) struct Imported {
     pub topics: usize,
+    pub viewpoints: usize,
+    pub skipped_topics: usize,
+    pub unknown_components: usize,
+    pub first: Option<FirstImported>,
+}
+
+/// The first viewpoint of a BCF file read.
+#[derive(Debug, Serialize)]
+pub(super) struct FirstImported {
+    pub view: Value,
+    pub section: Value,
+    pub selected: Option<String>,
 }
 
 /// Serializes a report part (plain data: it always serializes).
@@ -332,7 +417,7 @@ impl App {
             .filter(|f| matches!(f["action"].as_str(), Some("drag" | "mouse_drag")))
             .filter_map(|f| f["frame_ms"].as_f64())
             .collect();
-        report["drag_frame_ms"] = summary(&drag);
+        report["drag_frame_ms"] = to_value(Summary::of(&drag));
         let all = |key: &str| -> Summary {
             let values: Vec<f64> = frames.iter().filter_map(|f| f[key].as_f64()).collect();
             Summary::of(&values)

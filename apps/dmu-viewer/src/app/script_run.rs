@@ -4,11 +4,11 @@
 
 use anyhow::Context as _;
 use glam::DVec3;
-use serde_json::{Value, json};
+use serde_json::Value;
 
 use super::App;
 use super::pointer::PointerDrag;
-use super::report::selection_json;
+use super::report::{ClashesLoaded, FileEntry, PartEntry, selection_json, to_value};
 use crate::command::{Outcome, ReviewCommand as R, ViewCommand as V, ViewPoint};
 use crate::measure::MeasureMode;
 use crate::script::Action;
@@ -67,8 +67,8 @@ impl App {
         }
         self.runner.step += 1;
         if self.runner.step >= action.frames() {
-            let mut entry = result.unwrap_or_else(|| json!({}));
-            entry["action"] = json!(action.name());
+            let mut entry = result.unwrap_or_else(|| Value::Object(Default::default()));
+            entry["action"] = Value::from(action.name());
             self.runner.results.push(entry.to_string().into_boxed_str());
             self.runner.index += 1;
             self.runner.step = 0;
@@ -84,7 +84,9 @@ impl App {
             Action::Select(key) => {
                 let part = self.review.scene.find_part(key)?;
                 self.apply_view(V::Reveal(part))?;
-                Some(json!({ "part_id": part.0 }))
+                Some(to_value(PartEntry {
+                    part_id: Some(part.0),
+                }))
             }
             Action::Move(d) => {
                 let moved = self.edit(R::Translate(DVec3::from_array(*d)))?;
@@ -245,7 +247,10 @@ impl App {
                 let before = self.review.clash_list.len();
                 self.edit(R::LoadClashes(path.clone()))?;
                 let listed = self.review.clash_list.len();
-                Some(json!({ "added": listed - before, "listed": listed }))
+                Some(to_value(ClashesLoaded {
+                    added: listed - before,
+                    listed,
+                }))
             }
             Action::ShowClash(i) => self.apply_view(V::ShowClash(*i))?,
             Action::ExportBcf(path) => self.apply_view(V::ExportBcf(path.clone()))?,
@@ -279,7 +284,9 @@ impl App {
                     Outcome::Part(part) => part,
                     other => unreachable!("undo and redo name a part, not {other:?}"),
                 };
-                Some(json!({ "part_id": part.map(|p| p.0) }))
+                Some(to_value(PartEntry {
+                    part_id: part.map(|p| p.0),
+                }))
             }
             Action::Focus => self.apply_view(V::Focus(None))?,
             Action::FrameAll => self.apply_view(V::FrameAll)?,
@@ -295,9 +302,11 @@ impl App {
             Action::Frames(_) => None,
             Action::Screenshot(path) => self.apply_view(V::Screenshot(path.clone()))?,
             Action::Save(path) => match self.edit(R::Save(path.clone()))? {
-                Outcome::Saved(saved) => {
-                    Some(json!({ "path": saved.path, "format": saved.format }))
-                }
+                Outcome::Saved(saved) => Some(to_value(FileEntry {
+                    path: &saved.path,
+                    topics: None,
+                    format: Some(saved.format),
+                })),
                 other => unreachable!("a save says what it wrote, not {other:?}"),
             },
         })
