@@ -39,7 +39,7 @@ use pointer::PointerDrag;
 use report::FrameTimes;
 use script_run::Runner;
 
-pub(crate) use report::{Summary, clashes_json, selection_json};
+pub(crate) use report::{Summary, clashes_json, selection_json, to_value};
 
 /// Radians of orbit or look per pixel of drag.
 const TURN_PER_PIXEL: f64 = 0.005;

@@ -41,7 +41,7 @@ use dmu_xr::{ControllerInput, Eye, Hand, Placement, Pose, Status, XrOptions, XrS
 use serde::Serialize;
 use serde_json::{Value, json};
 
-use crate::app::{Summary, clashes_json, retint, selection_json};
+use crate::app::{Summary, clashes_json, retint, selection_json, to_value};
 use dmu_viewer::review::Review;
 
 /// How long the runtime may take to start the session (IDLE to READY).
@@ -175,7 +175,7 @@ struct Log {
     haptic_pulses: Vec<Value>,
     events: Vec<Value>,
     /// The clashes the session saw at every recorded step.
-    recorded_steps: Vec<Value>,
+    recorded_steps: Vec<RecordedStep>,
 }
 
 /// How a frame's eyes were drawn.
@@ -199,7 +199,7 @@ struct Timing {
     /// Both eyes' render and GPU wait, ms: drawn per eye, culled once.
     render_ms: [Vec<f64>; 2],
     triangles: [Vec<f64>; 2],
-    frames: Vec<Value>,
+    frames: Vec<XrFrame>,
     late: u64,
     missed_displays: i64,
     last_display_ns: Option<i64>,
@@ -317,15 +317,15 @@ pub fn run(mut review: Review, args: XrArgs, facts: Value) -> anyhow::Result<Val
             if step.last {
                 let mut entry = step_result(&mut log, &review, &hands, step.action);
                 entry["frame"] = json!(frame_no);
-                entry["placement"] = placement_json(&placement);
+                entry["placement"] = to_value(placement_json(&placement));
                 log.steps.push(entry);
             }
         }
         if recorded_lines(&review) > lines_before {
-            log.recorded_steps.push(json!({
-                "frame": frame_no,
-                "clashes": clashes_json(&review.report),
-            }));
+            log.recorded_steps.push(RecordedStep {
+                frame: frame_no,
+                clashes: clashes_json(&review.report),
+            });
         }
         let selected = review.selected.into_iter().collect();
         retint(&mut tints[0], selected, |p, on| {
@@ -509,7 +509,7 @@ pub fn run(mut review: Review, args: XrArgs, facts: Value) -> anyhow::Result<Val
         exit,
     };
     let mut report = facts;
-    let Value::Object(run) = serde_json::to_value(run).expect("report parts are plain data") else {
+    let Value::Object(run) = to_value(run) else {
         unreachable!("a struct serializes as an object");
     };
     for (key, value) in run {
@@ -532,7 +532,7 @@ struct Recording<'a> {
     path: PathBuf,
     lines: u64,
     clearance: f64,
-    steps: &'a [Value],
+    steps: &'a [RecordedStep],
 }
 
 /// A summary per eye.
@@ -583,7 +583,7 @@ struct XrReport<'a> {
     frames_late: u64,
     displays_missed: i64,
     budget: Value,
-    frames: &'a [Value],
+    frames: &'a [XrFrame],
     triangles_drawn: PerEyeAndOnce,
     session_s: f64,
     steps: &'a [Value],
@@ -594,7 +594,7 @@ struct XrReport<'a> {
     events: &'a [Value],
     controllers: Value,
     after: Value,
-    placement: Value,
+    placement: PlacementFacts,
     #[serde(skip_serializing_if = "Option::is_none")]
     eye_fov: Option<[dmu_geom::Fov; 2]>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -685,15 +685,17 @@ fn log_event(log: &mut Log, session: &XrSession, review: &Review, frame: u64, ev
         }
         Event::HardClash { hand, part, other } => {
             let result = session.haptic_pulse(hand, CLASH_PULSE_S, CLASH_PULSE_AMPLITUDE);
-            let pulse = json!({
-                "frame": frame,
-                "hand": hand.as_str(),
-                "part": name(part),
-                "other": name(other),
-                "other_id": other.0,
-                "duration_s": CLASH_PULSE_S,
-                "amplitude": CLASH_PULSE_AMPLITUDE,
-                "result": result.as_ref().map_or_else(|e| e.to_string(), |()| "ok".into()),
+            let pulse = to_value(Pulse {
+                frame,
+                hand: hand.as_str(),
+                part: name(part),
+                other: name(other),
+                other_id: other.0,
+                duration_s: CLASH_PULSE_S,
+                amplitude: CLASH_PULSE_AMPLITUDE,
+                result: result
+                    .as_ref()
+                    .map_or_else(|e| e.to_string(), |()| "ok".into()),
             });
             log.haptic_pulses.push(pulse.clone());
             pulse
@@ -709,12 +711,12 @@ fn step_result(log: &mut Log, review: &Review, hands: &Interaction, action: &XrA
     let mut entry = match action {
         XrAction::Aim(_) => {
             let hover = hands.hover[Hand::Right.index()];
-            json!({
-                "from": hover.map(|h| h.from.to_array()),
-                "hit": hover.is_some(),
-                "part": hover.map(|h| review.scene.part_name(h.part)),
-                "path": hover.map(|h| review.scene.part_path(h.part)),
-                "distance": hover.map(|h| h.distance),
+            to_value(AimFacts {
+                from: hover.map(|h| h.from.to_array()),
+                hit: hover.is_some(),
+                part: hover.map(|h| review.scene.part_name(h.part)),
+                path: hover.map(|h| review.scene.part_path(h.part)),
+                distance: hover.map(|h| h.distance),
             })
         }
         XrAction::Grab(_) => {
@@ -742,12 +744,65 @@ fn step_result(log: &mut Log, review: &Review, hands: &Interaction, action: &XrA
 }
 
 /// Where the tracking space stands.
-fn placement_json(placement: &Placement) -> Value {
-    json!({
-        "origin": placement.origin.to_array(),
-        "heading_deg": placement.heading_rad.to_degrees(),
-        "units_per_metre": placement.units_per_metre,
-    })
+fn placement_json(placement: &Placement) -> PlacementFacts {
+    PlacementFacts {
+        origin: placement.origin.to_array(),
+        heading_deg: placement.heading_rad.to_degrees(),
+        units_per_metre: placement.units_per_metre,
+    }
+}
+
+/// Where the tracking space stands in the model.
+#[derive(Debug, Serialize)]
+struct PlacementFacts {
+    origin: [f64; 3],
+    heading_deg: f64,
+    units_per_metre: f64,
+}
+
+/// A submitted frame's record.
+#[derive(Debug, Serialize)]
+struct XrFrame {
+    frame: u64,
+    frame_ms: f64,
+    render_ms: f64,
+    eye_ms: Option<[f64; 2]>,
+    culled_once: bool,
+    display_period_ms: f64,
+    late: bool,
+    lod_error_px: f64,
+    min_pixels: f64,
+    triangles: u64,
+}
+
+/// A haptic pulse sent for a hard clash.
+#[derive(Debug, Serialize)]
+struct Pulse {
+    frame: u64,
+    hand: &'static str,
+    part: String,
+    other: String,
+    other_id: u32,
+    duration_s: f64,
+    amplitude: f32,
+    result: String,
+}
+
+/// The clashes at a recorded step.
+#[derive(Debug, Serialize)]
+struct RecordedStep {
+    frame: u64,
+    clashes: Value,
+}
+
+/// What the right hand's aim hits.
+#[derive(Debug, Serialize)]
+struct AimFacts<'a> {
+    from: Option<[f64; 3]>,
+    hit: bool,
+    part: Option<&'a str>,
+    path: Option<String>,
+    distance: Option<f64>,
 }
 
 /// Notes a frame's timing: late when it took longer than the display
@@ -778,18 +833,18 @@ fn note_timing(
         t.eye_ms[0].push(eye_ms[0]);
         t.eye_ms[1].push(eye_ms[1]);
     }
-    t.frames.push(json!({
-        "frame": frame,
-        "frame_ms": frame_ms,
-        "render_ms": render_ms,
-        "eye_ms": drawn.eye_ms,
-        "culled_once": drawn.culled_once,
-        "display_period_ms": period_ms,
-        "late": late,
-        "lod_error_px": drawn.knobs[0],
-        "min_pixels": drawn.knobs[1],
-        "triangles": drawn.triangles,
-    }));
+    t.frames.push(XrFrame {
+        frame,
+        frame_ms,
+        render_ms,
+        eye_ms: drawn.eye_ms,
+        culled_once: drawn.culled_once,
+        display_period_ms: period_ms,
+        late,
+        lod_error_px: drawn.knobs[0],
+        min_pixels: drawn.knobs[1],
+        triangles: drawn.triangles,
+    });
 }
 
 /// The eyes as a parallel stereo rig sharing one field of view (what

@@ -369,7 +369,7 @@ pub(super) struct FirstImported {
 }
 
 /// Serializes a report part (plain data: it always serializes).
-pub(super) fn to_value(part: impl Serialize) -> Value {
+pub(crate) fn to_value(part: impl Serialize) -> Value {
     serde_json::to_value(part).expect("report parts are plain data")
 }
 
