@@ -19,7 +19,10 @@ use dmu_store::{
     Viewport,
 };
 use dmu_tree::{EntryId, Tree};
-use serde_json::{Value, json};
+use serde::Serialize;
+use serde_json::Value;
+
+use crate::app::to_value;
 
 /// The coverage threshold under a memory budget unless `--min-pixels` says
 /// otherwise, pixels (box diagonal).
@@ -242,33 +245,65 @@ impl Streaming {
     /// again as the residency's.
     pub fn frame_json(&self, pool: &GeometryPool) -> Value {
         let stats = self.streamer.residency().stats();
-        json!({
-            "resident_bytes": stats.resident_bytes,
-            "reserved_bytes": stats.reserved_bytes,
-            "residency_budget_bytes": self.residency_budget_bytes,
-            "evictions": stats.evictions,
-            "pool_resident_bytes": pool.resident_bytes(),
-            "pool_handed_out_bytes": pool.handed_out_bytes(),
-            "pool_pages": pool.pages(),
-            "pool_stand_ins": self.frames.stand_ins_held(),
+        to_value(FrameMemory {
+            resident_bytes: stats.resident_bytes,
+            reserved_bytes: stats.reserved_bytes,
+            residency_budget_bytes: self.residency_budget_bytes,
+            evictions: stats.evictions,
+            pool_resident_bytes: pool.resident_bytes(),
+            pool_handed_out_bytes: pool.handed_out_bytes(),
+            pool_pages: pool.pages(),
+            pool_stand_ins: self.frames.stand_ins_held(),
         })
     }
 
     /// The report's facts.
     pub fn json(&self) -> Value {
-        let stats = self.streamer.residency().stats();
-        json!({
-            "memory_budget_bytes": self.budget_bytes,
-            "fixed_bytes": self.fixed_bytes,
-            "residency_budget_bytes": self.residency_budget_bytes,
-            "stand_ins": if self.frames.stand_ins() { "box" } else { "none" },
-            "frames": self.frames_drawn,
-            "frames_with_hole": self.frames_with_hole,
-            "frames_with_standin": self.frames_with_standin,
-            "holes": self.holes,
-            "stand_ins_drawn": self.stand_ins_drawn,
-            "residency": stats,
-            "prefetch_rebuilds": self.streamer.prefetch_rebuilds(),
+        to_value(Memory {
+            memory_budget_bytes: self.budget_bytes,
+            fixed_bytes: self.fixed_bytes,
+            residency_budget_bytes: self.residency_budget_bytes,
+            stand_ins: if self.frames.stand_ins() {
+                "box"
+            } else {
+                "none"
+            },
+            frames: self.frames_drawn,
+            frames_with_hole: self.frames_with_hole,
+            frames_with_standin: self.frames_with_standin,
+            holes: self.holes,
+            stand_ins_drawn: self.stand_ins_drawn,
+            residency: self.streamer.residency().stats(),
+            prefetch_rebuilds: self.streamer.prefetch_rebuilds(),
         })
     }
+}
+
+/// A scripted frame's memory facts ([`Streaming::frame_json`]).
+#[derive(Debug, Serialize)]
+struct FrameMemory {
+    resident_bytes: u64,
+    reserved_bytes: u64,
+    residency_budget_bytes: u64,
+    evictions: u64,
+    pool_resident_bytes: u64,
+    pool_handed_out_bytes: u64,
+    pool_pages: usize,
+    pool_stand_ins: usize,
+}
+
+/// The run's memory facts ([`Streaming::json`]).
+#[derive(Debug, Serialize)]
+struct Memory {
+    memory_budget_bytes: u64,
+    fixed_bytes: u64,
+    residency_budget_bytes: u64,
+    stand_ins: &'static str,
+    frames: u64,
+    frames_with_hole: u64,
+    frames_with_standin: u64,
+    holes: u64,
+    stand_ins_drawn: u64,
+    residency: dmu_store::ResidencyStats,
+    prefetch_rebuilds: u64,
 }
