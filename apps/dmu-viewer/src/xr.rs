@@ -39,7 +39,7 @@ use dmu_viewer::xr_input::{CLASH_PULSE_AMPLITUDE, CLASH_PULSE_S, Event, Interact
 use dmu_viewer::xr_script::{Runner, XrAction, XrScript};
 use dmu_xr::{ControllerInput, Eye, Hand, Placement, Pose, Status, XrOptions, XrSession};
 use serde::Serialize;
-use serde_json::{Value, json};
+use serde_json::Value;
 
 use crate::app::{Summary, clashes_json, retint, selection_json, to_value};
 use dmu_viewer::review::Review;
@@ -99,9 +99,9 @@ impl Budget {
 
     fn as_json(self) -> Value {
         match self {
-            Self::Display => json!("display"),
-            Self::Off => json!("off"),
-            Self::Fixed(ms) => json!(ms),
+            Self::Display => Value::from("display"),
+            Self::Off => Value::from("off"),
+            Self::Fixed(ms) => Value::from(ms),
         }
     }
 }
@@ -316,7 +316,7 @@ pub fn run(mut review: Review, args: XrArgs, facts: Value) -> anyhow::Result<Val
             }
             if step.last {
                 let mut entry = step_result(&mut log, &review, &hands, step.action);
-                entry["frame"] = json!(frame_no);
+                entry["frame"] = Value::from(frame_no);
                 entry["placement"] = to_value(placement_json(&placement));
                 log.steps.push(entry);
             }
@@ -646,25 +646,96 @@ fn note_runtime_input(
 /// The runtime's controllers in the report.
 fn controllers_json(session: &XrSession, real: &RuntimeControllers) -> Value {
     let pose = |p: &Option<Pose>| {
-        p.map(|p| {
-            json!({
-                "position": p.position.to_array(),
-                "orientation": p.orientation.to_array(),
-            })
+        p.map(|p| PoseFacts {
+            position: p.position.to_array(),
+            orientation: p.orientation.to_array(),
         })
     };
-    json!({
-        "bindings": session.bindings().iter().map(|b| json!({
-            "profile": b.profile,
-            "accepted": b.error.is_none(),
-            "error": b.error,
-        })).collect::<Vec<_>>(),
-        "synced_frames": real.synced_frames,
-        "driven_frames": real.driven_frames,
-        "profiles": { "left": real.profiles[0], "right": real.profiles[1] },
-        "first_aim": { "left": pose(&real.first_aim[0]), "right": pose(&real.first_aim[1]) },
-        "max_trigger": { "left": real.max_trigger[0], "right": real.max_trigger[1] },
+    to_value(ControllerFacts {
+        bindings: session
+            .bindings()
+            .iter()
+            .map(|b| BindingFacts {
+                profile: b.profile,
+                accepted: b.error.is_none(),
+                error: b.error.as_deref(),
+            })
+            .collect(),
+        synced_frames: real.synced_frames,
+        driven_frames: real.driven_frames,
+        profiles: Hands {
+            left: real.profiles[0].as_deref(),
+            right: real.profiles[1].as_deref(),
+        },
+        first_aim: Hands {
+            left: pose(&real.first_aim[0]),
+            right: pose(&real.first_aim[1]),
+        },
+        max_trigger: Hands {
+            left: real.max_trigger[0],
+            right: real.max_trigger[1],
+        },
     })
+}
+
+/// The runtime's controllers: bindings, frames synced and driven, and per
+/// hand the profile, first aim pose and highest trigger.
+#[derive(Debug, Serialize)]
+struct ControllerFacts<'a> {
+    bindings: Vec<BindingFacts<'a>>,
+    synced_frames: u64,
+    driven_frames: u64,
+    profiles: Hands<Option<&'a str>>,
+    first_aim: Hands<Option<PoseFacts>>,
+    max_trigger: Hands<f32>,
+}
+
+/// An interaction profile's binding: accepted, or the runtime's error.
+#[derive(Debug, Serialize)]
+struct BindingFacts<'a> {
+    profile: &'a str,
+    accepted: bool,
+    error: Option<&'a str>,
+}
+
+/// Something per hand.
+#[derive(Debug, Serialize)]
+struct Hands<T> {
+    left: T,
+    right: T,
+}
+
+/// A pose in the report.
+#[derive(Debug, Serialize)]
+struct PoseFacts {
+    position: [f64; 3],
+    orientation: [f64; 4],
+}
+
+/// A hand's event in the report (a hard clash's is its pulse).
+#[derive(Debug, Serialize)]
+#[serde(tag = "event", rename_all = "lowercase")]
+enum HandEvent {
+    Grab {
+        hand: &'static str,
+        part: String,
+        frame: u64,
+    },
+    Release {
+        hand: &'static str,
+        part: String,
+        offset: [f64; 3],
+        frame: u64,
+    },
+    Undo {
+        part: Option<String>,
+        frame: u64,
+    },
+    Refused {
+        hand: &'static str,
+        reason: String,
+        frame: u64,
+    },
 }
 
 /// Logs a hand's event; a hard clash pulses the grabbing hand's controller.
@@ -673,16 +744,27 @@ fn log_event(log: &mut Log, session: &XrSession, review: &Review, frame: u64, ev
     let entry = match event {
         Event::Grab { hand, part } => {
             log.grabbed_part = Some(review.scene.part_path(part));
-            json!({ "event": "grab", "hand": hand.as_str(), "part": name(part) })
+            to_value(HandEvent::Grab {
+                hand: hand.as_str(),
+                part: name(part),
+                frame,
+            })
         }
-        Event::Release { hand, part, offset } => {
-            json!({ "event": "release", "hand": hand.as_str(), "part": name(part),
-                    "offset": offset.to_array() })
-        }
-        Event::Undo { part } => json!({ "event": "undo", "part": part.map(name) }),
-        Event::Refused { hand, reason } => {
-            json!({ "event": "refused", "hand": hand.as_str(), "reason": reason })
-        }
+        Event::Release { hand, part, offset } => to_value(HandEvent::Release {
+            hand: hand.as_str(),
+            part: name(part),
+            offset: offset.to_array(),
+            frame,
+        }),
+        Event::Undo { part } => to_value(HandEvent::Undo {
+            part: part.map(name),
+            frame,
+        }),
+        Event::Refused { hand, reason } => to_value(HandEvent::Refused {
+            hand: hand.as_str(),
+            reason,
+            frame,
+        }),
         Event::HardClash { hand, part, other } => {
             let result = session.haptic_pulse(hand, CLASH_PULSE_S, CLASH_PULSE_AMPLITUDE);
             let pulse = to_value(Pulse {
@@ -701,8 +783,6 @@ fn log_event(log: &mut Log, session: &XrSession, review: &Review, frame: u64, ev
             pulse
         }
     };
-    let mut entry = entry;
-    entry["frame"] = json!(frame);
     log.events.push(entry);
 }
 
@@ -722,8 +802,8 @@ fn step_result(log: &mut Log, review: &Review, hands: &Interaction, action: &XrA
         XrAction::Grab(_) => {
             let mut facts = selection_json(review);
             // The tree followed every step (the desktop's invariant).
-            facts["tree_valid"] = json!(review.tree.validate_against(&review.scene).is_ok());
-            facts["cells"] = json!(review.tree.cell_count());
+            facts["tree_valid"] = Value::from(review.tree.validate_against(&review.scene).is_ok());
+            facts["cells"] = Value::from(review.tree.cell_count());
             if let Some(offset) = log
                 .events
                 .iter()
@@ -736,9 +816,9 @@ fn step_result(log: &mut Log, review: &Review, hands: &Interaction, action: &XrA
             log.grab = Some(facts.clone());
             facts
         }
-        _ => json!({}),
+        _ => Value::Object(Default::default()),
     };
-    entry["action"] = json!(action.name());
+    entry["action"] = Value::from(action.name());
     entry["clashes_now"] = clashes_json(&review.report);
     entry
 }
@@ -953,19 +1033,33 @@ fn known_points(review: &Review, eyes: &[(dmu_geom::Camera, Eye); 2], size: (u32
                 low = low.min(d);
                 high = high.max(d);
             }
-            points.push(json!({
-                "world": hit.point.to_array(),
-                "distance": hit.point.distance(mid),
-                "part": review.scene.part_name(hit.part),
-                "left_px": [l.0, l.1],
-                "right_px": [r.0, r.1],
-                "disparity_px": l.0 - r.0,
-                "patch_px": k,
-                "patch_disparity_px": [low, high],
-            }));
+            points.push(KnownPoint {
+                world: hit.point.to_array(),
+                distance: hit.point.distance(mid),
+                part: review.scene.part_name(hit.part),
+                left_px: [l.0, l.1],
+                right_px: [r.0, r.1],
+                disparity_px: l.0 - r.0,
+                patch_px: k,
+                patch_disparity_px: [low, high],
+            });
         }
     }
-    json!(points)
+    to_value(points)
+}
+
+/// A point of the model seen by both eyes: where, in which pixel of each,
+/// and the disparity there and over its patch.
+#[derive(Debug, Serialize)]
+struct KnownPoint<'a> {
+    world: [f64; 3],
+    distance: f64,
+    part: &'a str,
+    left_px: [f64; 2],
+    right_px: [f64; 2],
+    disparity_px: f64,
+    patch_px: f64,
+    patch_disparity_px: [f64; 2],
 }
 
 /// Writes the capture's two layers as `left.png` and `right.png` in `dir`.
