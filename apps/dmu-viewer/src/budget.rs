@@ -11,7 +11,7 @@
 
 use std::sync::Arc;
 
-use dmu_app::resident::StandIns;
+use dmu_app::resident::{FrameSource, StreamedFrames};
 use dmu_render::{Camera, GeometryPool};
 use dmu_scene::{ChunkId, Scene};
 use dmu_store::{
@@ -19,7 +19,10 @@ use dmu_store::{
     Viewport,
 };
 use dmu_tree::{EntryId, Tree};
-use serde_json::{Value, json};
+use serde::Serialize;
+use serde_json::Value;
+
+use crate::app::to_value;
 
 /// The coverage threshold under a memory budget unless `--min-pixels` says
 /// otherwise, pixels (box diagonal).
@@ -48,14 +51,13 @@ pub struct Streaming {
     store: Arc<Store>,
     viewport: Viewport,
     min_pixels: f64,
-    stand_ins: bool,
-    /// The chunks whose stand-ins the GPU pool holds.
-    standing: StandIns,
+    /// The GPU pool's side of the streaming: evictions, stand-ins.
+    frames: StreamedFrames,
     budget_bytes: u64,
     residency_budget_bytes: u64,
     fixed_bytes: u64,
     sized: bool,
-    frames: u64,
+    frames_drawn: u64,
     frames_with_hole: u64,
     frames_with_standin: u64,
     holes: u64,
@@ -81,13 +83,12 @@ impl Streaming {
             store,
             viewport,
             min_pixels,
-            stand_ins,
-            standing: StandIns::new(chunks),
+            frames: StreamedFrames::new(chunks, stand_ins),
             budget_bytes,
             residency_budget_bytes: 0,
             fixed_bytes: 0,
             sized: false,
-            frames: 0,
+            frames_drawn: 0,
             frames_with_hole: 0,
             frames_with_standin: 0,
             holes: 0,
@@ -152,14 +153,10 @@ impl Streaming {
         Ok(())
     }
 
-    /// Whether chunks not resident are drawn as their boxes.
-    pub fn stand_ins(&self) -> bool {
-        self.stand_ins
-    }
-
-    /// The residency manager.
-    pub fn residency(&self) -> &dmu_store::Residency {
-        self.streamer.residency()
+    /// The frame's geometry (after [`Streaming::begin_frame`]), stand-ins
+    /// made from `scene`'s chunk boxes.
+    pub fn source<'a>(&'a self, scene: &'a Scene) -> FrameSource<'a> {
+        self.frames.source(self.streamer.residency(), scene)
     }
 
     /// Before a frame: sizes the residency after the first
@@ -180,17 +177,14 @@ impl Streaming {
         // not share out. (The resident set at one moment misses a frame's
         // transient memory: at 500M, sampled before the paint it was 90 MB
         // short, after it up to 110 MB.)
-        if !self.sized && self.frames > 0 {
+        if !self.sized && self.frames_drawn > 0 {
             self.size(tree, dmu_app::progress::peak_rss_bytes().unwrap_or(0))?;
         }
         let residency = self.streamer.residency();
         if let Some(e) = residency.first_error() {
             anyhow::bail!("{e}");
         }
-        for c in residency.take_evicted() {
-            pool.evict(c);
-        }
-        self.standing.release(residency, pool);
+        self.frames.begin(residency, pool);
         let frame = CameraFrame {
             eye: camera.eye,
             target: camera.target,
@@ -213,18 +207,15 @@ impl Streaming {
         drawn: &[Vec<EntryId>],
         not_resident: u64,
     ) {
-        self.standing.note(stood_in);
         let chunk = |e: &EntryId| tree.entries()[e.0 as usize].chunk;
-        let stand_ins = drawn
-            .iter()
-            .flatten()
-            .filter(|e| self.standing.is_standing(chunk(e)))
-            .count() as u64;
-        self.frames += 1;
-        self.holes += not_resident;
-        self.stand_ins_drawn += stand_ins;
-        self.frames_with_hole += u64::from(not_resident > 0);
-        self.frames_with_standin += u64::from(stand_ins > 0);
+        let misses = self
+            .frames
+            .end(stood_in, drawn.iter().flatten().map(chunk), not_resident);
+        self.frames_drawn += 1;
+        self.holes += misses.holes;
+        self.stand_ins_drawn += misses.stand_ins;
+        self.frames_with_hole += u64::from(misses.holes > 0);
+        self.frames_with_standin += u64::from(misses.stand_ins > 0);
         let visible: Vec<ChunkId> = drawn.first().into_iter().flatten().map(chunk).collect();
         self.streamer.drawn(&visible);
     }
@@ -254,33 +245,65 @@ impl Streaming {
     /// again as the residency's.
     pub fn frame_json(&self, pool: &GeometryPool) -> Value {
         let stats = self.streamer.residency().stats();
-        json!({
-            "resident_bytes": stats.resident_bytes,
-            "reserved_bytes": stats.reserved_bytes,
-            "residency_budget_bytes": self.residency_budget_bytes,
-            "evictions": stats.evictions,
-            "pool_resident_bytes": pool.resident_bytes(),
-            "pool_handed_out_bytes": pool.handed_out_bytes(),
-            "pool_pages": pool.pages(),
-            "pool_stand_ins": self.standing.count(),
+        to_value(FrameMemory {
+            resident_bytes: stats.resident_bytes,
+            reserved_bytes: stats.reserved_bytes,
+            residency_budget_bytes: self.residency_budget_bytes,
+            evictions: stats.evictions,
+            pool_resident_bytes: pool.resident_bytes(),
+            pool_handed_out_bytes: pool.handed_out_bytes(),
+            pool_pages: pool.pages(),
+            pool_stand_ins: self.frames.stand_ins_held(),
         })
     }
 
     /// The report's facts.
     pub fn json(&self) -> Value {
-        let stats = self.streamer.residency().stats();
-        json!({
-            "memory_budget_bytes": self.budget_bytes,
-            "fixed_bytes": self.fixed_bytes,
-            "residency_budget_bytes": self.residency_budget_bytes,
-            "stand_ins": if self.stand_ins { "box" } else { "none" },
-            "frames": self.frames,
-            "frames_with_hole": self.frames_with_hole,
-            "frames_with_standin": self.frames_with_standin,
-            "holes": self.holes,
-            "stand_ins_drawn": self.stand_ins_drawn,
-            "residency": stats,
-            "prefetch_rebuilds": self.streamer.prefetch_rebuilds(),
+        to_value(Memory {
+            memory_budget_bytes: self.budget_bytes,
+            fixed_bytes: self.fixed_bytes,
+            residency_budget_bytes: self.residency_budget_bytes,
+            stand_ins: if self.frames.stand_ins() {
+                "box"
+            } else {
+                "none"
+            },
+            frames: self.frames_drawn,
+            frames_with_hole: self.frames_with_hole,
+            frames_with_standin: self.frames_with_standin,
+            holes: self.holes,
+            stand_ins_drawn: self.stand_ins_drawn,
+            residency: self.streamer.residency().stats(),
+            prefetch_rebuilds: self.streamer.prefetch_rebuilds(),
         })
     }
+}
+
+/// A scripted frame's memory facts ([`Streaming::frame_json`]).
+#[derive(Debug, Serialize)]
+struct FrameMemory {
+    resident_bytes: u64,
+    reserved_bytes: u64,
+    residency_budget_bytes: u64,
+    evictions: u64,
+    pool_resident_bytes: u64,
+    pool_handed_out_bytes: u64,
+    pool_pages: usize,
+    pool_stand_ins: usize,
+}
+
+/// The run's memory facts ([`Streaming::json`]).
+#[derive(Debug, Serialize)]
+struct Memory {
+    memory_budget_bytes: u64,
+    fixed_bytes: u64,
+    residency_budget_bytes: u64,
+    stand_ins: &'static str,
+    frames: u64,
+    frames_with_hole: u64,
+    frames_with_standin: u64,
+    holes: u64,
+    stand_ins_drawn: u64,
+    residency: dmu_store::ResidencyStats,
+    prefetch_rebuilds: u64,
 }

@@ -29,7 +29,10 @@ use std::sync::Arc;
 use dmu_app::farfield::{FarAuto, FarFieldSet, FarUse};
 use dmu_render::{FarField, FrameStats, Renderer, RendererOptions};
 use glam::DVec3;
-use serde_json::{Value, json};
+use serde::Serialize;
+use serde_json::Value;
+
+use crate::app::to_value;
 
 use crate::review::Review;
 
@@ -48,7 +51,7 @@ enum NotDrawn {
 
 /// The far-field facts of the last frame, for the stats overlay, the "Why"
 /// section and the report.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct FarReport {
     /// `on` or `auto`.
     pub mode: &'static str,
@@ -68,7 +71,9 @@ pub struct FarReport {
     pub rebuilds: u64,
     /// The last rebuild's capture and meshing time, ms.
     pub last_rebuild_ms: Option<f64>,
-    /// With `auto`: its choice now, in one sentence.
+    /// With `auto`: its choice now, in one sentence (the overlay's, not
+    /// the frame record's).
+    #[serde(skip)]
     pub auto: Option<String>,
 }
 
@@ -98,16 +103,7 @@ impl FarReport {
 
     /// The frame's record in the report.
     pub fn json(&self) -> Value {
-        json!({
-            "mode": self.mode,
-            "drawn": self.drawn,
-            "why": self.why,
-            "triangles": self.triangles,
-            "moved_parts": self.moved_parts,
-            "stale": self.stale,
-            "rebuilds": self.rebuilds,
-            "last_rebuild_ms": self.last_rebuild_ms,
-        })
+        to_value(self)
     }
 }
 
@@ -311,16 +307,30 @@ impl FarFields {
     /// The run's far-field facts for the report.
     pub fn json(&self) -> Value {
         let index = self.set.index();
-        json!({
-            "mode": self.mode.name(),
-            "cells": index.cells.len(),
-            "cell_size": index.cell_size,
-            "resolution": index.resolution,
-            "frames_with_far_field": self.frames_with_far_field,
-            "rebuilds": self.report.rebuilds,
-            "last_rebuild_ms": self.report.last_rebuild_ms,
-            "stale": self.report.stale,
-            "auto_changes": self.auto.changes(),
+        to_value(FarFacts {
+            mode: self.mode.name(),
+            cells: index.cells.len(),
+            cell_size: index.cell_size,
+            resolution: index.resolution,
+            frames_with_far_field: self.frames_with_far_field,
+            rebuilds: self.report.rebuilds,
+            last_rebuild_ms: self.report.last_rebuild_ms,
+            stale: self.report.stale,
+            auto_changes: self.auto.changes(),
         })
     }
+}
+
+/// The run's far-field facts ([`FarFields::json`]).
+#[derive(Debug, Serialize)]
+struct FarFacts<'a> {
+    mode: &'static str,
+    cells: usize,
+    cell_size: f64,
+    resolution: u32,
+    frames_with_far_field: u64,
+    rebuilds: u64,
+    last_rebuild_ms: Option<f64>,
+    stale: u64,
+    auto_changes: &'a [String],
 }

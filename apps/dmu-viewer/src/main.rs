@@ -53,9 +53,10 @@ use anyhow::Context as _;
 use clap::Parser;
 use dmu_app::farfield::{FarFieldSet, FarUse};
 use dmu_viewer::{
-    clashes, gizmo, issues, measure, nav, record, review, script, section, settings, viewpoints,
+    clashes, command, gizmo, issues, measure, nav, record, review, script, section, settings,
+    tools, viewpoints,
 };
-use serde_json::json;
+use serde::Serialize;
 
 /// dmu-viewer: walk, pick, move with live collision, save the review.
 ///
@@ -383,20 +384,25 @@ fn load_review(
         dmu_app::progress::build_proxies(&r.scene, &r.tree, &r.scene, true)
     });
     let b = review.scene.world_bounds();
-    let facts = json!({
-        "model": {
-            "source": review.source,
-            "name": review.scene.name(),
-            "triangles": review.scene.triangle_count(),
-            "parts": review.scene.parts().len(),
-            "load_ms": loaded.load_ms,
-            "tree_ms": tree_ms,
-            "check_index_ms": check_index_ms,
-            "rss_after_open_bytes": rss_after_open,
-            "rss_after_load_bytes": dmu_app::progress::rss_bytes(),
-            "proxies": proxies.as_ref().map(|p| dmu_app::progress::proxies_json(&p.stats())),
-            "cells": review.tree.cell_count(),
-            "bounds": { "min": b.min.to_array(), "max": b.max.to_array() },
+    let facts = app::to_value(Facts {
+        model: ModelFacts {
+            source: review.source.as_deref(),
+            name: review.scene.name(),
+            triangles: review.scene.triangle_count(),
+            parts: review.scene.parts().len(),
+            load_ms: loaded.load_ms,
+            tree_ms,
+            check_index_ms,
+            rss_after_open_bytes: rss_after_open,
+            rss_after_load_bytes: dmu_app::progress::rss_bytes(),
+            proxies: proxies
+                .as_ref()
+                .map(|p| dmu_app::progress::proxies_json(&p.stats())),
+            cells: review.tree.cell_count(),
+            bounds: Bounds {
+                min: b.min.to_array(),
+                max: b.max.to_array(),
+            },
         },
     });
     Ok(launch::Loaded {
@@ -405,6 +411,37 @@ fn load_review(
         proxies,
         far_fields: None,
     })
+}
+
+/// The model and load facts a run's report begins with.
+#[derive(Debug, Serialize)]
+struct Facts<'a> {
+    model: ModelFacts<'a>,
+}
+
+/// The model opened: its source, size, load times and memory, proxies,
+/// cells and world bounds.
+#[derive(Debug, Serialize)]
+struct ModelFacts<'a> {
+    source: Option<&'a std::path::Path>,
+    name: &'a str,
+    triangles: u64,
+    parts: usize,
+    load_ms: f64,
+    tree_ms: f64,
+    check_index_ms: Option<f64>,
+    rss_after_open_bytes: Option<u64>,
+    rss_after_load_bytes: Option<u64>,
+    proxies: Option<serde_json::Value>,
+    cells: usize,
+    bounds: Bounds,
+}
+
+/// A world box in a report.
+#[derive(Debug, Serialize)]
+struct Bounds {
+    min: [f64; 3],
+    max: [f64; 3],
 }
 
 /// With `--far-field on|auto`: the model's store, checked to hold far

@@ -8,7 +8,7 @@ use dmu_scene::{PartId, Scene};
 use dmu_tree::Hit;
 use glam::DVec3;
 use serde::Deserialize;
-use serde_json::{Value, json};
+use serde_json::Value;
 
 use crate::review::Review;
 
@@ -138,43 +138,78 @@ impl Measurement {
 
     /// For the report of an automated run.
     pub fn json(&self, scene: &Scene) -> Value {
-        let point = |s: &Snapped| {
-            json!({
-                "part": scene.part_name(s.part),
-                "part_id": s.part.0,
-                "point": s.point.to_array(),
-                "normal": s.normal.to_array(),
-                "snap": s.snap.name(),
-            })
+        let point = |s: &Snapped| PointFacts {
+            part: scene.part_name(s.part),
+            part_id: s.part.0,
+            point: s.point.to_array(),
+            normal: s.normal.to_array(),
+            snap: s.snap.name(),
         };
-        match self {
-            Self::Points(a, b) => json!({
-                "kind": "points",
-                "a": point(a),
-                "b": point(b),
-                "distance": a.point.distance(b.point),
-                "unit": "model units (mm)",
-            }),
-            Self::Parts(a, b, s) => json!({
-                "kind": "parts",
-                "a": scene.part_name(*a),
-                "b": scene.part_name(*b),
-                "a_id": a.0,
-                "b_id": b.0,
-                "distance": s.distance,
-                "point_a": s.point_a.to_array(),
-                "point_b": s.point_b.to_array(),
-                "penetrating": s.penetrating,
-                "unit": "model units (mm)",
-            }),
-            Self::Angle(a, b) => json!({
-                "kind": "angle",
-                "a": point(a),
-                "b": point(b),
-                "degrees": angle_degrees(a.normal, b.normal),
-            }),
-        }
+        const UNIT: &str = "model units (mm)";
+        let facts = match self {
+            Self::Points(a, b) => MeasurementFacts::Points {
+                a: point(a),
+                b: point(b),
+                distance: a.point.distance(b.point),
+                unit: UNIT,
+            },
+            Self::Parts(a, b, s) => MeasurementFacts::Parts {
+                a: scene.part_name(*a),
+                b: scene.part_name(*b),
+                a_id: a.0,
+                b_id: b.0,
+                distance: s.distance,
+                point_a: s.point_a.to_array(),
+                point_b: s.point_b.to_array(),
+                penetrating: s.penetrating,
+                unit: UNIT,
+            },
+            Self::Angle(a, b) => MeasurementFacts::Angle {
+                a: point(a),
+                b: point(b),
+                degrees: angle_degrees(a.normal, b.normal),
+            },
+        };
+        serde_json::to_value(facts).expect("plain data")
     }
+}
+
+/// A measurement in a report, by kind.
+#[derive(Debug, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "lowercase")]
+enum MeasurementFacts<'a> {
+    Points {
+        a: PointFacts<'a>,
+        b: PointFacts<'a>,
+        distance: f64,
+        unit: &'static str,
+    },
+    Parts {
+        a: &'a str,
+        b: &'a str,
+        a_id: u32,
+        b_id: u32,
+        distance: f64,
+        point_a: [f64; 3],
+        point_b: [f64; 3],
+        penetrating: bool,
+        unit: &'static str,
+    },
+    Angle {
+        a: PointFacts<'a>,
+        b: PointFacts<'a>,
+        degrees: f64,
+    },
+}
+
+/// A snapped point in a report.
+#[derive(Debug, serde::Serialize)]
+struct PointFacts<'a> {
+    part: &'a str,
+    part_id: u32,
+    point: [f64; 3],
+    normal: [f64; 3],
+    snap: &'static str,
 }
 
 /// The angle between two unit normals, degrees (0 to 180).

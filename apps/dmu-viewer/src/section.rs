@@ -133,21 +133,23 @@ impl Section {
     /// For the report of an automated run: the kind, and the planes `(n, d)`
     /// or the box.
     pub fn json(&self) -> serde_json::Value {
-        match self {
-            Self::Off => serde_json::json!({ "kind": "off" }),
-            Self::Planes(p) => serde_json::json!({
-                "kind": "planes",
-                "planes": p
+        let facts = match self {
+            Self::Off => SectionFacts::Off,
+            Self::Planes(p) => SectionFacts::Planes {
+                planes: p
                     .iter()
-                    .map(|pl| serde_json::json!({ "normal": pl.normal.to_array(), "d": pl.d }))
-                    .collect::<Vec<_>>(),
-            }),
-            Self::Box(b) => serde_json::json!({
-                "kind": "box",
-                "min": b.min.to_array(),
-                "max": b.max.to_array(),
-            }),
-        }
+                    .map(|pl| PlaneFacts {
+                        normal: pl.normal.to_array(),
+                        d: pl.d,
+                    })
+                    .collect(),
+            },
+            Self::Box(b) => SectionFacts::Box {
+                min: b.min.to_array(),
+                max: b.max.to_array(),
+            },
+        };
+        serde_json::to_value(facts).expect("plain data")
     }
 
     /// What of `bounds` a section box keeps (all of it for planes, or when
@@ -291,4 +293,20 @@ mod tests {
         assert!(s.add_plane(DVec3::ZERO, DVec3::ZERO).is_err());
         assert!(s.add_plane(DVec3::NAN, DVec3::X).is_err());
     }
+}
+
+/// A section in a report, by kind.
+#[derive(Debug, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "lowercase")]
+enum SectionFacts {
+    Off,
+    Planes { planes: Vec<PlaneFacts> },
+    Box { min: [f64; 3], max: [f64; 3] },
+}
+
+/// A section plane in a report: its normal and offset.
+#[derive(Debug, serde::Serialize)]
+struct PlaneFacts {
+    normal: [f64; 3],
+    d: f64,
 }

@@ -2,18 +2,20 @@
 //! what they draw over the 3D view (the gizmo, section planes and box, the
 //! measurement).
 
+use std::path::PathBuf;
+
+use dmu_collide::FindingKind;
 use dmu_scene::MAX_WORLD_COORDINATE;
 use egui::{Color32, Pos2, Rect, Stroke};
 use glam::{DMat4, DVec2, DVec3};
-use serde_json::{Value, json};
 
+use crate::command::{Command, ReviewCommand as R, ViewCommand as V};
 use crate::gizmo::{Gizmo, HandleKind};
-use crate::measure::{MeasureMode, MeasureTool, Measurement};
+use crate::measure::{MeasureMode, MeasureTool};
 use crate::panes::Pane;
 use crate::review::Review;
 use crate::section::Section;
-use crate::ui::UiState;
-use crate::viewpoints::Viewpoint;
+use crate::tools::Tools;
 
 /// Text fields of the tools panel.
 #[derive(Debug)]
@@ -24,18 +26,6 @@ pub struct ToolFields {
     pub viewpoint_name: String,
     /// Path of the BCF file issues go to and come from.
     pub bcf_path: String,
-    /// The panel asked for this BCF action (the app carries it out: an
-    /// export takes a frame per topic).
-    pub bcf_request: Option<BcfRequest>,
-}
-
-/// A BCF action asked for in the panel.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum BcfRequest {
-    /// Write the clash list and the viewpoints.
-    Export,
-    /// Read topics as viewpoints.
-    Import,
 }
 
 impl Default for ToolFields {
@@ -44,7 +34,6 @@ impl Default for ToolFields {
             clash_report: "collide.json".to_owned(),
             viewpoint_name: "view 1".to_owned(),
             bcf_path: "dmu-review.bcfzip".to_owned(),
-            bcf_request: None,
         }
     }
 }
@@ -54,58 +43,33 @@ const SECTION_COLOUR: Color32 = Color32::from_rgb(255, 140, 60);
 /// Colour of measurements.
 const MEASURE_COLOUR: Color32 = Color32::from_rgb(250, 235, 80);
 
-/// Shows clash `index` of the list in `pane`: its two parts alone, framed,
-/// their closest points measured. Its report entry.
-pub fn show_clash(
-    review: &mut Review,
-    measure: &mut MeasureTool,
-    pane: &mut Pane,
-    index: usize,
-) -> anyhow::Result<Value> {
-    let (a, b, separation) = crate::clashes::show(review, index)?;
-    pane.nav.frame(&crate::clashes::pair_bounds(review, a, b));
-    pane.view.reset_visibility();
-    if let Some(s) = separation {
-        measure.result = Some(Measurement::Parts(a, b, s));
-    }
-    let c = &review.clash_list[index];
-    Ok(json!({
-        "a": review.scene.part_name(a),
-        "b": review.scene.part_name(b),
-        "kind": c.kind,
-        "source": c.source,
-        "distance": separation.map(|s| s.distance),
-        "point_a": separation.map(|s| s.point_a.to_array()),
-        "point_b": separation.map(|s| s.point_b.to_array()),
-    }))
-}
-
-/// Goes back to viewpoint `v` in `pane`.
-pub fn go_to(v: &Viewpoint, review: &mut Review, pane: &mut Pane) {
-    v.apply(&mut pane.nav, review);
-    pane.view.reset_visibility();
-}
-
 /// The tools' sections of the side panel, each collapsible.
-pub fn panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review, pane: &mut Pane) {
+/// The buttons ask for commands (into `commands`).
+pub fn panel(
+    ui: &mut egui::Ui,
+    fields: &mut ToolFields,
+    tools: &Tools,
+    review: &Review,
+    commands: &mut Vec<Command>,
+) {
     ui.separator();
     egui::CollapsingHeader::new("Section")
         .default_open(true)
-        .show(ui, |ui| section_panel(ui, state, review));
+        .show(ui, |ui| section_panel(ui, tools, review, commands));
     egui::CollapsingHeader::new("Measure")
         .default_open(true)
-        .show(ui, |ui| measure_panel(ui, state));
+        .show(ui, |ui| measure_panel(ui, &tools.measure, commands));
     egui::CollapsingHeader::new(format!("Clash list ({})", review.clash_list.len()))
         .id_salt("clash list")
         .default_open(true)
-        .show(ui, |ui| clash_panel(ui, state, review, pane));
-    egui::CollapsingHeader::new(format!("Viewpoints ({})", state.viewpoints.len()))
+        .show(ui, |ui| clash_panel(ui, fields, review, commands));
+    egui::CollapsingHeader::new(format!("Viewpoints ({})", tools.viewpoints.len()))
         .id_salt("viewpoints")
         .default_open(true)
-        .show(ui, |ui| viewpoint_panel(ui, state, review, pane));
+        .show(ui, |ui| viewpoint_panel(ui, fields, tools, commands));
 }
 
-fn section_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) {
+fn section_panel(ui: &mut egui::Ui, tools: &Tools, review: &Review, commands: &mut Vec<Command>) {
     let bounds = review.tree.bounds();
     let centre = review.selected.map_or(bounds.center(), |p| {
         review.scene.part_world_bounds(p).center()
@@ -116,14 +80,19 @@ fn section_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) {
             let add = ui.button(name).on_hover_text(
                 "through the selection's centre (or the model's), keeping the side below",
             );
-            if add.clicked()
-                && let Err(e) = review.section.add_plane(centre, -normal)
-            {
-                state.status = format!("{e:#}");
+            if add.clicked() {
+                let (point, normal) = (centre, -normal);
+                commands.push(R::SectionPlane { point, normal }.into());
             }
         }
-        ui.toggle_value(&mut state.section_on_face, "on face")
-            .on_hover_text("the next click places a plane on the face under it");
+        let mut on_face = tools.section_on_face;
+        if ui
+            .toggle_value(&mut on_face, "on face")
+            .on_hover_text("the next click places a plane on the face under it")
+            .changed()
+        {
+            commands.push(R::SectionOnFace(on_face).into());
+        }
     });
     ui.horizontal(|ui| {
         if ui
@@ -135,16 +104,17 @@ fn section_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) {
                 .selected
                 .map_or(bounds, |p| review.scene.part_world_bounds(p));
             let margin = b.extent() * 0.25 + DVec3::splat(1.0);
-            if let Err(e) = review.section.set_box(b.min - margin, b.max + margin) {
-                state.status = format!("{e:#}");
-            }
+            let (min, max) = (b.min - margin, b.max + margin);
+            commands.push(R::SectionBox { min, max }.into());
         }
         if ui.button("clear").clicked() {
-            review.section = Section::Off;
+            commands.push(R::Section(Section::Off).into());
         }
     });
     let step = (bounds.extent().length() / 500.0).max(1e-3);
-    match &mut review.section {
+    // The fields edit a copy, which a command sets when it differs.
+    let mut section = review.section.clone();
+    match &mut section {
         Section::Off => {
             ui.weak("nothing is cut");
         }
@@ -152,11 +122,7 @@ fn section_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) {
             let mut remove = None;
             for (i, p) in planes.iter_mut().enumerate() {
                 ui.horizontal(|ui| {
-                    ui.label(format!(
-                        "plane {} n {}",
-                        i + 1,
-                        crate::ui::vec_text(p.normal)
-                    ));
+                    ui.label(format!("plane {} n {}", i + 1, vec_text(p.normal)));
                     // d moves the plane along its normal: drag to slide it.
                     ui.add(
                         egui::DragValue::new(&mut p.d)
@@ -172,7 +138,7 @@ fn section_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) {
             if let Some(i) = remove {
                 planes.remove(i);
                 if planes.is_empty() {
-                    review.section = Section::Off;
+                    section = Section::Off;
                 }
             }
         }
@@ -194,35 +160,34 @@ fn section_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) {
             (b.min, b.max) = (lo, hi);
         }
     }
+    if section != review.section {
+        commands.push(R::Section(section).into());
+    }
 }
 
-fn measure_panel(ui: &mut egui::Ui, state: &mut UiState) {
-    let mut mode = state.measure.mode;
+fn measure_panel(ui: &mut egui::Ui, measure: &MeasureTool, commands: &mut Vec<Command>) {
+    let mut mode = measure.mode;
     ui.horizontal(|ui| {
         ui.radio_value(&mut mode, MeasureMode::Off, "off");
         ui.radio_value(&mut mode, MeasureMode::Points, "points");
         ui.radio_value(&mut mode, MeasureMode::Parts, "parts");
         ui.radio_value(&mut mode, MeasureMode::Angle, "angle");
     });
-    if mode != state.measure.mode {
-        state.measure.set_mode(mode);
+    if mode != measure.mode {
+        commands.push(R::MeasureMode(mode).into());
     }
-    match (&state.measure.first, &state.measure.result) {
+    match (&measure.first, &measure.result) {
         (Some(first), _) => {
             ui.weak(format!(
                 "first point on a {} at {}: click the second",
                 first.snap.name(),
-                crate::ui::vec_text(first.point)
+                vec_text(first.point)
             ));
         }
         (None, Some(m)) => {
             ui.label(egui::RichText::new(m.label()).strong());
             let (a, b) = m.ends();
-            ui.weak(format!(
-                "{} to {}",
-                crate::ui::vec_text(a),
-                crate::ui::vec_text(b)
-            ));
+            ui.weak(format!("{} to {}", vec_text(a), vec_text(b)));
         }
         (None, None) if mode != MeasureMode::Off => {
             ui.weak("click two points (vertices and edges snap)");
@@ -231,19 +196,21 @@ fn measure_panel(ui: &mut egui::Ui, state: &mut UiState) {
     }
 }
 
-fn clash_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review, pane: &mut Pane) {
+fn clash_panel(
+    ui: &mut egui::Ui,
+    fields: &mut ToolFields,
+    review: &Review,
+    commands: &mut Vec<Command>,
+) {
     ui.horizontal(|ui| {
-        ui.add(egui::TextEdit::singleline(&mut state.tools.clash_report).desired_width(150.0));
+        ui.add(egui::TextEdit::singleline(&mut fields.clash_report).desired_width(150.0));
         if ui
             .button("load")
             .on_hover_text("add the clashes of a `dmu collide --json` report")
             .clicked()
         {
-            let path = std::path::PathBuf::from(&state.tools.clash_report);
-            state.status = match crate::clashes::load_report(review, &path) {
-                Ok(n) => format!("{n} clashes added from {}", path.display()),
-                Err(e) => format!("{e:#}"),
-            };
+            let path = PathBuf::from(&fields.clash_report);
+            commands.push(R::LoadClashes(path).into());
         }
     });
     if review.clash_list.is_empty() {
@@ -253,7 +220,7 @@ fn clash_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review, pane
     let mut show = None;
     egui::Grid::new("clash list").striped(true).show(ui, |ui| {
         for (i, c) in review.clash_list.iter().enumerate() {
-            ui.colored_label(crate::ui::clash_colour(c.kind), c.kind.as_str())
+            ui.colored_label(clash_colour(c.kind), c.kind.as_str())
                 .on_hover_text(others_text(&c.others));
             let text = format!(
                 "{} · {}",
@@ -267,47 +234,46 @@ fn clash_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review, pane
             ui.end_row();
         }
     });
-    if let Some(i) = show
-        && let Err(e) = show_clash(review, &mut state.measure, pane, i)
-    {
-        state.status = format!("{e:#}");
+    if let Some(i) = show {
+        commands.push(V::ShowClash(i).into());
     }
 }
 
-fn viewpoint_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review, pane: &mut Pane) {
+fn viewpoint_panel(
+    ui: &mut egui::Ui,
+    fields: &mut ToolFields,
+    tools: &Tools,
+    commands: &mut Vec<Command>,
+) {
     ui.horizontal(|ui| {
-        ui.add(egui::TextEdit::singleline(&mut state.tools.viewpoint_name).desired_width(150.0));
+        ui.add(egui::TextEdit::singleline(&mut fields.viewpoint_name).desired_width(150.0));
         if ui.button("save").clicked() {
-            let name = state.tools.viewpoint_name.clone();
-            state.viewpoints.retain(|v| v.name != name);
-            state
-                .viewpoints
-                .push(Viewpoint::capture(&name, &pane.nav, review));
-            state.tools.viewpoint_name = format!("view {}", state.viewpoints.len() + 1);
+            let name = fields.viewpoint_name.clone();
+            let new = !tools.viewpoints.iter().any(|v| v.name == name);
+            let saved = tools.viewpoints.len() + usize::from(new);
+            commands.push(V::SaveViewpoint(name).into());
+            fields.viewpoint_name = format!("view {}", saved + 1);
         }
     });
-    let mut go = None;
-    for (i, v) in state.viewpoints.iter().enumerate() {
+    for v in &tools.viewpoints {
         if ui
             .link(&v.name)
             .on_hover_text(v.section.describe())
             .clicked()
         {
-            go = Some(i);
+            commands.push(V::GoTo(v.name.clone()).into());
         }
-    }
-    if let Some(i) = go {
-        go_to(&state.viewpoints[i], review, pane);
     }
     ui.horizontal(|ui| {
         ui.label("BCF");
-        ui.add(egui::TextEdit::singleline(&mut state.tools.bcf_path).desired_width(130.0));
+        ui.add(egui::TextEdit::singleline(&mut fields.bcf_path).desired_width(130.0));
+        let path = PathBuf::from(&fields.bcf_path);
         if ui
             .button("export")
             .on_hover_text("a topic per listed clash and per viewpoint, each with its snapshot")
             .clicked()
         {
-            state.tools.bcf_request = Some(BcfRequest::Export);
+            commands.push(V::ExportBcf(path.clone()).into());
         }
         if ui
             .button("import")
@@ -316,13 +282,13 @@ fn viewpoint_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review, 
             )
             .clicked()
         {
-            state.tools.bcf_request = Some(BcfRequest::Import);
+            commands.push(V::ImportBcf(path).into());
         }
     });
 }
 
 /// What else a listed pair showed, for the hover text of its kind.
-fn others_text(others: &[dmu_collide::FindingKind]) -> String {
+fn others_text(others: &[FindingKind]) -> String {
     if others.is_empty() {
         return "its only kind of finding".to_owned();
     }
@@ -336,7 +302,7 @@ pub fn paint(
     painter: &egui::Painter,
     rect: Rect,
     ppp: f64,
-    state: &UiState,
+    tools: &Tools,
     review: &Review,
     pane: &Pane,
 ) {
@@ -346,15 +312,15 @@ pub fn paint(
     let camera = pane.nav.camera();
     let clip_from_world = crate::panes::clip_from_world(&pane.nav, rect);
     paint_section(painter, rect, &clip_from_world, review);
-    paint_measurement(painter, rect, &clip_from_world, &state.measure);
-    if let Some(part) = review.selected.filter(|_| state.show_gizmo)
+    paint_measurement(painter, rect, &clip_from_world, &tools.measure);
+    if let Some(part) = review.selected.filter(|_| tools.show_gizmo)
         && let Some(g) = Gizmo::new(
             &camera,
             pane.view.size,
             review.scene.part_world_bounds(part).center(),
         )
     {
-        paint_gizmo(painter, rect, ppp, &g, state.gizmo_hot);
+        paint_gizmo(painter, rect, ppp, &g, tools.gizmo_hot);
     }
 }
 
@@ -470,4 +436,18 @@ fn paint_gizmo(
             }
         }
     }
+}
+
+/// Marker colour of a kind of finding (an impact as a hard clash).
+pub fn clash_colour(kind: impl Into<FindingKind>) -> Color32 {
+    match kind.into() {
+        FindingKind::Hard | FindingKind::Impact => Color32::from_rgb(255, 40, 40),
+        FindingKind::Contact => Color32::from_rgb(255, 200, 0),
+        FindingKind::Soft => Color32::from_rgb(80, 180, 255),
+    }
+}
+
+/// A vector as the panels write it.
+pub(crate) fn vec_text(v: DVec3) -> String {
+    format!("{:.3}, {:.3}, {:.3}", v.x, v.y, v.z)
 }

@@ -4,24 +4,23 @@
 
 use std::path::PathBuf;
 
-use dmu_collide::FindingKind;
 use dmu_render::{Culling, FrameStats};
 use dmu_scene::{NodeId, PartId, Scene};
 use egui::{Color32, Pos2, Rect, RichText, Sense, Vec2};
 use glam::DVec3;
 
+pub use crate::command::ViewPoint;
+use crate::command::{Command, ReviewCommand as R, ViewCommand as V};
 use crate::nav::{Keys, Motion, Navigator, Preset};
 use crate::panes::{MAX_PANES, Pane, PaneKind};
-use crate::record::Recorder;
 use crate::review::Review;
-use crate::script::Axis;
+use crate::script::{Axis, Overlays};
 use crate::settings::Occlusion;
+use crate::tools::Tools;
+use crate::tools_ui::{clash_colour, vec_text};
 
 /// Children listed under one node of the structure tree before "… more".
 const CHILDREN_SHOWN: usize = 500;
-
-/// A point of the 3D view in physical pixels (origin top-left, y down).
-pub type ViewPoint = (f64, f64);
 
 /// A rectangle in window pixels: x, y, width, height.
 pub type RectPx = (u32, u32, u32, u32);
@@ -115,36 +114,13 @@ pub struct UiState {
     pub rotate_deg: f64,
     /// Where the record button records the session.
     record_path: String,
-    /// The axis a primary drag on the selection slides it along (`None`: drags orbit).
-    pub drag_axis: Option<Axis>,
-    /// Drag offsets snap to multiples of this (0: no snapping), model units.
-    pub snap: f64,
-    /// Gizmo turns snap to multiples of this (0: no snapping), degrees.
-    pub snap_deg: f64,
-    /// Show the gizmo on the selection.
-    pub show_gizmo: bool,
-    /// The gizmo handle under the pointer (drawn highlighted).
-    pub gizmo_hot: Option<crate::gizmo::Handle>,
-    /// The next click places a section plane on the face under it.
-    pub section_on_face: bool,
-    /// The measuring tool.
-    pub measure: crate::measure::MeasureTool,
-    /// Saved viewpoints.
-    pub viewpoints: Vec<crate::viewpoints::Viewpoint>,
     /// Panel fields of the review tools.
-    pub tools: crate::tools_ui::ToolFields,
+    pub fields: crate::tools_ui::ToolFields,
     save_path: String,
     /// A message for the status line.
     pub status: String,
     /// Open the structure tree down to this part next frame.
     pub reveal: Option<PartId>,
-    /// Show the stats overlay.
-    pub show_stats: bool,
-    /// Mark clash points on the view.
-    pub show_clashes: bool,
-    /// Draw the review tools over the view (gizmo, section outlines,
-    /// measurement); the gizmo still works when they are hidden.
-    pub show_tools: bool,
 }
 
 impl UiState {
@@ -162,23 +138,24 @@ impl UiState {
             move_by: [0.0; 3],
             rotate_deg: 90.0,
             record_path: "dmu-session.jsonl".to_owned(),
-            drag_axis: None,
-            snap: 10.0,
-            snap_deg: 15.0,
-            show_gizmo: true,
-            gizmo_hot: None,
-            section_on_face: false,
-            measure: Default::default(),
-            viewpoints: Vec::new(),
-            tools: Default::default(),
+            fields: Default::default(),
             save_path,
             status: String::new(),
             reveal: None,
-            show_stats: false,
-            show_clashes: true,
-            show_tools: true,
         }
     }
+}
+
+/// What the panels show and do not change: the review, its tools, the
+/// last frame's counters. The panels change them through commands.
+#[derive(Clone, Copy, Debug)]
+pub struct Shown<'a> {
+    /// The review tools' state.
+    pub tools: &'a Tools,
+    /// The review.
+    pub review: &'a Review,
+    /// The last frame's counters.
+    pub overlay: &'a Overlay,
 }
 
 /// What the 3D panes show this frame.
@@ -194,18 +171,24 @@ pub struct PaneShow<'a> {
     pub drawn_cells: &'a [bool],
 }
 
-/// Lays out one frame of the panels and the 3D panes.
+/// Lays out one frame of the panels and the 3D panes; what the panels'
+/// buttons ask for goes into `commands`.
 pub fn show(
     ui: &mut egui::Ui,
     state: &mut UiState,
-    review: &mut Review,
+    shown: Shown<'_>,
     panes: &mut PaneShow<'_>,
-    overlay: &Overlay,
+    commands: &mut Vec<Command>,
 ) -> ViewInput {
-    top_bar(ui, state, review, panes.panes, panes.active);
+    let Shown {
+        tools,
+        review,
+        overlay,
+    } = shown;
+    top_bar(ui, state, shown, panes, commands);
     egui::Panel::left("structure")
         .default_size(280.0)
-        .show(ui, |ui| structure_panel(ui, state, review));
+        .show(ui, |ui| structure_panel(ui, state, review, commands));
     egui::Panel::right("properties")
         .default_size(320.0)
         .show(ui, |ui| {
@@ -213,9 +196,8 @@ pub fn show(
             ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Wrap);
             egui::ScrollArea::vertical().show(ui, |ui| {
                 why_section(ui, panes.panes, overlay);
-                properties_panel(ui, state, review);
-                let active = panes.active.min(panes.panes.len() - 1);
-                crate::tools_ui::panel(ui, state, review, &mut panes.panes[active]);
+                properties_panel(ui, state, shown, commands);
+                crate::tools_ui::panel(ui, &mut state.fields, tools, review, commands);
             });
         });
     egui::Panel::bottom("status").show(ui, |ui| {
@@ -237,16 +219,16 @@ pub fn show(
         });
     });
     egui::CentralPanel::no_frame()
-        .show(ui, |ui| view_area(ui, state, review, panes, overlay))
+        .show(ui, |ui| view_area(ui, shown, panes))
         .inner
 }
 
 fn top_bar(
     ui: &mut egui::Ui,
     state: &mut UiState,
-    review: &mut Review,
-    panes: &mut Vec<Pane>,
-    active: usize,
+    Shown { tools, review, .. }: Shown<'_>,
+    show: &mut PaneShow<'_>,
+    commands: &mut Vec<Command>,
 ) {
     egui::Panel::top("top").show(ui, |ui| {
         ui.horizontal(|ui| {
@@ -264,15 +246,13 @@ fn top_bar(
                 .clicked()
             {
                 let path = PathBuf::from(state.save_path.trim());
-                state.status = match review.save(&path) {
-                    Ok(saved) => format!("saved {} ({})", saved.path.display(), saved.format),
-                    Err(e) => format!("save failed: {e:#}"),
-                };
+                commands.push(R::Save(path).into());
             }
             ui.separator();
-            record_button(ui, state, review);
+            record_button(ui, state, review, commands);
         });
         ui.horizontal(|ui| {
+            let panes = &mut *show.panes;
             let mut count = panes.len();
             egui::ComboBox::from_label("panes")
                 .selected_text(count.to_string())
@@ -283,16 +263,22 @@ fn top_bar(
                 })
                 .response
                 .on_hover_text("2: + top · 3: + cells of the main view · 4: + front");
-            crate::panes::set_count(panes, count, &review.tree.bounds());
-            let active = active.min(panes.len() - 1);
+            if count != panes.len() {
+                commands.push(V::Panes(count).into());
+            }
+            let active = show.active.min(panes.len() - 1);
             let Pane { nav, view, .. } = &mut panes[active];
+            let mut culling = view.culling;
             egui::ComboBox::from_label("culling")
-                .selected_text(view.culling.name())
+                .selected_text(culling.name())
                 .show_ui(ui, |ui| {
                     for c in Culling::ALL.into_iter().chain([Culling::Auto]) {
-                        ui.selectable_value(&mut view.culling, c, c.name());
+                        ui.selectable_value(&mut culling, c, c.name());
                     }
                 });
+            if culling != view.culling {
+                commands.push(V::Culling(culling).into());
+            }
             let mut occlusion = Occlusion::of(view);
             egui::ComboBox::from_label("occlusion")
                 .selected_text(occlusion.name())
@@ -304,7 +290,7 @@ fn top_bar(
                 .response
                 .on_hover_text("auto: queries only where they save more than they cost");
             if occlusion != Occlusion::of(view) {
-                occlusion.apply(view);
+                commands.push(V::Occlusion(occlusion).into());
             }
             ui.add(
                 egui::DragValue::new(&mut view.options.min_pixels)
@@ -330,8 +316,7 @@ fn top_bar(
             ui.separator();
             for preset in Preset::ALL {
                 if ui.button(preset.name()).clicked() {
-                    nav.preset(preset, &review.tree.bounds());
-                    view.reset_visibility();
+                    commands.push(V::Preset(preset).into());
                 }
             }
             ui.separator();
@@ -342,7 +327,13 @@ fn top_bar(
                     .logarithmic(true)
                     .text("speed"),
             );
-            ui.checkbox(&mut state.show_stats, "stats");
+            let mut stats = tools.show_stats;
+            if ui.checkbox(&mut stats, "stats").changed() {
+                commands.push(overlays(Overlays {
+                    stats: Some(stats),
+                    ..Overlays::default()
+                }));
+            }
         });
     });
 }
@@ -367,10 +358,12 @@ fn memory_text(review: &Review) -> String {
 }
 
 /// Starts or stops recording the session to the typed path.
-fn record_button(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) {
-    if let Some(e) = review.record_error.take() {
-        state.status = e;
-    }
+fn record_button(
+    ui: &mut egui::Ui,
+    state: &mut UiState,
+    review: &Review,
+    commands: &mut Vec<Command>,
+) {
     match &review.recorder {
         Some(rec) => {
             let label = format!("stop recording ({} moves)", rec.lines());
@@ -380,7 +373,7 @@ fn record_button(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) {
                 .clicked()
             {
                 state.status = format!("recorded {}", rec.path().display());
-                review.recorder = None;
+                commands.push(R::Record(None).into());
             }
         }
         None => {
@@ -390,16 +383,19 @@ fn record_button(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) {
                 .on_hover_text("record every move as JSON Lines for `dmu collide --record`")
                 .clicked()
             {
-                match Recorder::create(std::path::Path::new(state.record_path.trim())) {
-                    Ok(rec) => review.recorder = Some(rec),
-                    Err(e) => state.status = format!("record failed: {e:#}"),
-                }
+                let path = PathBuf::from(state.record_path.trim());
+                commands.push(R::Record(Some(path)).into());
             }
         }
     }
 }
 
-fn structure_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) {
+fn structure_panel(
+    ui: &mut egui::Ui,
+    state: &mut UiState,
+    review: &Review,
+    commands: &mut Vec<Command>,
+) {
     ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Truncate);
     ui.heading("Product structure");
     ui.horizontal(|ui| {
@@ -414,7 +410,7 @@ fn structure_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) 
                 let reveal = state.reveal.take().map(|p| ancestors(&review.scene, p));
                 let top: Vec<NodeId> = review.scene.children(NodeId(0)).collect();
                 for child in top {
-                    node_ui(ui, review, child, reveal.as_deref());
+                    node_ui(ui, review, child, reveal.as_deref(), commands);
                 }
             });
         return;
@@ -433,7 +429,7 @@ fn structure_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) 
         .auto_shrink([false, false])
         .show_rows(ui, row, state.matches.len(), |ui, rows| {
             for &part in &state.matches[rows] {
-                part_label(ui, review, part);
+                part_label(ui, review, part, commands);
             }
         });
 }
@@ -449,7 +445,12 @@ fn ancestors(scene: &Scene, part: PartId) -> Vec<NodeId> {
     path
 }
 
-fn part_label(ui: &mut egui::Ui, review: &mut Review, part: PartId) -> egui::Response {
+fn part_label(
+    ui: &mut egui::Ui,
+    review: &Review,
+    part: PartId,
+    commands: &mut Vec<Command>,
+) -> egui::Response {
     let scene = &review.scene;
     let mut text = RichText::new(scene.part_name(part));
     if scene.part(part).hidden {
@@ -457,18 +458,24 @@ fn part_label(ui: &mut egui::Ui, review: &mut Review, part: PartId) -> egui::Res
     }
     let response = ui.selectable_label(review.selected == Some(part), text);
     if response.clicked() {
-        review.select(Some(part));
+        commands.push(R::Select(Some(part)).into());
     }
     response.on_hover_text(review.scene.part_path(part))
 }
 
-fn node_ui(ui: &mut egui::Ui, review: &mut Review, node: NodeId, reveal: Option<&[NodeId]>) {
+fn node_ui(
+    ui: &mut egui::Ui,
+    review: &Review,
+    node: NodeId,
+    reveal: Option<&[NodeId]>,
+    commands: &mut Vec<Command>,
+) {
     let children: Vec<NodeId> = review.scene.children(node).collect();
     let part = review.scene.node(node).part;
     let on_path = reveal.is_some_and(|r| r.contains(&node));
     if children.is_empty() {
         let response = match part {
-            Some(p) => part_label(ui, review, p),
+            Some(p) => part_label(ui, review, p, commands),
             None => ui.label(review.scene.node_name(node)),
         };
         if on_path {
@@ -485,7 +492,7 @@ fn node_ui(ui: &mut egui::Ui, review: &mut Review, node: NodeId, reveal: Option<
     collapsing
         .show_header(ui, |ui| match part {
             Some(p) => {
-                part_label(ui, review, p);
+                part_label(ui, review, p, commands);
             }
             None => {
                 ui.label(format!(
@@ -497,7 +504,7 @@ fn node_ui(ui: &mut egui::Ui, review: &mut Review, node: NodeId, reveal: Option<
         })
         .body(|ui| {
             for &child in children.iter().take(CHILDREN_SHOWN) {
-                node_ui(ui, review, child, reveal);
+                node_ui(ui, review, child, reveal, commands);
             }
             if children.len() > CHILDREN_SHOWN {
                 ui.weak(format!(
@@ -509,14 +516,10 @@ fn node_ui(ui: &mut egui::Ui, review: &mut Review, node: NodeId, reveal: Option<
                     .iter()
                     .find(|c| reveal.is_some_and(|r| r.contains(c)))
                 {
-                    node_ui(ui, review, c, reveal);
+                    node_ui(ui, review, c, reveal, commands);
                 }
             }
         });
-}
-
-pub(crate) fn vec_text(v: DVec3) -> String {
-    format!("{:.3}, {:.3}, {:.3}", v.x, v.y, v.z)
 }
 
 /// "Why": the choices made by measurement in each pane, with the figures
@@ -540,12 +543,29 @@ fn why_section(ui: &mut egui::Ui, panes: &[Pane], overlay: &Overlay) {
         });
 }
 
-fn properties_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review) {
+/// Pushes `command` when `clicked`.
+fn on_click(clicked: bool, commands: &mut Vec<Command>, command: impl Into<Command>) {
+    if clicked {
+        commands.push(command.into());
+    }
+}
+
+/// A command showing or hiding overlays.
+fn overlays(o: Overlays) -> Command {
+    R::Overlays(o).into()
+}
+
+fn properties_panel(
+    ui: &mut egui::Ui,
+    state: &mut UiState,
+    Shown { tools, review, .. }: Shown<'_>,
+    commands: &mut Vec<Command>,
+) {
     ui.vertical(|ui| {
         ui.heading("Selection");
         let Some(part) = review.selected else {
             ui.weak("nothing selected: click a part, or pick one in the structure");
-            history_row(ui, review);
+            history_row(ui, review, commands);
             return;
         };
         let scene = &review.scene;
@@ -579,19 +599,9 @@ fn properties_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review)
                 row("scale", vec_text(scale));
             });
         ui.horizontal(|ui| {
-            if ui.button("hide").clicked() {
-                review.scene.set_part_hidden(part, true);
-            }
-            if ui.button("isolate").clicked() {
-                for p in review.scene.part_ids() {
-                    review.scene.set_part_hidden(p, p != part);
-                }
-            }
-            if ui.button("show all").clicked() {
-                for p in review.scene.part_ids() {
-                    review.scene.set_part_hidden(p, false);
-                }
-            }
+            on_click(ui.button("hide").clicked(), commands, R::Hide(part));
+            on_click(ui.button("isolate").clicked(), commands, R::Isolate(part));
+            on_click(ui.button("show all").clicked(), commands, R::ShowAll);
         });
         ui.separator();
         ui.heading("Move");
@@ -599,11 +609,8 @@ fn properties_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review)
             for (v, name) in state.move_by.iter_mut().zip(["dx ", "dy ", "dz "]) {
                 ui.add(egui::DragValue::new(v).speed(1.0).prefix(name));
             }
-            if ui.button("move").clicked()
-                && let Err(e) = review.translate_selection(DVec3::from_array(state.move_by))
-            {
-                state.status = format!("{e:#}");
-            }
+            let by = DVec3::from_array(state.move_by);
+            on_click(ui.button("move").clicked(), commands, R::Translate(by));
         });
         ui.horizontal(|ui| {
             ui.add(
@@ -613,55 +620,81 @@ fn properties_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review)
             );
             ui.label("about");
             for a in [Axis::X, Axis::Y, Axis::Z] {
-                if ui
+                let clicked = ui
                     .button(a.name())
                     .on_hover_text("turn about this world axis through the box centre")
-                    .clicked()
-                    && let Err(e) = review.rotate_selection(a.unit(), state.rotate_deg)
-                {
-                    state.status = format!("{e:#}");
-                }
+                    .clicked();
+                let (axis, degrees) = (a.unit(), state.rotate_deg);
+                on_click(clicked, commands, R::Rotate { axis, degrees });
             }
         });
         ui.horizontal(|ui| {
             ui.label("drag along");
-            ui.radio_value(&mut state.drag_axis, None, "off");
+            let mut axis = tools.drag_axis;
+            ui.radio_value(&mut axis, None, "off");
             for a in [Axis::X, Axis::Y, Axis::Z] {
-                ui.radio_value(&mut state.drag_axis, Some(a), a.name());
+                ui.radio_value(&mut axis, Some(a), a.name());
+            }
+            if axis != tools.drag_axis {
+                commands.push(R::DragAxis(axis).into());
             }
         });
         ui.horizontal(|ui| {
-            ui.checkbox(&mut state.show_gizmo, "gizmo")
-                .on_hover_text("arrows move along an axis, squares in a plane, rings turn");
+            let mut gizmo = tools.show_gizmo;
+            if ui
+                .checkbox(&mut gizmo, "gizmo")
+                .on_hover_text("arrows move along an axis, squares in a plane, rings turn")
+                .changed()
+            {
+                commands.push(R::ShowGizmo(gizmo).into());
+            }
+            let (mut step, mut degrees) = (tools.snap, tools.snap_deg);
             ui.add(
-                egui::DragValue::new(&mut state.snap)
+                egui::DragValue::new(&mut step)
                     .range(0.0..=*crate::gizmo::Snap::STEPS.end())
                     .prefix("snap ")
                     .suffix(" mm"),
             );
             ui.add(
-                egui::DragValue::new(&mut state.snap_deg)
+                egui::DragValue::new(&mut degrees)
                     .range(0.0..=360.0)
                     .suffix("°"),
             )
             .on_hover_text("turns snap to this angle; hold Shift while dragging to move freely");
+            if (step, degrees) != (tools.snap, tools.snap_deg) {
+                commands.push(
+                    R::Snap {
+                        step: Some(step),
+                        degrees: Some(degrees),
+                    }
+                    .into(),
+                );
+            }
         });
-        history_row(ui, review);
+        history_row(ui, review, commands);
         ui.separator();
         ui.heading("Collision");
         ui.horizontal(|ui| {
-            if ui.checkbox(&mut review.live_collision, "live").changed() {
-                review.check();
+            let mut live = review.live_collision;
+            if ui.checkbox(&mut live, "live").changed() {
+                commands.push(R::LiveCollision(live).into());
             }
-            let clearance = ui.add(
-                egui::DragValue::new(&mut review.settings.clearance)
-                    .range(0.0..=f64::MAX)
-                    .prefix("clearance "),
-            );
-            if clearance.changed() {
-                review.check();
+            let mut clearance = review.settings.clearance;
+            let changed = ui
+                .add(
+                    egui::DragValue::new(&mut clearance)
+                        .range(0.0..=f64::MAX)
+                        .prefix("clearance "),
+                )
+                .changed();
+            on_click(changed, commands, R::Clearance(clearance));
+            let mut markers = tools.show_clashes;
+            if ui.checkbox(&mut markers, "markers").changed() {
+                commands.push(overlays(Overlays {
+                    clashes: Some(markers),
+                    ..Overlays::default()
+                }));
             }
-            ui.checkbox(&mut state.show_clashes, "markers");
         });
         ui.weak(format!(
             "{} clashes · {} part pairs tested · {:.2} ms",
@@ -669,8 +702,7 @@ fn properties_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review)
             review.report.part_pairs_tested,
             review.timings.check_ms
         ));
-        let clashes = review.report.clashes.clone();
-        for clash in clashes {
+        for clash in &review.report.clashes {
             let other = if clash.a == part { clash.b } else { clash.a };
             ui.horizontal(|ui| {
                 ui.colored_label(clash_colour(clash.kind), clash.kind.as_str());
@@ -679,8 +711,7 @@ fn properties_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review)
                     .on_hover_text(review.scene.part_path(other))
                     .clicked()
                 {
-                    review.select(Some(other));
-                    state.reveal = Some(other);
+                    commands.push(V::Reveal(other).into());
                 }
                 ui.weak(format!("{:.3}", clash.distance));
             });
@@ -688,40 +719,23 @@ fn properties_panel(ui: &mut egui::Ui, state: &mut UiState, review: &mut Review)
     });
 }
 
-fn history_row(ui: &mut egui::Ui, review: &mut Review) {
+fn history_row(ui: &mut egui::Ui, review: &Review, commands: &mut Vec<Command>) {
     let (undo, redo) = review.history();
     ui.horizontal(|ui| {
-        if ui
-            .add_enabled(undo > 0, egui::Button::new(format!("undo ({undo})")))
-            .clicked()
-        {
-            review.undo();
-        }
-        if ui
-            .add_enabled(redo > 0, egui::Button::new(format!("redo ({redo})")))
-            .clicked()
-        {
-            review.redo();
-        }
+        let button = |n: usize, name: &str| egui::Button::new(format!("{name} ({n})"));
+        let clicked = ui.add_enabled(undo > 0, button(undo, "undo")).clicked();
+        on_click(clicked, commands, R::Undo);
+        let clicked = ui.add_enabled(redo > 0, button(redo, "redo")).clicked();
+        on_click(clicked, commands, R::Redo);
     });
 }
 
-/// Marker colour of a kind of finding (an impact as a hard clash).
-pub fn clash_colour(kind: impl Into<FindingKind>) -> Color32 {
-    match kind.into() {
-        FindingKind::Hard | FindingKind::Impact => Color32::from_rgb(255, 40, 40),
-        FindingKind::Contact => Color32::from_rgb(255, 200, 0),
-        FindingKind::Soft => Color32::from_rgb(80, 180, 255),
-    }
-}
-
-fn view_area(
-    ui: &mut egui::Ui,
-    state: &UiState,
-    review: &Review,
-    show: &PaneShow<'_>,
-    overlay: &Overlay,
-) -> ViewInput {
+fn view_area(ui: &mut egui::Ui, shown: Shown<'_>, show: &PaneShow<'_>) -> ViewInput {
+    let Shown {
+        tools,
+        review,
+        overlay,
+    } = shown;
     let (area, _) = ui.allocate_exact_size(ui.available_size(), Sense::hover());
     let ppp = f64::from(ui.ctx().pixels_per_point());
     let px = |v: f32| (f64::from(v) * ppp).round().max(0.0) as u32;
@@ -757,11 +771,11 @@ fn view_area(
                 show.drawn_cells,
             );
         }
-        if state.show_clashes {
+        if tools.show_clashes {
             clash_markers(&painter, rect, review, &pane.nav);
         }
-        if state.show_tools {
-            crate::tools_ui::paint(&painter, rect, ppp, state, review, pane);
+        if tools.show_tools {
+            crate::tools_ui::paint(&painter, rect, ppp, tools, review, pane);
         }
         if show.panes.len() > 1 {
             let stroke = if i == show.active {
@@ -778,7 +792,7 @@ fn view_area(
                 Color32::from_gray(220),
             );
         }
-        if state.show_stats && i == show.active {
+        if tools.show_stats && i == show.active {
             stats_overlay(&painter, rect, overlay, review);
         }
     }

@@ -3,7 +3,7 @@
 
 use dmu_scene::PartId;
 use glam::DVec3;
-use serde_json::{Value, json};
+use serde_json::Value;
 
 use crate::nav::Navigator;
 use crate::review::Review;
@@ -72,14 +72,28 @@ impl Viewpoint {
 
     /// For the report of an automated run.
     pub fn json(&self) -> Value {
-        json!({
-            "name": self.name,
-            "eye": self.eye.to_array(),
-            "forward": self.forward.to_array(),
-            "fov_y_deg": self.fov_y_rad.to_degrees(),
-            "selected": self.selected.map(|p| p.0),
-            "hidden": self.hidden.len(),
-            "section": self.section.describe(),
-        })
+        let facts = ViewpointFacts {
+            name: &self.name,
+            eye: self.eye.to_array(),
+            forward: self.forward.to_array(),
+            fov_y_deg: self.fov_y_rad.to_degrees(),
+            selected: self.selected.map(|p| p.0),
+            hidden: self.hidden.len(),
+            section: self.section.describe(),
+        };
+        serde_json::to_value(facts).expect("plain data")
     }
+}
+
+/// A viewpoint in a report: its camera, selection, how many parts it hides
+/// and its section in words.
+#[derive(Debug, serde::Serialize)]
+struct ViewpointFacts<'a> {
+    name: &'a str,
+    eye: [f64; 3],
+    forward: [f64; 3],
+    fov_y_deg: f64,
+    selected: Option<u32>,
+    hidden: usize,
+    section: String,
 }

@@ -33,13 +33,15 @@ use dmu_render::{
     Capture, Culling, CullingOptions, Renderer, RendererOptions, StereoCamera, StereoView, View,
 };
 use dmu_scene::PartId;
+use dmu_viewer::command::ReviewCommand;
 use dmu_viewer::nav::Navigator;
 use dmu_viewer::xr_input::{CLASH_PULSE_AMPLITUDE, CLASH_PULSE_S, Event, Interaction};
 use dmu_viewer::xr_script::{Runner, XrAction, XrScript};
 use dmu_xr::{ControllerInput, Eye, Hand, Placement, Pose, Status, XrOptions, XrSession};
-use serde_json::{Value, json};
+use serde::Serialize;
+use serde_json::Value;
 
-use crate::app::{clashes_json, retint, selection_json, summary};
+use crate::app::{Summary, clashes_json, retint, selection_json, to_value};
 use dmu_viewer::review::Review;
 
 /// How long the runtime may take to start the session (IDLE to READY).
@@ -97,9 +99,9 @@ impl Budget {
 
     fn as_json(self) -> Value {
         match self {
-            Self::Display => json!("display"),
-            Self::Off => json!("off"),
-            Self::Fixed(ms) => json!(ms),
+            Self::Display => Value::from("display"),
+            Self::Off => Value::from("off"),
+            Self::Fixed(ms) => Value::from(ms),
         }
     }
 }
@@ -173,7 +175,7 @@ struct Log {
     haptic_pulses: Vec<Value>,
     events: Vec<Value>,
     /// The clashes the session saw at every recorded step.
-    recorded_steps: Vec<Value>,
+    recorded_steps: Vec<RecordedStep>,
 }
 
 /// How a frame's eyes were drawn.
@@ -197,7 +199,7 @@ struct Timing {
     /// Both eyes' render and GPU wait, ms: drawn per eye, culled once.
     render_ms: [Vec<f64>; 2],
     triangles: [Vec<f64>; 2],
-    frames: Vec<Value>,
+    frames: Vec<XrFrame>,
     late: u64,
     missed_displays: i64,
     last_display_ns: Option<i64>,
@@ -310,20 +312,20 @@ pub fn run(mut review: Review, args: XrArgs, facts: Value) -> anyhow::Result<Val
         }
         if let Some(step) = &scripted {
             if matches!(step.action, XrAction::Redo) {
-                review.redo();
+                hands.apply(&mut review, ReviewCommand::Redo);
             }
             if step.last {
                 let mut entry = step_result(&mut log, &review, &hands, step.action);
-                entry["frame"] = json!(frame_no);
-                entry["placement"] = placement_json(&placement);
+                entry["frame"] = Value::from(frame_no);
+                entry["placement"] = to_value(placement_json(&placement));
                 log.steps.push(entry);
             }
         }
         if recorded_lines(&review) > lines_before {
-            log.recorded_steps.push(json!({
-                "frame": frame_no,
-                "clashes": clashes_json(&review.report),
-            }));
+            log.recorded_steps.push(RecordedStep {
+                frame: frame_no,
+                clashes: clashes_json(&review.report),
+            });
         }
         let selected = review.selected.into_iter().collect();
         retint(&mut tints[0], selected, |p, on| {
@@ -423,80 +425,187 @@ pub fn run(mut review: Review, args: XrArgs, facts: Value) -> anyhow::Result<Val
         );
         last_eyes = Some(cameras);
     };
-    let mut report = facts;
-    if let Some(dir) = &args.save_eyes {
-        save_eyes(&device, &queue, &capture, dir)?;
-        report["eyes_saved"] = json!({
-            "left": dir.join("left.png"),
-            "right": dir.join("right.png"),
-        });
-    }
-    if let Some(rec) = review.recorder.take() {
-        let (path, lines) = (rec.path().to_owned(), rec.lines());
-        rec.finish()?;
-        report["recording"] = json!({
-            "path": path,
-            "lines": lines,
-            "clearance": review.settings.clearance,
-            "steps": log.recorded_steps,
-        });
-    }
-    if let Some(e) = &review.record_error {
-        report["record_error"] = json!(e);
-    }
-    report["runtime"] = json!(session.runtime());
-    report["adapter"] = json!(session.adapter().name);
-    report["max_session_state"] = json!(session.max_state().as_str());
-    report["final_state"] = json!(session.state().as_str());
-    report["frames_submitted"] = json!(session.frames_submitted());
-    report["frames_not_rendered"] = json!(skipped);
-    report["eye_size"] = json!(size);
-    report["recommended_eye_size"] = json!(session.recommended_eye_size());
-    report["eye_frame_ms"] =
-        json!({ "left": summary(&timing.eye_ms[0]), "right": summary(&timing.eye_ms[1]) });
-    report["frame_ms"] = summary(&timing.frame_ms);
-    report["render_ms"] = json!({
-        "per_eye": summary(&timing.render_ms[0]),
-        "culled_once": summary(&timing.render_ms[1]),
-    });
-    report["stereo"] = json!({
-        "mode": args.stereo.as_str(),
-        "frames_culled_once": timing.render_ms[1].len(),
-        "frames_per_eye": timing.render_ms[0].len(),
-        "multiview": renderer.stereo_mode() == dmu_render::StereoMode::Multiview,
-    });
-    report["frames_late"] = json!(timing.late);
-    report["displays_missed"] = json!(timing.missed_displays);
-    report["budget"] = args.budget.as_json();
-    report["frames"] = json!(timing.frames);
-    report["triangles_drawn"] = json!({
-        "per_eye": summary(&timing.triangles[0]),
-        "culled_once": summary(&timing.triangles[1]),
-    });
-    report["session_s"] = json!(started.elapsed().as_secs_f64());
-    report["steps"] = json!(log.steps);
-    report["grabbed_part"] = json!(log.grabbed_part);
-    report["grab"] = json!(log.grab);
-    report["clashes"] = json!(
-        log.grab
+    let eyes_saved = match &args.save_eyes {
+        Some(dir) => {
+            save_eyes(&device, &queue, &capture, dir)?;
+            Some(EyesSaved {
+                left: dir.join("left.png"),
+                right: dir.join("right.png"),
+            })
+        }
+        None => None,
+    };
+    let recording = match review.recorder.take() {
+        Some(rec) => {
+            let (path, lines) = (rec.path().to_owned(), rec.lines());
+            rec.finish()?;
+            Some(Recording {
+                path,
+                lines,
+                clearance: review.settings.clearance,
+                steps: &log.recorded_steps,
+            })
+        }
+        None => None,
+    };
+    let per_eye_and_once = |v: &[Vec<f64>; 2]| PerEyeAndOnce {
+        per_eye: Summary::of(&v[0]),
+        culled_once: Summary::of(&v[1]),
+    };
+    let known_start = Instant::now();
+    let known_points = last_eyes
+        .as_ref()
+        .map(|eyes| known_points(&review, eyes, size));
+    let known_points_ms = known_points
+        .is_some()
+        .then(|| known_start.elapsed().as_secs_f64() * 1e3);
+    let run = XrReport {
+        eyes_saved,
+        recording,
+        record_error: review.record_error.as_deref(),
+        runtime: session.runtime(),
+        adapter: &session.adapter().name,
+        max_session_state: session.max_state().as_str(),
+        final_state: session.state().as_str(),
+        frames_submitted: session.frames_submitted(),
+        frames_not_rendered: skipped,
+        eye_size: size,
+        recommended_eye_size: session.recommended_eye_size(),
+        eye_frame_ms: EyePair {
+            left: Summary::of(&timing.eye_ms[0]),
+            right: Summary::of(&timing.eye_ms[1]),
+        },
+        frame_ms: Summary::of(&timing.frame_ms),
+        render_ms: per_eye_and_once(&timing.render_ms),
+        stereo: StereoFacts {
+            mode: args.stereo.as_str(),
+            frames_culled_once: timing.render_ms[1].len(),
+            frames_per_eye: timing.render_ms[0].len(),
+            multiview: renderer.stereo_mode() == dmu_render::StereoMode::Multiview,
+        },
+        frames_late: timing.late,
+        displays_missed: timing.missed_displays,
+        budget: args.budget.as_json(),
+        frames: &timing.frames,
+        triangles_drawn: per_eye_and_once(&timing.triangles),
+        session_s: started.elapsed().as_secs_f64(),
+        steps: &log.steps,
+        grabbed_part: log.grabbed_part.as_deref(),
+        grab: log.grab.as_ref(),
+        clashes: log
+            .grab
             .as_ref()
-            .and_then(|g| g["clashes"].as_array().map(Vec::len))
-    );
-    report["haptic_pulses"] = json!(log.haptic_pulses);
-    report["events"] = json!(log.events);
-    report["controllers"] = controllers_json(&session, &real);
-    report["after"] = selection_json(&review);
-    report["placement"] = placement_json(&placement);
-    if let Some(eyes) = &last_eyes {
-        report["eye_fov"] = json!(eyes.map(|(_, e)| e.fov));
-        report["eye_positions"] = json!(eyes.map(|(c, _)| c.eye.to_array()));
-        report["ipd_m"] = json!(eyes[0].1.pose.position.distance(eyes[1].1.pose.position));
-        let start = Instant::now();
-        report["known_points"] = known_points(&review, eyes, size);
-        report["known_points_ms"] = json!(start.elapsed().as_secs_f64() * 1e3);
+            .and_then(|g| g["clashes"].as_array().map(Vec::len)),
+        haptic_pulses: &log.haptic_pulses,
+        events: &log.events,
+        controllers: controllers_json(&session, &real),
+        after: selection_json(&review),
+        placement: placement_json(&placement),
+        eye_fov: last_eyes.as_ref().map(|e| [e[0].1.fov, e[1].1.fov]),
+        eye_positions: (last_eyes.as_ref()).map(|e| [e[0].0.eye.to_array(), e[1].0.eye.to_array()]),
+        ipd_m: (last_eyes.as_ref()).map(|e| e[0].1.pose.position.distance(e[1].1.pose.position)),
+        known_points,
+        known_points_ms,
+        exit,
+    };
+    let mut report = facts;
+    let Value::Object(run) = to_value(run) else {
+        unreachable!("a struct serializes as an object");
+    };
+    for (key, value) in run {
+        report[key.as_str()] = value;
     }
-    report["exit"] = json!(exit);
     Ok(report)
+}
+
+/// The eyes' images saved.
+#[derive(Debug, Serialize)]
+struct EyesSaved {
+    left: PathBuf,
+    right: PathBuf,
+}
+
+/// The session's recording: its file, lines, clearance and the clashes at
+/// each step.
+#[derive(Debug, Serialize)]
+struct Recording<'a> {
+    path: PathBuf,
+    lines: u64,
+    clearance: f64,
+    steps: &'a [RecordedStep],
+}
+
+/// A summary per eye.
+#[derive(Debug, Serialize)]
+struct EyePair {
+    left: Summary,
+    right: Summary,
+}
+
+/// A summary of the frames drawn per eye and of those culled once.
+#[derive(Debug, Serialize)]
+struct PerEyeAndOnce {
+    per_eye: Summary,
+    culled_once: Summary,
+}
+
+/// How the eyes were drawn.
+#[derive(Debug, Serialize)]
+struct StereoFacts {
+    mode: &'static str,
+    frames_culled_once: usize,
+    frames_per_eye: usize,
+    multiview: bool,
+}
+
+/// The report of an `--xr` session, beside the model and load facts it
+/// began with (keys absent where there is nothing to say).
+#[derive(Debug, Serialize)]
+struct XrReport<'a> {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    eyes_saved: Option<EyesSaved>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    recording: Option<Recording<'a>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    record_error: Option<&'a str>,
+    runtime: &'a str,
+    adapter: &'a str,
+    max_session_state: &'static str,
+    final_state: &'static str,
+    frames_submitted: u64,
+    frames_not_rendered: u64,
+    eye_size: (u32, u32),
+    recommended_eye_size: (u32, u32),
+    eye_frame_ms: EyePair,
+    frame_ms: Summary,
+    render_ms: PerEyeAndOnce,
+    stereo: StereoFacts,
+    frames_late: u64,
+    displays_missed: i64,
+    budget: Value,
+    frames: &'a [XrFrame],
+    triangles_drawn: PerEyeAndOnce,
+    session_s: f64,
+    steps: &'a [Value],
+    grabbed_part: Option<&'a str>,
+    grab: Option<&'a Value>,
+    clashes: Option<usize>,
+    haptic_pulses: &'a [Value],
+    events: &'a [Value],
+    controllers: Value,
+    after: Value,
+    placement: PlacementFacts,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    eye_fov: Option<[dmu_geom::Fov; 2]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    eye_positions: Option<[[f64; 3]; 2]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ipd_m: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    known_points: Option<Value>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    known_points_ms: Option<f64>,
+    exit: &'static str,
 }
 
 /// The head in the tracking space: the eyes' midpoint, the left eye's
@@ -537,25 +646,96 @@ fn note_runtime_input(
 /// The runtime's controllers in the report.
 fn controllers_json(session: &XrSession, real: &RuntimeControllers) -> Value {
     let pose = |p: &Option<Pose>| {
-        p.map(|p| {
-            json!({
-                "position": p.position.to_array(),
-                "orientation": p.orientation.to_array(),
-            })
+        p.map(|p| PoseFacts {
+            position: p.position.to_array(),
+            orientation: p.orientation.to_array(),
         })
     };
-    json!({
-        "bindings": session.bindings().iter().map(|b| json!({
-            "profile": b.profile,
-            "accepted": b.error.is_none(),
-            "error": b.error,
-        })).collect::<Vec<_>>(),
-        "synced_frames": real.synced_frames,
-        "driven_frames": real.driven_frames,
-        "profiles": { "left": real.profiles[0], "right": real.profiles[1] },
-        "first_aim": { "left": pose(&real.first_aim[0]), "right": pose(&real.first_aim[1]) },
-        "max_trigger": { "left": real.max_trigger[0], "right": real.max_trigger[1] },
+    to_value(ControllerFacts {
+        bindings: session
+            .bindings()
+            .iter()
+            .map(|b| BindingFacts {
+                profile: b.profile,
+                accepted: b.error.is_none(),
+                error: b.error.as_deref(),
+            })
+            .collect(),
+        synced_frames: real.synced_frames,
+        driven_frames: real.driven_frames,
+        profiles: Hands {
+            left: real.profiles[0].as_deref(),
+            right: real.profiles[1].as_deref(),
+        },
+        first_aim: Hands {
+            left: pose(&real.first_aim[0]),
+            right: pose(&real.first_aim[1]),
+        },
+        max_trigger: Hands {
+            left: real.max_trigger[0],
+            right: real.max_trigger[1],
+        },
     })
+}
+
+/// The runtime's controllers: bindings, frames synced and driven, and per
+/// hand the profile, first aim pose and highest trigger.
+#[derive(Debug, Serialize)]
+struct ControllerFacts<'a> {
+    bindings: Vec<BindingFacts<'a>>,
+    synced_frames: u64,
+    driven_frames: u64,
+    profiles: Hands<Option<&'a str>>,
+    first_aim: Hands<Option<PoseFacts>>,
+    max_trigger: Hands<f32>,
+}
+
+/// An interaction profile's binding: accepted, or the runtime's error.
+#[derive(Debug, Serialize)]
+struct BindingFacts<'a> {
+    profile: &'a str,
+    accepted: bool,
+    error: Option<&'a str>,
+}
+
+/// Something per hand.
+#[derive(Debug, Serialize)]
+struct Hands<T> {
+    left: T,
+    right: T,
+}
+
+/// A pose in the report.
+#[derive(Debug, Serialize)]
+struct PoseFacts {
+    position: [f64; 3],
+    orientation: [f64; 4],
+}
+
+/// A hand's event in the report (a hard clash's is its pulse).
+#[derive(Debug, Serialize)]
+#[serde(tag = "event", rename_all = "lowercase")]
+enum HandEvent {
+    Grab {
+        hand: &'static str,
+        part: String,
+        frame: u64,
+    },
+    Release {
+        hand: &'static str,
+        part: String,
+        offset: [f64; 3],
+        frame: u64,
+    },
+    Undo {
+        part: Option<String>,
+        frame: u64,
+    },
+    Refused {
+        hand: &'static str,
+        reason: String,
+        frame: u64,
+    },
 }
 
 /// Logs a hand's event; a hard clash pulses the grabbing hand's controller.
@@ -564,34 +744,45 @@ fn log_event(log: &mut Log, session: &XrSession, review: &Review, frame: u64, ev
     let entry = match event {
         Event::Grab { hand, part } => {
             log.grabbed_part = Some(review.scene.part_path(part));
-            json!({ "event": "grab", "hand": hand.as_str(), "part": name(part) })
+            to_value(HandEvent::Grab {
+                hand: hand.as_str(),
+                part: name(part),
+                frame,
+            })
         }
-        Event::Release { hand, part, offset } => {
-            json!({ "event": "release", "hand": hand.as_str(), "part": name(part),
-                    "offset": offset.to_array() })
-        }
-        Event::Undo { part } => json!({ "event": "undo", "part": part.map(name) }),
-        Event::Refused { hand, reason } => {
-            json!({ "event": "refused", "hand": hand.as_str(), "reason": reason })
-        }
+        Event::Release { hand, part, offset } => to_value(HandEvent::Release {
+            hand: hand.as_str(),
+            part: name(part),
+            offset: offset.to_array(),
+            frame,
+        }),
+        Event::Undo { part } => to_value(HandEvent::Undo {
+            part: part.map(name),
+            frame,
+        }),
+        Event::Refused { hand, reason } => to_value(HandEvent::Refused {
+            hand: hand.as_str(),
+            reason,
+            frame,
+        }),
         Event::HardClash { hand, part, other } => {
             let result = session.haptic_pulse(hand, CLASH_PULSE_S, CLASH_PULSE_AMPLITUDE);
-            let pulse = json!({
-                "frame": frame,
-                "hand": hand.as_str(),
-                "part": name(part),
-                "other": name(other),
-                "other_id": other.0,
-                "duration_s": CLASH_PULSE_S,
-                "amplitude": CLASH_PULSE_AMPLITUDE,
-                "result": result.as_ref().map_or_else(|e| e.to_string(), |()| "ok".into()),
+            let pulse = to_value(Pulse {
+                frame,
+                hand: hand.as_str(),
+                part: name(part),
+                other: name(other),
+                other_id: other.0,
+                duration_s: CLASH_PULSE_S,
+                amplitude: CLASH_PULSE_AMPLITUDE,
+                result: result
+                    .as_ref()
+                    .map_or_else(|e| e.to_string(), |()| "ok".into()),
             });
             log.haptic_pulses.push(pulse.clone());
             pulse
         }
     };
-    let mut entry = entry;
-    entry["frame"] = json!(frame);
     log.events.push(entry);
 }
 
@@ -600,19 +791,19 @@ fn step_result(log: &mut Log, review: &Review, hands: &Interaction, action: &XrA
     let mut entry = match action {
         XrAction::Aim(_) => {
             let hover = hands.hover[Hand::Right.index()];
-            json!({
-                "from": hover.map(|h| h.from.to_array()),
-                "hit": hover.is_some(),
-                "part": hover.map(|h| review.scene.part_name(h.part)),
-                "path": hover.map(|h| review.scene.part_path(h.part)),
-                "distance": hover.map(|h| h.distance),
+            to_value(AimFacts {
+                from: hover.map(|h| h.from.to_array()),
+                hit: hover.is_some(),
+                part: hover.map(|h| review.scene.part_name(h.part)),
+                path: hover.map(|h| review.scene.part_path(h.part)),
+                distance: hover.map(|h| h.distance),
             })
         }
         XrAction::Grab(_) => {
             let mut facts = selection_json(review);
             // The tree followed every step (the desktop's invariant).
-            facts["tree_valid"] = json!(review.tree.validate_against(&review.scene).is_ok());
-            facts["cells"] = json!(review.tree.cell_count());
+            facts["tree_valid"] = Value::from(review.tree.validate_against(&review.scene).is_ok());
+            facts["cells"] = Value::from(review.tree.cell_count());
             if let Some(offset) = log
                 .events
                 .iter()
@@ -625,20 +816,73 @@ fn step_result(log: &mut Log, review: &Review, hands: &Interaction, action: &XrA
             log.grab = Some(facts.clone());
             facts
         }
-        _ => json!({}),
+        _ => Value::Object(Default::default()),
     };
-    entry["action"] = json!(action.name());
+    entry["action"] = Value::from(action.name());
     entry["clashes_now"] = clashes_json(&review.report);
     entry
 }
 
 /// Where the tracking space stands.
-fn placement_json(placement: &Placement) -> Value {
-    json!({
-        "origin": placement.origin.to_array(),
-        "heading_deg": placement.heading_rad.to_degrees(),
-        "units_per_metre": placement.units_per_metre,
-    })
+fn placement_json(placement: &Placement) -> PlacementFacts {
+    PlacementFacts {
+        origin: placement.origin.to_array(),
+        heading_deg: placement.heading_rad.to_degrees(),
+        units_per_metre: placement.units_per_metre,
+    }
+}
+
+/// Where the tracking space stands in the model.
+#[derive(Debug, Serialize)]
+struct PlacementFacts {
+    origin: [f64; 3],
+    heading_deg: f64,
+    units_per_metre: f64,
+}
+
+/// A submitted frame's record.
+#[derive(Debug, Serialize)]
+struct XrFrame {
+    frame: u64,
+    frame_ms: f64,
+    render_ms: f64,
+    eye_ms: Option<[f64; 2]>,
+    culled_once: bool,
+    display_period_ms: f64,
+    late: bool,
+    lod_error_px: f64,
+    min_pixels: f64,
+    triangles: u64,
+}
+
+/// A haptic pulse sent for a hard clash.
+#[derive(Debug, Serialize)]
+struct Pulse {
+    frame: u64,
+    hand: &'static str,
+    part: String,
+    other: String,
+    other_id: u32,
+    duration_s: f64,
+    amplitude: f32,
+    result: String,
+}
+
+/// The clashes at a recorded step.
+#[derive(Debug, Serialize)]
+struct RecordedStep {
+    frame: u64,
+    clashes: Value,
+}
+
+/// What the right hand's aim hits.
+#[derive(Debug, Serialize)]
+struct AimFacts<'a> {
+    from: Option<[f64; 3]>,
+    hit: bool,
+    part: Option<&'a str>,
+    path: Option<String>,
+    distance: Option<f64>,
 }
 
 /// Notes a frame's timing: late when it took longer than the display
@@ -669,18 +913,18 @@ fn note_timing(
         t.eye_ms[0].push(eye_ms[0]);
         t.eye_ms[1].push(eye_ms[1]);
     }
-    t.frames.push(json!({
-        "frame": frame,
-        "frame_ms": frame_ms,
-        "render_ms": render_ms,
-        "eye_ms": drawn.eye_ms,
-        "culled_once": drawn.culled_once,
-        "display_period_ms": period_ms,
-        "late": late,
-        "lod_error_px": drawn.knobs[0],
-        "min_pixels": drawn.knobs[1],
-        "triangles": drawn.triangles,
-    }));
+    t.frames.push(XrFrame {
+        frame,
+        frame_ms,
+        render_ms,
+        eye_ms: drawn.eye_ms,
+        culled_once: drawn.culled_once,
+        display_period_ms: period_ms,
+        late,
+        lod_error_px: drawn.knobs[0],
+        min_pixels: drawn.knobs[1],
+        triangles: drawn.triangles,
+    });
 }
 
 /// The eyes as a parallel stereo rig sharing one field of view (what
@@ -789,19 +1033,33 @@ fn known_points(review: &Review, eyes: &[(dmu_geom::Camera, Eye); 2], size: (u32
                 low = low.min(d);
                 high = high.max(d);
             }
-            points.push(json!({
-                "world": hit.point.to_array(),
-                "distance": hit.point.distance(mid),
-                "part": review.scene.part_name(hit.part),
-                "left_px": [l.0, l.1],
-                "right_px": [r.0, r.1],
-                "disparity_px": l.0 - r.0,
-                "patch_px": k,
-                "patch_disparity_px": [low, high],
-            }));
+            points.push(KnownPoint {
+                world: hit.point.to_array(),
+                distance: hit.point.distance(mid),
+                part: review.scene.part_name(hit.part),
+                left_px: [l.0, l.1],
+                right_px: [r.0, r.1],
+                disparity_px: l.0 - r.0,
+                patch_px: k,
+                patch_disparity_px: [low, high],
+            });
         }
     }
-    json!(points)
+    to_value(points)
+}
+
+/// A point of the model seen by both eyes: where, in which pixel of each,
+/// and the disparity there and over its patch.
+#[derive(Debug, Serialize)]
+struct KnownPoint<'a> {
+    world: [f64; 3],
+    distance: f64,
+    part: &'a str,
+    left_px: [f64; 2],
+    right_px: [f64; 2],
+    disparity_px: f64,
+    patch_px: f64,
+    patch_disparity_px: [f64; 2],
 }
 
 /// Writes the capture's two layers as `left.png` and `right.png` in `dir`.

@@ -6,9 +6,10 @@
 //!   desktop click): that part is hovered (highlighted, named in the report).
 //! - The trigger pressed over a hovered part selects it and grabs it: every
 //!   frame while held, the part follows the hand's world displacement since
-//!   the press through the desktop's drag code (`Review::begin_drag`,
-//!   `drag_to`, `end_drag`), so the tree is updated and collision checked at
-//!   each step; the trigger released ends the drag (one undoable edit).
+//!   the press through the desktop's drag commands (`ReviewCommand::BeginDrag`,
+//!   `DragTo`, `EndDrag`, applied by `command::apply` as the desktop's), so
+//!   the tree is updated and collision checked at each step; the trigger
+//!   released ends the drag (one undoable edit).
 //! - When the grabbed part enters a hard clash, the grabbing hand gets one
 //!   haptic pulse (again only after it has left the hard clash).
 //! - The undo button (either hand) undoes the last edit.
@@ -25,7 +26,9 @@ use dmu_geom::glam::DVec3;
 use dmu_scene::PartId;
 use dmu_xr::{ControllerInput, Hand, Placement, Pose};
 
+use crate::command::{Outcome, ReviewCommand, apply};
 use crate::review::Review;
+use crate::tools::Tools;
 
 /// The trigger counts as pressed from this value on, released below
 /// [`TRIGGER_RELEASE`] (a little hysteresis against a trigger resting near
@@ -119,12 +122,22 @@ pub struct Interaction {
     trigger_down: [bool; 2],
     undo_down: [bool; 2],
     in_hard_clash: bool,
+    /// The tools the hands' commands are applied with.
+    tools: Tools,
 }
 
 impl Interaction {
     /// The hand holding a part, and the part.
     pub fn grabbing(&self) -> Option<(Hand, PartId)> {
         self.grab.map(|g| (g.hand, g.part))
+    }
+
+    /// Applies a command of the hands or an XR script that cannot fail
+    /// (selection, drag start and end, undo, redo): through the one apply,
+    /// as the desktop's.
+    pub fn apply(&mut self, review: &mut Review, command: ReviewCommand) -> Outcome {
+        apply(review, &mut self.tools, command)
+            .expect("selection, drags, undo and redo do not fail")
     }
 
     /// One frame of input: locomotion (moves `placement`), the grabbing
@@ -155,7 +168,7 @@ impl Interaction {
             && let Some(ray) = aim_ray(grab.hand)
         {
             grab.offset = ray.origin - grab.start;
-            if let Err(e) = review.drag_to(grab.offset) {
+            if let Err(e) = apply(review, &mut self.tools, ReviewCommand::DragTo(grab.offset)) {
                 events.push(Event::Refused {
                     hand: grab.hand,
                     reason: format!("{e:#}"),
@@ -202,7 +215,7 @@ impl Interaction {
             self.trigger_down[i] = down;
             match self.grab {
                 Some(g) if g.hand == hand && was && !down => {
-                    review.end_drag();
+                    self.apply(review, ReviewCommand::EndDrag);
                     self.grab = None;
                     self.in_hard_clash = false;
                     events.push(Event::Release {
@@ -213,9 +226,9 @@ impl Interaction {
                 }
                 None if down && !was => {
                     let hover = self.hover[i];
-                    review.select(hover.map(|h| h.part));
+                    self.apply(review, ReviewCommand::Select(hover.map(|h| h.part)));
                     if let (Some(h), Some(ray)) = (hover, aim_ray(hand))
-                        && review.begin_drag()
+                        && self.apply(review, ReviewCommand::BeginDrag) == Outcome::Acted(true)
                     {
                         self.grab = Some(Grab {
                             hand,
@@ -241,9 +254,11 @@ impl Interaction {
                     });
                     self.in_hard_clash = false;
                 }
-                events.push(Event::Undo {
-                    part: review.undo(),
-                });
+                let part = match self.apply(review, ReviewCommand::Undo) {
+                    Outcome::Part(part) => part,
+                    _ => None,
+                };
+                events.push(Event::Undo { part });
             }
         }
         events

@@ -11,7 +11,7 @@ use serde_json::{Value, json};
 use dmu_testkit::image_path;
 
 use crate::support::{Viewport, count_pixels, dmu, dmu_status, srgb, with_viewer};
-use crate::xvfb::{no_overlays, path_str, plant_200k, run_script, step};
+use crate::xvfb::{first_look, no_overlays, path_str, plant_200k, run_script, step};
 
 /// A reported selection's transform.
 fn world(facts: &Value) -> DAffine3 {
@@ -331,6 +331,73 @@ fn measured_distance_equals_dmu_collide_clearance_under_xvfb() {
             last["triangles_drawn"].as_u64().unwrap() <= pair,
             "isolated pair draws {} triangles, the two parts have {pair}",
             last["triangles_drawn"]
+        );
+    });
+}
+
+/// The view commands no other test's script names, each through a script
+/// on the 200k plant: panes, viewpoints saved and gone back to, clicks that
+/// measure and place a section plane on a face, framing, and a BCF file
+/// written and read back. (Every review command goes through the library's
+/// one apply in `command.rs`'s test; the rest of the view commands through
+/// the other scripts here.)
+#[test]
+fn every_view_command_a_script_names_under_xvfb() {
+    with_viewer(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let (_, (x, y), _) = first_look(dir.path(), "viewer-commands");
+        let (x, y) = (f64::from(x), f64::from(y));
+        let bcf = dir.path().join("review.bcfzip");
+        let report = run_script(
+            dir.path(),
+            &json!([
+                no_overlays(),
+                {"pane": 0},
+                {"save_viewpoint": "start"},
+                {"measure": {"mode": "points", "at": [[x, y], [x + 2.0, y]]}},
+                {"section_face": [x, y]},
+                "clear_section",
+                "frame_all",
+                {"export_bcf": bcf},
+                {"import_bcf": bcf},
+                {"view": "top"},
+                {"viewpoint": "start"},
+            ]),
+        );
+        let saved = step(&report, 2, "save_viewpoint");
+        assert_eq!(saved["name"], "start");
+        let measured = step(&report, 3, "measure");
+        let end = |k: &str| -> DVec3 {
+            DVec3::from_array(serde_json::from_value(measured[k]["point"].clone()).unwrap())
+        };
+        let distance = measured["distance"].as_f64().unwrap();
+        assert!(
+            (distance - end("a").distance(end("b"))).abs() <= 1e-9 * distance.max(1.0),
+            "{measured}"
+        );
+        let face = step(&report, 4, "section_face");
+        assert!(
+            face["section"].as_str().unwrap().contains("plane"),
+            "{face}"
+        );
+        step(&report, 5, "clear_section");
+        step(&report, 6, "frame_all");
+        // One topic: the saved viewpoint (nothing moved, so no clash is listed).
+        assert_eq!(step(&report, 7, "export_bcf")["topics"], 1);
+        assert_eq!(report["bcf_export"]["topics"], 1);
+        let imported = step(&report, 8, "import_bcf");
+        assert_eq!(
+            (imported["topics"].as_u64(), imported["viewpoints"].as_u64()),
+            (Some(1), Some(1))
+        );
+        assert_eq!(imported["skipped_topics"], 0);
+        // Back at the saved viewpoint after the top view: the report's camera
+        // is the one saved.
+        let eye = |v: &Value| DVec3::from_array(serde_json::from_value(v["eye"].clone()).unwrap());
+        let (now, then) = (eye(&report["camera"]), eye(saved));
+        assert!(
+            now.distance(then) <= 1e-9 * then.length().max(1.0),
+            "{now} vs {then}"
         );
     });
 }

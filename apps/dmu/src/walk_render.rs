@@ -13,15 +13,15 @@ use anyhow::Context as _;
 pub use dmu_app::farfield::FarUse;
 use dmu_app::farfield::{FarAuto, FarFieldSet};
 use dmu_render::{
-    Camera, Capture, Culling, CullingOptions, FrameStats, GeometrySource, Renderer,
-    RendererOptions, View, headless_device,
+    Camera, Capture, Culling, CullingOptions, FrameStats, Renderer, RendererOptions, View,
+    headless_device,
 };
 use dmu_scene::{ChunkId, Scene};
 use dmu_store::{CameraFrame, Drawn, Store, WalkOptions};
 use dmu_tree::{EntryId, Tree};
 use serde::Serialize;
 
-use crate::resident::{ResidentSource, StandInSource, StandIns};
+use crate::resident::StreamedFrames;
 use dmu_geom::percentile;
 
 /// One mode's frame.
@@ -602,7 +602,7 @@ pub fn run_resident(
     .collect();
     // The predicted views, drawn one after the other into one target.
     let ahead_capture = (!ahead.is_empty()).then(|| Capture::new(&device, ahead_size));
-    let mut stand_ins = StandIns::new(scene.chunks().len());
+    let mut streamed = StreamedFrames::new(scene.chunks().len(), how.stand_ins);
     let mut rendered = Vec::with_capacity(path.len());
     let mut stats_all = Vec::with_capacity(path.len());
     let mut frames = Vec::with_capacity(path.len());
@@ -612,23 +612,12 @@ pub fn run_resident(
         indicatif::ProgressBar::hidden()
     };
     let report = dmu_store::walk_with(store, tree, path, options, &mut |index, _, residency| {
-        for c in residency.take_evicted() {
-            renderer.geometry_pool().evict(c);
-        }
-        stand_ins.release(residency, renderer.geometry_pool());
+        streamed.begin(residency, renderer.geometry_pool());
         // An opening frame (no index) draws the first view, unrecorded.
         let i = index.unwrap_or(0);
         view.camera = camera(&path[i]);
-        let boxed = how.stand_ins.then(|| StandInSource::new(residency, scene));
-        let resident;
-        let source: &dyn GeometrySource = match &boxed {
-            Some(s) => s,
-            None => {
-                resident = ResidentSource::new(residency, scene.chunks().len());
-                &resident
-            }
-        };
-        let stats = renderer.render(&mut view, scene, tree, source, capture.frame_target())?;
+        let source = streamed.source(residency, scene);
+        let stats = renderer.render(&mut view, scene, tree, &source, capture.frame_target())?;
         // The chunks a view drew, one per chunk instance.
         let drawn_chunks = |v: &View| -> Vec<ChunkId> {
             v.drawn_entries()
@@ -651,30 +640,28 @@ pub fn run_resident(
                     predicted.inherit_visibility(&view);
                 }
                 predicted.camera = view.camera.extrapolated(&camera(&path[before]), *steps);
-                renderer.render(predicted, scene, tree, source, target.frame_target())?;
+                renderer.render(predicted, scene, tree, &source, target.frame_target())?;
                 visible.extend(drawn_chunks(predicted));
             }
             ahead_ms = Some(start.elapsed().as_secs_f64() * 1e3);
         }
-        if let Some(boxed) = boxed {
-            stand_ins.note(boxed.stood_in());
-        }
-        let boxes = visible[..drawn]
-            .iter()
-            .filter(|&&c| stand_ins.is_standing(c))
-            .count() as u64;
+        let misses = streamed.end(
+            source.stood_in(),
+            visible[..drawn].iter().copied(),
+            stats.not_resident,
+        );
         if index.is_some() {
             rendered.push(mode_frame(&stats, None));
             frames.push(ResidentFrame {
-                holes: stats.not_resident,
-                stand_ins: boxes,
+                holes: misses.holes,
+                stand_ins: misses.stand_ins,
                 ahead_ms,
             });
             stats_all.push(stats);
             progress.inc(1);
         }
         Ok(Drawn {
-            missing_chunks: stats.not_resident + boxes,
+            missing_chunks: misses.holes + misses.stand_ins,
             visible,
             pins: Vec::new(),
         })

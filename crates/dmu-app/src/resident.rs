@@ -219,6 +219,128 @@ impl StandIns {
     }
 }
 
+/// The per-frame streaming work between a residency manager and a renderer,
+/// written once for every program that draws a store within a budget (the
+/// viewer, `dmu walk --render`, and the XR session when it streams): before
+/// a frame the GPU pool drops what the residency evicted and the stand-ins
+/// of chunks now resident ([`StreamedFrames::begin`]); the frame draws
+/// through one [`FrameSource`] ([`StreamedFrames::source`]), boxes or holes
+/// for what is missing as the program chose; after it the new stand-ins are
+/// kept and the frame's misses counted ([`StreamedFrames::end`]).
+#[derive(Debug)]
+pub struct StreamedFrames {
+    /// A chunk not resident is drawn as its box (else it is a hole).
+    stand_ins: bool,
+    standing: StandIns,
+}
+
+/// What a streamed frame's views lacked.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FrameMisses {
+    /// Chunk instances not drawn for want of geometry.
+    pub holes: u64,
+    /// Chunk instances drawn as their boxes.
+    pub stand_ins: u64,
+}
+
+/// One streamed frame's geometry: a [`StandInSource`] with stand-ins, else a
+/// [`ResidentSource`] (a table per chunk, made per frame).
+#[derive(Debug)]
+pub enum FrameSource<'a> {
+    /// Chunks not resident answer with their boxes.
+    StandIns(StandInSource<'a>),
+    /// Chunks not resident are holes.
+    Resident(ResidentSource<'a>),
+}
+
+impl FrameSource<'_> {
+    /// The chunks given a stand-in in this frame (none without stand-ins),
+    /// for [`StreamedFrames::end`].
+    pub fn stood_in(self) -> Vec<ChunkId> {
+        match self {
+            Self::StandIns(s) => s.stood_in(),
+            Self::Resident(_) => Vec::new(),
+        }
+    }
+}
+
+impl GeometrySource for FrameSource<'_> {
+    fn chunk_geometry(&self, chunk: ChunkId) -> Option<ChunkGeometry<'_>> {
+        match self {
+            Self::StandIns(s) => s.chunk_geometry(chunk),
+            Self::Resident(r) => r.chunk_geometry(chunk),
+        }
+    }
+
+    fn has(&self, chunk: ChunkId) -> bool {
+        match self {
+            Self::StandIns(s) => s.has(chunk),
+            Self::Resident(r) => r.has(chunk),
+        }
+    }
+}
+
+impl StreamedFrames {
+    /// Nothing streamed yet into a pool for a scene of `chunks` chunks;
+    /// `stand_ins`: draw a chunk not resident as its box.
+    pub fn new(chunks: usize, stand_ins: bool) -> Self {
+        Self {
+            stand_ins,
+            standing: StandIns::new(chunks),
+        }
+    }
+
+    /// Whether chunks not resident are drawn as their boxes.
+    pub fn stand_ins(&self) -> bool {
+        self.stand_ins
+    }
+
+    /// Before a frame: drops from `pool` the chunks `residency` evicted and
+    /// the stand-ins of chunks it now holds (the invariant a residency's
+    /// callers keep, ARCHITECTURE.md).
+    pub fn begin(&mut self, residency: &Residency, pool: &mut GeometryPool) {
+        for c in residency.take_evicted() {
+            pool.evict(c);
+        }
+        self.standing.release(residency, pool);
+    }
+
+    /// The frame's geometry from `residency`, stand-ins made from `scene`'s
+    /// chunk boxes; every view of the frame draws through it.
+    pub fn source<'a>(&self, residency: &'a Residency, scene: &'a Scene) -> FrameSource<'a> {
+        if self.stand_ins {
+            FrameSource::StandIns(StandInSource::new(residency, scene))
+        } else {
+            FrameSource::Resident(ResidentSource::new(residency, scene.chunks().len()))
+        }
+    }
+
+    /// After a frame: `stood_in` got stand-ins in the pool
+    /// ([`FrameSource::stood_in`]), `drawn` are the chunks of the drawn
+    /// chunk instances the misses are counted over and `not_resident` the
+    /// draws that had nothing to draw.
+    pub fn end(
+        &mut self,
+        stood_in: Vec<ChunkId>,
+        drawn: impl IntoIterator<Item = ChunkId>,
+        not_resident: u64,
+    ) -> FrameMisses {
+        self.standing.note(stood_in);
+        FrameMisses {
+            holes: not_resident,
+            stand_ins: drawn
+                .into_iter()
+                .filter(|&c| self.standing.is_standing(c))
+                .count() as u64,
+        }
+    }
+
+    /// How many stand-ins the pool holds.
+    pub fn stand_ins_held(&self) -> usize {
+        self.standing.count()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
