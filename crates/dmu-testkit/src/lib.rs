@@ -2,16 +2,16 @@
 //! here, once.
 //!
 //! Design choices:
-//! - A test states what it needs ([`require`], [`with_data`], [`with_gpu`],
-//!   [`GpuTest`]) and gets it as an argument; the harness owns the decision,
-//!   so no test body carries its own early return.
+//! - A test states what it needs ([`require`], [`with_data`], and with the
+//!   `gpu` feature `with_gpu` and `GpuTest`) and gets it as an argument; the
+//!   harness owns the decision, so no test body carries its own early return.
 //! - A missing prerequisite prints `SKIPPED <test>: <reason>` on a developer's
 //!   machine and fails under `CI=true`, where scripts/test.sh installs lavapipe,
 //!   Xvfb and the test data: a CI run that skipped would hide a broken setup.
-//! - One device per test binary ([`gpu`]): opening a device costs more than
+//! - One device per test binary (`gpu()`): opening a device costs more than
 //!   most tests, and wgpu devices are shared across threads by design.
 //! - What a test expects of an adapter is declared beside it
-//!   ([`GpuTest::fails_on`]), as wgpu's test harness does, so a known driver
+//!   (`GpuTest::fails_on`), as wgpu's test harness does, so a known driver
 //!   bug is a visible line in the output, not a silent pass or a red run.
 //!
 //! ```
