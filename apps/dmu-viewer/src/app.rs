@@ -1,6 +1,6 @@
 //! The application: winit's event loop driving one frame at a time (script
-//! step, panels, commands applied, navigation, 3D render, egui paint,
-//! present). Its parts: `apply` (where commands take effect), `pointer`
+//! step, panels, commands applied (the pointer's and keys' too), 3D render,
+//! egui paint, present). Its parts: `apply` (where commands take effect), `pointer`
 //! (drags), `script_run` (a script's actions as commands), `export` (BCF
 //! files), `report` (the JSON report of an automated run).
 

@@ -442,6 +442,38 @@ mod tests {
         }
     }
 
+    /// A slide moves the origin by its offset; a heading keeps its `about`
+    /// point where it was in the world (about the tracking space's origin,
+    /// as a script's `look` turns, the origin stays bit for bit).
+    #[test]
+    fn move_space_slides_and_turns_about_a_point() {
+        let (_, mut placement) = setup();
+        let (start, by) = (placement, DVec3::new(1.0, 2.0, 0.0));
+        move_space(&mut placement, Locomotion::Slide(by));
+        assert_eq!(placement.origin, start.origin + by);
+        let about = DVec3::new(0.3, 1.6, -0.2);
+        let fixed = placement.point(about);
+        move_space(
+            &mut placement,
+            Locomotion::Heading {
+                radians: 1.0,
+                about,
+            },
+        );
+        assert_eq!(placement.heading_rad, 1.0);
+        assert!((placement.point(about) - fixed).length() < 1e-12);
+        let origin = placement.origin;
+        let about = DVec3::ZERO;
+        move_space(
+            &mut placement,
+            Locomotion::Heading {
+                radians: -0.5,
+                about,
+            },
+        );
+        assert_eq!((placement.origin, placement.heading_rad), (origin, -0.5));
+    }
+
     /// Locomotion: full forward for 1 s walks MOVE_M_PER_S metres along the
     /// head's horizontal forward; a full right turn for 1 s turns
     /// TURN_DEG_PER_S clockwise about the head, which stays where it was.
