@@ -1,6 +1,6 @@
 //! The application: winit's event loop driving one frame at a time (script
-//! step, panels, commands applied, navigation, 3D render, egui paint,
-//! present). Its parts: `apply` (where commands take effect), `pointer`
+//! step, panels, commands applied (the pointer's and keys' too), 3D render,
+//! egui paint, present). Its parts: `apply` (where commands take effect), `pointer`
 //! (drags), `script_run` (a script's actions as commands), `export` (BCF
 //! files), `report` (the JSON report of an automated run).
 
@@ -453,7 +453,7 @@ impl App {
             let (ui_state, tools, review) = (&mut self.ui, &self.tools, &self.review);
             let overlay = &self.overlay;
             let mut panes = PaneShow {
-                panes: &mut self.panes,
+                panes: &self.panes,
                 active: self.active,
                 textures: &textures,
                 drawn_cells: &self.drawn_cells,
@@ -468,7 +468,6 @@ impl App {
                 };
                 input = crate::ui::show(ui, ui_state, shown, &mut panes, &mut commands);
             });
-            self.active = self.active.min(self.panes.len() - 1);
             egui_state
                 .handle_platform_output(&gfx.window, std::mem::take(&mut output.platform_output));
             let repaint_now = output

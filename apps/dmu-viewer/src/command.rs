@@ -14,7 +14,7 @@ use dmu_scene::PartId;
 use glam::{DAffine3, DVec3};
 
 use crate::measure::{MeasureMode, Measurement};
-use crate::nav::Preset;
+use crate::nav::{Keys, Motion, Preset};
 use crate::record::Recorder;
 use crate::review::{Review, Saved};
 use crate::script::{Axis, Overlays};
@@ -118,8 +118,8 @@ pub enum ReviewCommand {
     SaveViewpoint(Viewpoint),
 }
 
-/// An action on the view: the active pane, its camera, the pointer, and
-/// what takes frames (snapshots, screenshots).
+/// An action on the view: the active pane, its camera and its settings, the
+/// pointer, and what takes frames (snapshots, screenshots).
 #[derive(Clone, Debug, PartialEq)]
 pub enum ViewCommand {
     /// Picks at a point of the active pane: selects what is hit.
@@ -172,6 +172,37 @@ pub enum ViewCommand {
         /// Where it looks.
         forward: DVec3,
     },
+    /// Turns the active pane's view direction about its eye (mouse look)
+    /// for a drag of this many pixels.
+    Look(ViewPoint),
+    /// Slides the active pane's eye and pivot in the screen plane: the pivot
+    /// follows a drag of this many pixels.
+    Pan(ViewPoint),
+    /// Moves the active pane's eye toward the point under the pointer (or
+    /// the pivot, over nothing), for a wheel turn.
+    Zoom {
+        /// The wheel's turn, points (positive: toward the scene).
+        wheel: f64,
+        /// Where the pointer is, in the active pane.
+        at: ViewPoint,
+    },
+    /// Walks or flies the active pane's eye for held keys.
+    Walk {
+        /// Which way the keys push.
+        keys: Keys,
+        /// For how long, seconds.
+        dt: f64,
+    },
+    /// Whether the active pane's keys walk or fly.
+    Motion(Motion),
+    /// The active pane's speed factor.
+    Speed(f64),
+    /// The active pane's coverage threshold: cells covering fewer pixels
+    /// across are not drawn.
+    MinPixels(f64),
+    /// The pixels of error the active pane's simplified levels may show (0:
+    /// exact).
+    LodErrorPx(f64),
     /// Sets how many panes there are.
     Panes(usize),
     /// Makes a pane the active one.

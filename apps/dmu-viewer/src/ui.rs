@@ -161,8 +161,9 @@ pub struct Shown<'a> {
 /// What the 3D panes show this frame.
 #[derive(Debug)]
 pub struct PaneShow<'a> {
-    /// The panes (1 to [`MAX_PANES`]); the top bar can add or remove some.
-    pub panes: &'a mut Vec<Pane>,
+    /// The panes (1 to [`MAX_PANES`]); the panels read them, commands
+    /// change them.
+    pub panes: &'a [Pane],
     /// The pane keys and settings act on.
     pub active: usize,
     /// The egui texture of each pane's image.
@@ -252,7 +253,7 @@ fn top_bar(
             record_button(ui, state, review, commands);
         });
         ui.horizontal(|ui| {
-            let panes = &mut *show.panes;
+            let panes = show.panes;
             let mut count = panes.len();
             egui::ComboBox::from_label("panes")
                 .selected_text(count.to_string())
@@ -267,7 +268,7 @@ fn top_bar(
                 commands.push(V::Panes(count).into());
             }
             let active = show.active.min(panes.len() - 1);
-            let Pane { nav, view, .. } = &mut panes[active];
+            let Pane { nav, view, .. } = &panes[active];
             let mut culling = view.culling;
             egui::ComboBox::from_label("culling")
                 .selected_text(culling.name())
@@ -292,15 +293,20 @@ fn top_bar(
             if occlusion != Occlusion::of(view) {
                 commands.push(V::Occlusion(occlusion).into());
             }
+            let (mut min_pixels, mut lod_error_px) =
+                (view.options.min_pixels, view.options.lod_error_px);
             ui.add(
-                egui::DragValue::new(&mut view.options.min_pixels)
+                egui::DragValue::new(&mut min_pixels)
                     .range(0.0..=64.0)
                     .speed(0.1)
                     .prefix("min px "),
             )
             .on_hover_text("cells covering fewer pixels across are not drawn");
+            if min_pixels != view.options.min_pixels {
+                commands.push(V::MinPixels(min_pixels).into());
+            }
             ui.add(
-                egui::DragValue::new(&mut view.options.lod_error_px)
+                egui::DragValue::new(&mut lod_error_px)
                     .range(0.0..=16.0)
                     .speed(0.05)
                     .prefix("LOD px "),
@@ -309,6 +315,9 @@ fn top_bar(
                 "chunks are drawn simplified where the difference is at most this many \
                  pixels (0: exact)",
             );
+            if lod_error_px != view.options.lod_error_px {
+                commands.push(V::LodErrorPx(lod_error_px).into());
+            }
             match &state.memory {
                 Some(text) => ui.label(text).on_hover_text(BUDGET_HOVER),
                 None => ui.label(memory_text(review)).on_hover_text(MEMORY_HOVER),
@@ -320,13 +329,20 @@ fn top_bar(
                 }
             }
             ui.separator();
-            ui.selectable_value(&mut nav.motion, Motion::Walk, "walk");
-            ui.selectable_value(&mut nav.motion, Motion::Fly, "fly");
+            let (mut motion, mut speed) = (nav.motion, nav.speed_factor);
+            ui.selectable_value(&mut motion, Motion::Walk, "walk");
+            ui.selectable_value(&mut motion, Motion::Fly, "fly");
+            if motion != nav.motion {
+                commands.push(V::Motion(motion).into());
+            }
             ui.add(
-                egui::Slider::new(&mut nav.speed_factor, 0.01..=100.0)
+                egui::Slider::new(&mut speed, 0.01..=100.0)
                     .logarithmic(true)
                     .text("speed"),
             );
+            if speed != nav.speed_factor {
+                commands.push(V::Speed(speed).into());
+            }
             let mut stats = tools.show_stats;
             if ui.checkbox(&mut stats, "stats").changed() {
                 commands.push(overlays(Overlays {

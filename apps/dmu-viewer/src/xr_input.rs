@@ -15,7 +15,8 @@
 //! - The undo button (either hand) undoes the last edit.
 //! - Locomotion: the left thumbstick moves the tracking space over the
 //!   floor (along where the head faces), the right thumbstick's x turns it
-//!   about the head.
+//!   about the head; each is a [`Locomotion`] applied by [`move_space`], as
+//!   an XR script's `look` is.
 //!
 //! Buttons act on their edges (pressed this frame, not the last), so a held
 //! button acts once.
@@ -277,6 +278,34 @@ fn deflection(v: f32) -> f64 {
     }
 }
 
+/// A move of the tracking space over the world: what the thumbsticks and
+/// an XR script's `look` emit, applied by [`move_space`] alone.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Locomotion {
+    /// Slides the space by a world offset.
+    Slide(DVec3),
+    /// Turns the space to a heading about Z, radians, keeping the
+    /// tracking-space point `about` where it is in the world.
+    Heading {
+        /// The new heading.
+        radians: f64,
+        /// The tracking-space point that stays put.
+        about: DVec3,
+    },
+}
+
+/// Applies a [`Locomotion`] to the tracking space's placement.
+pub fn move_space(placement: &mut Placement, command: Locomotion) {
+    match command {
+        Locomotion::Slide(by) => placement.origin += by,
+        Locomotion::Heading { radians, about } => {
+            let before = placement.point(about);
+            placement.heading_rad = radians;
+            placement.origin += before - placement.point(about);
+        }
+    }
+}
+
 /// Moves the tracking space: the left stick walks over the floor (y along
 /// the head's horizontal forward, x to its right), the right stick's x
 /// turns about the head (right: clockwise seen from above).
@@ -290,13 +319,13 @@ fn locomote(input: &ControllerInput, head: &Pose, placement: &mut Placement, dt_
         };
         let step = (flat(DVec3::NEG_Z) * my + flat(DVec3::X) * mx)
             * (MOVE_M_PER_S * dt * placement.units_per_metre);
-        placement.origin += step;
+        move_space(placement, Locomotion::Slide(step));
     }
     let turn = deflection(input.hands[Hand::Right.index()].thumbstick[0]);
     if turn != 0.0 {
-        let before = placement.point(head.position);
-        placement.heading_rad -= (TURN_DEG_PER_S * dt).to_radians() * turn;
-        placement.origin += before - placement.point(head.position);
+        let radians = placement.heading_rad - (TURN_DEG_PER_S * dt).to_radians() * turn;
+        let about = head.position;
+        move_space(placement, Locomotion::Heading { radians, about });
     }
 }
 
@@ -411,6 +440,38 @@ mod tests {
             hands.handle(&input, None, &mut placement, &mut review, 0.01);
             assert_eq!(hands.grabbing().is_some(), grabbing, "trigger {t}");
         }
+    }
+
+    /// A slide moves the origin by its offset; a heading keeps its `about`
+    /// point where it was in the world (about the tracking space's origin,
+    /// as a script's `look` turns, the origin stays bit for bit).
+    #[test]
+    fn move_space_slides_and_turns_about_a_point() {
+        let (_, mut placement) = setup();
+        let (start, by) = (placement, DVec3::new(1.0, 2.0, 0.0));
+        move_space(&mut placement, Locomotion::Slide(by));
+        assert_eq!(placement.origin, start.origin + by);
+        let about = DVec3::new(0.3, 1.6, -0.2);
+        let fixed = placement.point(about);
+        move_space(
+            &mut placement,
+            Locomotion::Heading {
+                radians: 1.0,
+                about,
+            },
+        );
+        assert_eq!(placement.heading_rad, 1.0);
+        assert!((placement.point(about) - fixed).length() < 1e-12);
+        let origin = placement.origin;
+        let about = DVec3::ZERO;
+        move_space(
+            &mut placement,
+            Locomotion::Heading {
+                radians: -0.5,
+                about,
+            },
+        );
+        assert_eq!((placement.origin, placement.heading_rad), (origin, -0.5));
     }
 
     /// Locomotion: full forward for 1 s walks MOVE_M_PER_S metres along the

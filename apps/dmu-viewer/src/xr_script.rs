@@ -41,6 +41,8 @@ use dmu_geom::glam::{DQuat, DVec3};
 use dmu_xr::{ControllerInput, Hand, HandInput, Placement, Pose};
 use serde::Deserialize;
 
+use crate::xr_input::{Locomotion, move_space};
+
 /// Where a scripted hand is held before it is moved, metres in the head's
 /// frame: right, down, ahead.
 pub const HAND_IN_HEAD_M: DVec3 = DVec3::new(0.2, -0.3, -0.25);
@@ -329,7 +331,10 @@ impl Runner {
                     self.look_start_rad = placement.heading_rad;
                 }
                 let t = f64::from(step + 1) / f64::from(steps);
-                placement.heading_rad = self.look_start_rad + l.yaw_deg.to_radians() * t;
+                let radians = self.look_start_rad + l.yaw_deg.to_radians() * t;
+                // About the tracking space's origin, which stays put.
+                let about = DVec3::ZERO;
+                move_space(placement, Locomotion::Heading { radians, about });
             }
             XrAction::Aim(at) => {
                 let from = held(&self.aims, Hand::Right);

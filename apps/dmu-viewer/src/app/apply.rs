@@ -138,6 +138,45 @@ impl App {
                 pane.view.reset_visibility();
                 Some(camera_json(&pane.nav))
             }
+            V::Look((dx, dy)) => {
+                self.nav()
+                    .look(-dx * super::TURN_PER_PIXEL, -dy * super::TURN_PER_PIXEL);
+                None
+            }
+            V::Pan((dx, dy)) => {
+                let height = f64::from(self.panes[self.active].view.size.1);
+                self.nav().pan(dx, dy, height);
+                None
+            }
+            V::Zoom { wheel, at } => {
+                let toward = self
+                    .review
+                    .pick(&self.ray_at(at))
+                    .map_or(self.panes[self.active].nav.pivot, |h| h.point);
+                self.nav()
+                    .dolly_toward(toward, (wheel / 400.0).clamp(-0.5, 0.5));
+                None
+            }
+            V::Walk { keys, dt } => {
+                self.nav().walk(keys, dt);
+                None
+            }
+            V::Motion(motion) => {
+                self.nav().motion = motion;
+                None
+            }
+            V::Speed(factor) => {
+                self.nav().speed_factor = factor;
+                None
+            }
+            V::MinPixels(px) => {
+                self.panes[self.active].view.options.min_pixels = px;
+                None
+            }
+            V::LodErrorPx(px) => {
+                self.panes[self.active].view.options.lod_error_px = px;
+                None
+            }
             V::Panes(n) => {
                 anyhow::ensure!(
                     (1..=crate::panes::MAX_PANES).contains(&n),
@@ -338,16 +377,15 @@ impl App {
         };
     }
 
-    /// Applies the pointer and keys of this frame: clicks, presses and
-    /// drags as commands; looking, panning, the wheel and walking move the
-    /// active pane's camera.
+    /// Applies the pointer and keys of this frame as commands: clicks,
+    /// presses, drags, looking, panning, the wheel and walking.
     pub(super) fn apply_view_input(&mut self, input: &ViewInput, dt: f64) {
         // A press, drag or wheel makes its pane the active one (not while a
         // drag that began elsewhere goes on).
         if let Some(pane) = input.pane.filter(|&p| p < self.panes.len())
             && (self.pointer_drag.is_none() || input.drag_started.is_some())
         {
-            self.active = pane;
+            self.apply(ViewCommand::ActivePane(pane));
         }
         if input.hover != self.pointer_at {
             self.pointer_at = input.hover;
@@ -370,25 +408,17 @@ impl App {
             self.apply(ViewCommand::Release);
         }
         if input.look != (0.0, 0.0) {
-            self.nav().look(
-                -input.look.0 * super::TURN_PER_PIXEL,
-                -input.look.1 * super::TURN_PER_PIXEL,
-            );
+            self.apply(ViewCommand::Look(input.look));
         }
         if input.pan != (0.0, 0.0) {
-            let height = f64::from(self.panes[self.active].view.size.1);
-            self.nav().pan(input.pan.0, input.pan.1, height);
+            self.apply(ViewCommand::Pan(input.pan));
         }
         if let Some((wheel, at)) = input.wheel {
-            let toward = self
-                .review
-                .pick(&self.ray_at(at))
-                .map_or(self.panes[self.active].nav.pivot, |h| h.point);
-            self.nav()
-                .dolly_toward(toward, (wheel / 400.0).clamp(-0.5, 0.5));
+            self.apply(ViewCommand::Zoom { wheel, at });
         }
         if input.keys != Default::default() {
-            self.nav().walk(input.keys, dt);
+            let keys = input.keys;
+            self.apply(ViewCommand::Walk { keys, dt });
         }
         if input.focus {
             self.apply(ViewCommand::Focus(None));
@@ -398,3 +428,6 @@ impl App {
         }
     }
 }
+
+#[cfg(test)]
+mod tests;
