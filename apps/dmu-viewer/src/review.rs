@@ -72,7 +72,7 @@ pub fn list_clash(list: &mut Vec<ListedClash>, clash: ListedClash) {
         old.others.into_iter().chain([old.kind]).collect()
     } else if clash.kind == c.kind {
         if clash.distance < c.distance {
-            (c.distance, c.point) = (clash.distance, clash.point);
+            (c.distance, c.point, c.source) = (clash.distance, clash.point, clash.source);
         }
         clash.others
     } else {
@@ -526,7 +526,7 @@ mod tests {
         ) {
             let mut list = Vec::new();
             let findings: Vec<_> = findings.into_iter().filter(|f| f.0 != f.1).collect();
-            for &(a, b, kind, d) in &findings {
+            for (i, &(a, b, kind, d)) in findings.iter().enumerate() {
                 list_clash(&mut list, ListedClash {
                     a: PartId(a),
                     b: PartId(b),
@@ -534,7 +534,7 @@ mod tests {
                     others: Vec::new(),
                     distance: f64::from(d),
                     point: DVec3::splat(f64::from(d)),
-                    source: String::new(),
+                    source: i.to_string(),
                 });
             }
             let pair = |a: u32, b: u32| (a.min(b), a.max(b));
@@ -550,10 +550,16 @@ mod tests {
                 others.sort();
                 others.dedup();
                 let distance = of_pair.iter().filter(|f| f.2 == worst).map(|f| f.3).min().unwrap();
+                // Where that distance was first seen.
+                let source = findings
+                    .iter()
+                    .position(|f| pair(f.0, f.1) == pair(c.a.0, c.b.0) && f.2 == worst && f.3 == distance)
+                    .unwrap();
                 proptest::prop_assert_eq!(c.kind, FindingKind::ALL[worst]);
                 proptest::prop_assert_eq!(&c.others, &others.iter().map(|&k| FindingKind::ALL[k]).collect::<Vec<_>>());
                 proptest::prop_assert_eq!(c.distance, f64::from(distance));
                 proptest::prop_assert_eq!(c.point, DVec3::splat(f64::from(distance)));
+                proptest::prop_assert_eq!(&c.source, &source.to_string());
             }
         }
     }

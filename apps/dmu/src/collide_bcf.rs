@@ -20,6 +20,11 @@ use glam::{DAffine3, DVec3};
 pub struct KindSeen {
     /// `hard`, `impact`, `contact` or `soft`.
     pub kind: FindingKind,
+    /// That finding's moved part (an impact's mover) and the other: either
+    /// part of a pair may be the one moved at a given step.
+    pub a_id: u32,
+    /// See `a_id`.
+    pub b_id: u32,
     /// The first step with a finding of this kind, and its time.
     pub step: usize,
     /// See `step`.
@@ -40,10 +45,6 @@ pub struct KindSeen {
 /// first, and the steps with any finding.
 #[derive(Clone, Debug)]
 pub struct PairClash {
-    /// The moved part of the pair's first finding.
-    pub a_id: u32,
-    /// The other part.
-    pub b_id: u32,
     /// The kinds seen, worst first (never empty): the topic is titled with
     /// the first.
     pub kinds: Vec<KindSeen>,
@@ -77,8 +78,6 @@ pub fn pair_clashes(findings: &[Finding<'_>]) -> Vec<PairClash> {
             None => {
                 index.insert(key, pairs.len());
                 pairs.push(PairClash {
-                    a_id: f.a_id,
-                    b_id: f.b_id,
                     kinds: Vec::new(),
                     steps: 0,
                     last_step: f.step,
@@ -100,6 +99,8 @@ pub fn pair_clashes(findings: &[Finding<'_>]) -> Vec<PairClash> {
             Some(_) => {}
             None => p.kinds.push(KindSeen {
                 kind: f.kind,
+                a_id: f.a_id,
+                b_id: f.b_id,
                 step: f.step,
                 t: f.t,
                 distance: f.distance,
@@ -189,8 +190,9 @@ impl Snapshots {
 }
 
 /// Writes the BCF archive of a run: for each record in order, a topic per
-/// pair in `clashes[record]`, with the parts at the poses of that pair's first
-/// step (the records with clashes read again with `read`). `scene` is a copy of the model at its own poses (the run's workers
+/// pair in `clashes[record]`, with the parts at the poses of the step of that
+/// pair's worst finding (the records with clashes read again with `read`).
+/// `scene` is a copy of the model at its own poses (the run's workers
 /// consumed theirs). Without a GPU adapter the snapshots are left out, with a
 /// warning.
 pub fn write_bcf(
@@ -227,8 +229,8 @@ pub fn write_bcf(
         let record_name = file
             .file_name()
             .map_or_else(|| record.clone(), |n| n.to_string_lossy().into_owned());
-        // The pairs come in order of first step: the steps are replayed
-        // forward once.
+        // The pairs come in the order of their worst findings' steps: the
+        // steps are replayed forward once.
         let mut next_step = 0;
         let mut moved = Vec::new();
         for pair in pairs {
@@ -241,7 +243,7 @@ pub fn write_bcf(
                 }
             }
             next_step = worst.step + 1;
-            let (a, b) = (PartId(pair.a_id), PartId(pair.b_id));
+            let (a, b) = (PartId(worst.a_id), PartId(worst.b_id));
             // An impact happened along the move, not where the moved part
             // ends: frame the part hit and the point of impact.
             let bounds = match worst.toi {
@@ -298,17 +300,17 @@ fn topic(
     snapshot: Option<Vec<u8>>,
     clearance: f64,
 ) -> Topic {
-    let (a, b) = (
-        scene.part_name(PartId(pair.a_id)),
-        scene.part_name(PartId(pair.b_id)),
-    );
     let worst = pair.worst();
+    let (a, b) = (
+        scene.part_name(PartId(worst.a_id)),
+        scene.part_name(PartId(worst.b_id)),
+    );
     let plural = |n: usize| if n == 1 { "" } else { "s" };
     let issue = ClashIssue {
         parts: [a, b],
         described: [
-            format!("{a} (#{})", pair.a_id),
-            format!("{b} (#{})", pair.b_id),
+            format!("{a} (#{})", worst.a_id),
+            format!("{b} (#{})", worst.b_id),
         ],
         kind: worst.kind,
         distance: worst.distance,

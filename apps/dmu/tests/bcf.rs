@@ -1,6 +1,6 @@
 //! `dmu collide --bcf` and `dmu bcf show` end to end: a topic per clashing
-//! pair and record at its first step, the parts selected by name, snapshots
-//! of the asked size; `bcf show` refuses hostile files with one line. The
+//! pair and record at the step of its worst finding, the parts selected by
+//! name, snapshots of the asked size; `bcf show` refuses hostile files with one line. The
 //! third-party reader (bcf-client) checks the same files in
 //! crates/dmu-py/tests/test_bcf.py.
 
@@ -194,6 +194,73 @@ fn a_pair_topic_is_titled_with_its_worst_finding() {
         topic["labels"],
         serde_json::json!(["hard", "soft", "dmu collide"])
     );
+}
+
+/// A pair's topic names its parts as its worst finding does: when the other
+/// part moves into the first (a hard clash after the first part's soft
+/// one), the title and the framing follow the part that moved then (they
+/// named the pair's first mover).
+#[test]
+fn a_pair_topic_names_the_mover_of_its_worst_finding() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = grid(dir.path());
+    // box_1_0_0 at x 3 spans 1..5, into box_0_0_0 standing at 5.95 (3.95..7.95).
+    let moves = record(
+        dir.path(),
+        "turns.jsonl",
+        &[
+            pose(0, "box_0_0_0", [5.95, 0.0, 0.0]),
+            pose(1, "box_1_0_0", [3.0, 0.0, 0.0]),
+        ],
+    );
+    let bcf = path(dir.path(), "turns.bcfzip");
+    let out = dmu(&[
+        "collide",
+        &model,
+        "--record",
+        &moves,
+        "--clearance",
+        "0.1",
+        "--discrete",
+        "--json",
+        "--bcf",
+        &bcf,
+        "--bcf-snapshot",
+        "none",
+    ]);
+    let run = report(&out);
+    let found: Vec<(&str, &str, &str)> = run["clashes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| {
+            (
+                f["kind"].as_str().unwrap(),
+                f["a"].as_str().unwrap(),
+                f["b"].as_str().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        found,
+        [
+            ("soft", "box_0_0_0", "box_1_0_0"),
+            ("hard", "box_1_0_0", "box_0_0_0")
+        ]
+    );
+    let shown = json(&dmu(&["bcf", "show", &bcf, "--json"]));
+    let topic = &shown["topics"][0];
+    assert_eq!(
+        topic["title"],
+        "hard: box_1_0_0 × box_0_0_0 at step 1 (t=1)"
+    );
+    let selected: Vec<&str> = topic["viewpoints"][0]["selected"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["authoring_tool_id"].as_str().unwrap())
+        .collect();
+    assert_eq!(selected, ["box_1_0_0", "box_0_0_0"]);
 }
 
 /// Several records: topics from each, titled with the record's file name;

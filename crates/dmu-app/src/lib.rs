@@ -2,7 +2,7 @@
 //! window) share: opening a model (a glTF file, a store or the built-in plant)
 //! from the same command-line arguments, parsing the numbers people type,
 //! reporting pick hits and progress, and streaming a store's chunks into the
-//! renderer ([`resident::ResidentSource`]), and putting the choices made by
+//! renderer a frame at a time ([`resident::StreamedFrames`]), and putting the choices made by
 //! measurement into words ([`explain`]), and reading and writing BCF issue
 //! files ([`bcf`]).
 //!

@@ -27,7 +27,7 @@ pub struct ResidentSource<'a> {
 impl<'a> ResidentSource<'a> {
     /// A source over `residency` for a scene of `chunks` chunks (the store's
     /// `skeleton().chunks().len()`).
-    pub fn new(residency: &'a Residency, chunks: usize) -> Self {
+    pub(crate) fn new(residency: &'a Residency, chunks: usize) -> Self {
         Self {
             residency,
             pins: (0..chunks).map(|_| OnceLock::new()).collect(),
@@ -114,7 +114,7 @@ impl BoxGeometry {
 impl<'a> StandInSource<'a> {
     /// Stand-ins from `scene`'s chunk boxes (the store's skeleton, or a scene
     /// of the same structure) for what `residency` lacks.
-    pub fn new(residency: &'a Residency, scene: &'a Scene) -> Self {
+    pub(crate) fn new(residency: &'a Residency, scene: &'a Scene) -> Self {
         let chunks = scene.chunks().len();
         Self {
             resident: ResidentSource::new(residency, chunks),
@@ -166,7 +166,7 @@ impl GeometrySource for StandInSource<'_> {
 /// a chunk is resident its box is dropped from the pool, for the geometry to
 /// be uploaded in its place; and which drawn chunk instances were stand-ins.
 #[derive(Debug)]
-pub struct StandIns {
+pub(crate) struct StandIns {
     /// Per chunk: the GPU pool holds its stand-in.
     standing: Vec<bool>,
     /// The chunks set in `standing`.

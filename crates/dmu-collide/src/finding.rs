@@ -78,7 +78,9 @@ impl fmt::Display for FindingKind {
 pub struct Finding<'a> {
     /// Step number, from 0.
     pub step: usize,
-    /// The step's time.
+    /// The step's time (0 when a report read leaves it out: a report written
+    /// by hand names the step and the parts, which is all a reader needs).
+    #[serde(default)]
     pub t: f64,
     /// A clash's kind, or an impact.
     pub kind: FindingKind,
@@ -89,9 +91,12 @@ pub struct Finding<'a> {
     /// The second part's name.
     #[serde(borrow)]
     pub b: Cow<'a, str>,
-    /// The first part's id.
+    /// The first part's id (0 when a report read leaves it out: readers
+    /// match parts by name, since ids are the writing model's).
+    #[serde(default)]
     pub a_id: u32,
-    /// The second part's id.
+    /// The second part's id (as `a_id`).
+    #[serde(default)]
     pub b_id: u32,
     /// World distance between the parts (0 for a hard clash).
     pub distance: f64,

@@ -9,9 +9,10 @@
 //!   captures ([`Capture`]) drive it alike.
 //! - Geometry comes through [`GeometrySource`] ("this chunk, if resident"),
 //!   which the in-memory scene implements, and the store's residency manager
-//!   through `dmu_app::ResidentSource` (or `StandInSource`). Chunks are uploaded once into large pooled buffers ([`GeometryPool`])
-//!   with u16 indices where they fit and a base vertex per draw, and shared by
-//!   every part instancing them.
+//!   through `dmu_app::resident::StreamedFrames` (a `ResidentSource`, or a
+//!   `StandInSource` drawing boxes). Chunks are uploaded once into large
+//!   pooled buffers ([`GeometryPool`]) with u16 indices where they fit and a
+//!   base vertex per draw, and shared by every part instancing them.
 //! - Parts are never pre-transformed. A draw is one chunk instance, and its
 //!   instance is a 64-byte record written by the CPU for each draw of a round:
 //!   its part's model-view, formed in f64 camera-relative and narrowed to f32

@@ -120,7 +120,11 @@ impl App {
                     format: None,
                 }))
             }
-            V::ExportBcf(_) => None,
+            // One export at a time: a second would drop the first's snapshots.
+            V::ExportBcf(path) => anyhow::bail!(
+                "{}: a BCF export is still being written; export again when it is done",
+                path.display()
+            ),
             V::ImportBcf(path) => Some(self.import_bcf(&path)?),
             V::Preset(preset) => {
                 let pane = &mut self.panes[self.active];

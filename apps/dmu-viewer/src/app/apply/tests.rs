@@ -246,9 +246,18 @@ fn every_view_command_goes_through_apply_view() {
         (Some(1), Some(1))
     );
     let export = dir.path().join("review.bcfzip");
-    let exporting = run(&mut app, V::ExportBcf(export)).unwrap().unwrap();
+    let exporting = run(&mut app, V::ExportBcf(export.clone()))
+        .unwrap()
+        .unwrap();
     assert_eq!(exporting["topics"], 1);
     assert!(app.export.is_some());
+    // One export at a time: a second is refused out loud (it did nothing
+    // and answered an empty entry).
+    let again = run(&mut app, V::ExportBcf(export)).unwrap_err();
+    assert!(
+        format!("{again:#}").contains("still being written"),
+        "{again:#}"
+    );
     app.export = None;
 
     // A clash shown: its two parts alone.
