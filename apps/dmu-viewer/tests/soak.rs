@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 use dmu_samples::{PlantOptions, plant};
 use serde_json::{Value, json};
 
-use crate::support::{dmu, dmu_cli, viewer, with_viewer};
+use crate::support::{dmu, dmu_cli, viewer, with_viewer_alone};
 use crate::xvfb::path_str;
 
 /// The soak's plant: the smallest whose walks want more geometry than the
@@ -219,7 +219,7 @@ fn field(v: &Value, key: &str) -> u64 {
 /// drawn as a hole.
 #[test]
 fn issue_48_the_viewer_cycles_under_a_budget_without_growing_under_xvfb() {
-    with_viewer(|| {
+    with_viewer_alone(|| {
         let started = Instant::now();
         let dir = tempfile::tempdir().unwrap();
         let store = dir.path().join("plant.dmu");
@@ -520,6 +520,7 @@ fn write_records(dir: &Path, count: usize, parts: &[(u32, glam::DAffine3)]) {
 /// held (holding all of them, 300 records peaked 35 % above 100).
 #[test]
 fn issue_48_a_collide_batch_does_not_grow_with_its_records() {
+    let _alone = crate::support::alone_on_the_machine();
     let started = Instant::now();
     let dir = tempfile::tempdir().unwrap();
     let scene = plant(&PlantOptions {

@@ -21,6 +21,7 @@ fn xr_root() -> PathBuf {
 
 #[test]
 fn xr_session_on_monado_passes_the_check() {
+    let _shared = crate::support::sharing_the_machine();
     let root = xr_root();
     let ready = root.join(".dmu-xr-ready");
     let found = if ready.exists() {
