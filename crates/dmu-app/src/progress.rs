@@ -42,32 +42,6 @@ pub fn rss_bytes() -> Option<u64> {
     status_bytes("VmRSS:")
 }
 
-/// Gives the memory the allocator holds free back to the system (glibc's
-/// `malloc_trim`); elsewhere nothing. Called after an eviction wave: glibc's
-/// `free` returns only the top of its heap, so the chunks a wave frees, lying
-/// between live allocations, stayed resident, and the viewer soak's resident
-/// set stepped from 174 to 231 MB at a random moment of a run and stayed
-/// there (issue 47's review). The chunk geometry a residency holds is
-/// counted against its budget; what it freed should not be counted still.
-pub fn release_freed_memory() {
-    #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    trim();
-}
-
-#[cfg(all(target_os = "linux", target_env = "gnu"))]
-#[expect(
-    unsafe_code,
-    reason = "malloc_trim is one libc call that takes no pointers"
-)]
-fn trim() {
-    // SAFETY: malloc_trim only gives free pages of the allocator's own heaps
-    // back to the system; it is thread-safe (it locks each arena) and reads
-    // nothing of ours.
-    unsafe {
-        libc::malloc_trim(0);
-    }
-}
-
 /// The memory the system can give without swapping, in bytes (Linux
 /// `MemAvailable`), or `None` where the kernel does not report it.
 pub fn available_memory_bytes() -> Option<u64> {

@@ -297,17 +297,12 @@ impl StreamedFrames {
 
     /// Before a frame: drops from `pool` the chunks `residency` evicted and
     /// the stand-ins of chunks it now holds (the invariant a residency's
-    /// callers keep, ARCHITECTURE.md), and after an eviction gives the freed
-    /// memory back to the system ([`crate::progress::release_freed_memory`]).
+    /// callers keep, ARCHITECTURE.md).
     pub fn begin(&mut self, residency: &Residency, pool: &mut GeometryPool) {
-        let evicted = residency.take_evicted();
-        for &c in &evicted {
+        for c in residency.take_evicted() {
             pool.evict(c);
         }
         self.standing.release(residency, pool);
-        if !evicted.is_empty() {
-            crate::progress::release_freed_memory();
-        }
     }
 
     /// The frame's geometry from `residency`, stand-ins made from `scene`'s
