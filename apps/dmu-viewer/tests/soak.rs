@@ -30,9 +30,12 @@ const EYE_MM: f64 = 1_700.0;
 /// The walks the cycles go round: the first pass over them is the warm-up.
 const LOCATIONS: usize = 3;
 
-/// Cycles of the soak run: about half a minute of frames in a debug build on the
-/// reference machine (2 cores, lavapipe).
-const CYCLES: usize = 9;
+/// Cycles of the soak run: five passes over the walks, under a minute of
+/// frames in a debug build on the reference machine (2 cores, lavapipe).
+/// Five, not three: the resident set may step once at a moment that differs
+/// from run to run (below), and only passes after the step tell a step from
+/// growth.
+const CYCLES: usize = 15;
 
 /// Camera frames of a walk, and its length.
 const WALK_STEPS: usize = 12;
@@ -210,8 +213,9 @@ fn field(v: &Value, key: &str) -> u64 {
 }
 
 /// The walk, pick, move and section cycles under a budget that evicts: the
-/// resident set levels off after the first pass over the walks (its median
-/// within 2 %), the residency stays within its budget on every frame, the
+/// resident set levels off after the first pass over the walks (its
+/// medians grow under 2 % in all besides one step, and that step is under
+/// 40 %), the residency stays within its budget on every frame, the
 /// GPU pool's copy within the same after every eviction wave and its pages'
 /// handed-out bytes level off (within 5 %: up to 1.1 % between passes; the
 /// 2M plant's grew from 20.6 to 51.0 MB over six passes when freed ranges
@@ -302,8 +306,14 @@ fn issue_48_the_viewer_cycles_under_a_budget_without_growing_under_xvfb() {
             summary.describe()
         );
         assert!(
-            summary.rss_growth_pct <= 2.0,
-            "the resident set grew {:.2} % after warm-up: {}",
+            summary.rss_steady_growth_pct <= 2.0,
+            "the resident set grew {:.2} % after warm-up, besides its largest step: {}",
+            summary.rss_steady_growth_pct,
+            summary.describe()
+        );
+        assert!(
+            summary.rss_growth_pct <= 40.0,
+            "the resident set stepped {:.2} % after warm-up: {}",
             summary.rss_growth_pct,
             summary.describe()
         );
@@ -331,6 +341,14 @@ struct Soak {
     /// Pass 1, not the warm-up, is the reference, so that the opening's own
     /// peak cannot hide growth.
     rss_growth_pct: f64,
+    /// The medians' growth from each pass after the warm-up to the next,
+    /// percent, less the largest of them: what a leak adds pass after pass.
+    /// The largest is left out because the resident set may step once, by
+    /// up to a third, and stay (7.7 %, 14 % and 33 % in 3 of 10 runs of
+    /// issue 47's session, in a pass that differed from run to run; at 500M
+    /// the soak's levels rose +0.28 % after such steps): one step is the
+    /// allocator or the driver settling, a leak steps every pass.
+    rss_steady_growth_pct: f64,
     /// The median resident set of each pass.
     rss_median_per_pass: Vec<u64>,
     evictions: u64,
@@ -397,6 +415,15 @@ impl Soak {
         sorted.sort_by(f64::total_cmp);
         Self {
             rss_growth_pct: 100.0 * (later as f64 / rss_median_per_pass[1] as f64 - 1.0),
+            rss_steady_growth_pct: {
+                let mut steps: Vec<f64> = rss_median_per_pass[1..]
+                    .windows(2)
+                    .map(|w| 100.0 * (w[1] as f64 / w[0] as f64 - 1.0))
+                    .collect();
+                steps.sort_by(f64::total_cmp);
+                steps.pop();
+                steps.iter().map(|s| s.max(0.0)).sum()
+            },
             rss_per_pass,
             rss_median_per_pass,
             evictions: evictions(frames.len() - 1),
@@ -427,11 +454,12 @@ impl Soak {
                 .join(", ")
         };
         format!(
-            "median RSS per pass {} MB ({:+.2} % after warm-up), highest {} MB; {} evictions in {} waves; \
+            "median RSS per pass {} MB ({:+.2} % after warm-up, {:+.2} % besides the largest step), highest {} MB; {} evictions in {} waves; \
              pool handed out per pass {} MB, {} pages; frame median {:.0} ms, longest {:.0} ms \
              ({:.0} after warm-up)",
             mb(&self.rss_median_per_pass),
             self.rss_growth_pct,
+            self.rss_steady_growth_pct,
             mb(&self.rss_per_pass),
             self.evictions,
             self.waves,
