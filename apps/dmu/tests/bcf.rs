@@ -136,25 +136,13 @@ fn a_topic_per_pair_at_its_first_step() {
     assert_eq!(run["bcf"]["snapshots"], if rendered { 2 } else { 0 });
 }
 
-/// Issue 47: a pair going from a 0.05 soft clash to a hard clash and back is
-/// one topic titled with its hard clash (it was titled "soft", its first
-/// finding), at the hard step's poses, listing the soft clash.
-#[test]
-fn a_pair_topic_is_titled_with_its_worst_finding() {
+/// `dmu collide --bcf` of `lines` on the grid with a clearance of 0.1, no
+/// snapshots: its report and `dmu bcf show`'s of the file.
+fn clearance_run(lines: &[String]) -> (Value, Value) {
     let dir = tempfile::tempdir().unwrap();
     let model = grid(dir.path());
-    // box_1_0_0 spans x 8..12: box_0_0_0 (side 4) at x 5.95 is 0.05 away.
-    let moves = record(
-        dir.path(),
-        "closer.jsonl",
-        &[
-            pose(0, "box_0_0_0", [-30.0, 0.0, 0.0]),
-            pose(1, "box_0_0_0", [5.95, 0.0, 0.0]),
-            pose(2, "box_0_0_0", [7.0, 0.0, 0.0]),
-            pose(3, "box_0_0_0", [5.95, 0.0, 0.0]),
-        ],
-    );
-    let bcf = path(dir.path(), "closer.bcfzip");
+    let moves = record(dir.path(), "moves.jsonl", lines);
+    let bcf = path(dir.path(), "moves.bcfzip");
     let out = dmu(&[
         "collide",
         &model,
@@ -169,7 +157,21 @@ fn a_pair_topic_is_titled_with_its_worst_finding() {
         "--bcf-snapshot",
         "none",
     ]);
-    let run = report(&out);
+    (report(&out), json(&dmu(&["bcf", "show", &bcf, "--json"])))
+}
+
+/// Issue 47: a pair going from a 0.05 soft clash to a hard clash and back is
+/// one topic titled with its hard clash (it was titled "soft", its first
+/// finding), at the hard step's poses, listing the soft clash.
+#[test]
+fn a_pair_topic_is_titled_with_its_worst_finding() {
+    // box_1_0_0 spans x 8..12: box_0_0_0 (side 4) at x 5.95 is 0.05 away.
+    let (run, shown) = clearance_run(&[
+        pose(0, "box_0_0_0", [-30.0, 0.0, 0.0]),
+        pose(1, "box_0_0_0", [5.95, 0.0, 0.0]),
+        pose(2, "box_0_0_0", [7.0, 0.0, 0.0]),
+        pose(3, "box_0_0_0", [5.95, 0.0, 0.0]),
+    ]);
     let kinds: Vec<&str> = run["clashes"]
         .as_array()
         .unwrap()
@@ -178,7 +180,6 @@ fn a_pair_topic_is_titled_with_its_worst_finding() {
         .collect();
     assert_eq!(kinds, ["soft", "hard", "soft"]);
     assert_eq!(run["bcf"]["topics"], 1);
-    let shown = json(&dmu(&["bcf", "show", &bcf, "--json"]));
     let topic = &shown["topics"][0];
     assert_eq!(
         topic["title"],
@@ -202,33 +203,11 @@ fn a_pair_topic_is_titled_with_its_worst_finding() {
 /// named the pair's first mover).
 #[test]
 fn a_pair_topic_names_the_mover_of_its_worst_finding() {
-    let dir = tempfile::tempdir().unwrap();
-    let model = grid(dir.path());
     // box_1_0_0 at x 3 spans 1..5, into box_0_0_0 standing at 5.95 (3.95..7.95).
-    let moves = record(
-        dir.path(),
-        "turns.jsonl",
-        &[
-            pose(0, "box_0_0_0", [5.95, 0.0, 0.0]),
-            pose(1, "box_1_0_0", [3.0, 0.0, 0.0]),
-        ],
-    );
-    let bcf = path(dir.path(), "turns.bcfzip");
-    let out = dmu(&[
-        "collide",
-        &model,
-        "--record",
-        &moves,
-        "--clearance",
-        "0.1",
-        "--discrete",
-        "--json",
-        "--bcf",
-        &bcf,
-        "--bcf-snapshot",
-        "none",
+    let (run, shown) = clearance_run(&[
+        pose(0, "box_0_0_0", [5.95, 0.0, 0.0]),
+        pose(1, "box_1_0_0", [3.0, 0.0, 0.0]),
     ]);
-    let run = report(&out);
     let found: Vec<(&str, &str, &str)> = run["clashes"]
         .as_array()
         .unwrap()
@@ -248,7 +227,6 @@ fn a_pair_topic_names_the_mover_of_its_worst_finding() {
             ("hard", "box_1_0_0", "box_0_0_0")
         ]
     );
-    let shown = json(&dmu(&["bcf", "show", &bcf, "--json"]));
     let topic = &shown["topics"][0];
     assert_eq!(
         topic["title"],
