@@ -176,9 +176,7 @@ fn occlusion_converges_to_the_unculled_image() {
                 diff.len(),
                 diff.first()
             );
-            let drawn: BTreeSet<EntryId> = view.drawn_entries().collect();
-            let exact = rig.ids(&mut view, &scene, &tree).visible_entries();
-            let missing: Vec<_> = exact.difference(&drawn).collect();
+            let missing = rig.visible_but_not_drawn(&mut view, &scene, &tree);
             assert!(
                 missing.is_empty(),
                 "view {i}: exactly visible but not drawn: {missing:?}"

@@ -43,9 +43,7 @@ fn every_hzb_frame_is_the_unculled_image_and_misses_nothing_visible() {
                     diff.len(),
                     diff.first()
                 );
-                let drawn: BTreeSet<EntryId> = view.drawn_entries().collect();
-                let exact = rig.ids(&mut view, &scene, &tree).visible_entries();
-                let missing: Vec<_> = exact.difference(&drawn).collect();
+                let missing = rig.visible_but_not_drawn(&mut view, &scene, &tree);
                 assert!(
                     missing.is_empty(),
                     "view {i} frame {frame}: visible but not drawn: {missing:?}"

@@ -85,6 +85,19 @@ impl Rig {
             .expect("render ids")
     }
 
+    /// The chunk instances the id pass finds visible from `view` that its
+    /// last frame did not draw (culling that drops nothing visible has none).
+    pub fn visible_but_not_drawn(
+        &mut self,
+        view: &mut View,
+        scene: &Scene,
+        tree: &Tree,
+    ) -> Vec<dmu_tree::EntryId> {
+        let drawn: std::collections::BTreeSet<_> = view.drawn_entries().collect();
+        let exact = self.ids(view, scene, tree).visible_entries();
+        exact.difference(&drawn).copied().collect()
+    }
+
     /// One frame with `culling`, as an image.
     pub fn shot(
         &mut self,
