@@ -114,17 +114,19 @@ pub enum StoreError {
         /// The output file.
         path: PathBuf,
     },
-    /// A far-field cell asked for (read, or kept by
-    /// [`write_far_fields`](crate::write_far_fields)) that the store does not
-    /// have.
-    #[error("{} has no far-field cell #{cell}: it has {cells}", path.display())]
-    NoSuchFarCell {
+    /// A blob asked for (a far-field cell or a level-of-detail node: read,
+    /// or kept by [`write_blobs`](crate::write_blobs)) that the store does
+    /// not have.
+    #[error("{} has no {what} #{blob}: it has {blobs}", path.display())]
+    NoSuchBlob {
         /// The store.
         path: PathBuf,
-        /// The cell asked for.
-        cell: u64,
-        /// The far-field cells it has (0 without far fields).
-        cells: u64,
+        /// What the blob is ("far-field cell": [`crate::BlobSet::blob_name`]).
+        what: &'static str,
+        /// The blob asked for.
+        blob: u64,
+        /// The blobs of its set the store has (0 without the set).
+        blobs: u64,
     },
     /// Saving edits: the scene's structure differs from the store's (only
     /// transforms and visibility may change).

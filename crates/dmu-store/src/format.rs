@@ -5,7 +5,8 @@
 //! 0        header (64 bytes)
 //! 64       segment, segment, ...  each at a 16-byte boundary, zero padded to
 //!          the next one; a chunk's geometry, one skeleton, and optionally
-//!          one far-field index with a blob per far-field cell
+//!          blob sets (`BlobSet`): one far-field index with a blob per
+//!          far-field cell, one level-of-detail index with a blob per node
 //! toc      table of contents: one 32-byte entry per segment (last in the file,
 //!          so a streaming writer needs no second pass)
 //! ```
@@ -42,7 +43,8 @@ pub(crate) const MAGIC: [u8; 8] = *b"DMUSTORE";
 /// added within version 2 rather than as version 3: a store without them is
 /// byte for byte what it was, and a version-2 reader from before them refuses
 /// a store that has them with "segment N has unknown kind 3" (or 4) rather
-/// than misreading it, which is acceptable for an optional addition.
+/// than misreading it, which is acceptable for an optional addition. The
+/// level-of-detail hierarchy's segments (kinds 5 and 6) are such a set too.
 pub const FORMAT_VERSION: u32 = 3;
 /// Written as a native `u32` by a little-endian writer: reads back swapped on a
 /// big-endian one.
@@ -60,6 +62,61 @@ pub(crate) const KIND_FAR_INDEX: u32 = 3;
 /// One far-field cell's blob: opaque bytes, id the cell number (exactly `0..n`,
 /// once each, like chunks); only in a store with a far-field index.
 pub(crate) const KIND_FAR_CELL: u32 = 4;
+/// The level-of-detail hierarchy's index ([`BlobSet::Lod`]): like kind 3.
+pub(crate) const KIND_LOD_INDEX: u32 = 5;
+/// One level-of-detail node's blob: like kind 4.
+pub(crate) const KIND_LOD_NODE: u32 = 6;
+
+/// The sets of opaque blobs a store keeps beside its geometry, each an index
+/// (id 0, at most one) and blobs numbered `0..n` (only beside an index), in
+/// the caller's encoding: the store checks their bytes, not their meaning.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum BlobSet {
+    /// Far fields: one blob per viewpoint cell (`dmu_app::farfield`).
+    FarField,
+    /// The level-of-detail hierarchy: one blob per tree node's merged,
+    /// simplified proxy (`dmu_app::lod`).
+    Lod,
+}
+
+impl BlobSet {
+    /// Every set, in the order a rewrite copies them.
+    pub const ALL: [BlobSet; 2] = [BlobSet::FarField, BlobSet::Lod];
+
+    /// The segment kinds of its index and of its blobs.
+    pub(crate) fn kinds(self) -> (u32, u32) {
+        match self {
+            BlobSet::FarField => (KIND_FAR_INDEX, KIND_FAR_CELL),
+            BlobSet::Lod => (KIND_LOD_INDEX, KIND_LOD_NODE),
+        }
+    }
+
+    /// What its index is called in errors ("far-field index").
+    pub fn index_name(self) -> &'static str {
+        match self {
+            BlobSet::FarField => "far-field index",
+            BlobSet::Lod => "level-of-detail index",
+        }
+    }
+
+    /// What one blob is called in errors ("far-field cell").
+    pub fn blob_name(self) -> &'static str {
+        match self {
+            BlobSet::FarField => "far-field cell",
+            BlobSet::Lod => "level-of-detail node",
+        }
+    }
+}
+
+/// One blob set's segments in a store.
+#[derive(Debug, Default)]
+pub(crate) struct BlobSegments {
+    /// The index; `None` when the store has none of this set.
+    pub index: Option<TocEntry>,
+    /// Indexed by blob number (the ids are exactly `0..n`); empty without an
+    /// index.
+    pub blobs: Vec<TocEntry>,
+}
 
 /// The file header. Little-endian like everything in the file.
 #[repr(C)]
@@ -146,11 +203,15 @@ pub(crate) struct Layout {
     pub skeleton: TocEntry,
     /// Indexed by chunk id (the ids are exactly `0..n`).
     pub chunks: Vec<TocEntry>,
-    /// The far-field index; `None` in a store without far fields.
-    pub far_index: Option<TocEntry>,
-    /// Indexed by cell number (the ids are exactly `0..n`); empty when
-    /// `far_index` is `None`.
-    pub far_cells: Vec<TocEntry>,
+    /// Each [`BlobSet`]'s segments, in [`BlobSet::ALL`]'s order.
+    pub blobs: [BlobSegments; 2],
+}
+
+impl Layout {
+    /// The segments of `set`.
+    pub fn blob_set(&self, set: BlobSet) -> &BlobSegments {
+        &self.blobs[set as usize]
+    }
 }
 
 /// What a file that is not a store looks like, for the error message.
@@ -280,8 +341,8 @@ pub(crate) fn parse(file: &impl ReadAt, path: &Path) -> Result<Layout, StoreErro
 }
 
 /// Entries must tile `[HEADER_LEN, toc_offset)` in order, name one skeleton,
-/// chunk ids `0..n` once each, at most one far-field index (id 0), and far-field
-/// cell ids `0..m` once each, only beside an index.
+/// chunk ids `0..n` once each, and per blob set at most one index (id 0) and
+/// blob ids `0..m` once each, only beside an index.
 fn validate_entries(entries: &[TocEntry], toc_offset: u64) -> Result<Layout, String> {
     let mut by_offset: Vec<&TocEntry> = entries.iter().collect();
     by_offset.sort_by_key(|e| e.offset);
@@ -311,34 +372,57 @@ fn validate_entries(entries: &[TocEntry], toc_offset: u64) -> Result<Layout, Str
         return Err(format!("bytes {at}..{toc_offset} belong to no segment"));
     }
     let mut skeleton = None;
-    let mut far_index = None;
     let mut chunks = Dense::new(entries, KIND_CHUNK, "chunk");
-    let mut far_cells = Dense::new(entries, KIND_FAR_CELL, "far-field cell");
-    for e in entries {
+    let mut sets = BlobSet::ALL.map(|set| {
+        let (_, blob_kind) = set.kinds();
+        (None, Dense::new(entries, blob_kind, set.blob_name()))
+    });
+    // Blobs after everything else, so that a table's error does not depend
+    // on the order its writer put the segments in.
+    let is_blob = |kind: u32| BlobSet::ALL.iter().any(|s| s.kinds().1 == kind);
+    let (blob_entries, others): (Vec<&TocEntry>, Vec<&TocEntry>) =
+        entries.iter().partition(|e| is_blob(e.kind));
+    for e in others.into_iter().chain(blob_entries) {
         match e.kind {
             KIND_SKELETON if skeleton.is_none() => skeleton = Some(*e),
             KIND_SKELETON => return Err("two skeleton segments".into()),
             KIND_CHUNK => chunks.insert(e)?,
-            KIND_FAR_INDEX if e.id != 0 => {
-                return Err(format!("the far-field index has id {}, not 0", e.id));
+            kind => {
+                let Some(set) = BlobSet::ALL.into_iter().find(|s| {
+                    let (index, blob) = s.kinds();
+                    kind == index || kind == blob
+                }) else {
+                    return Err(format!("segment {} has unknown kind {kind}", e.id));
+                };
+                let (index, blobs) = &mut sets[set as usize];
+                match e.kind == set.kinds().0 {
+                    true if e.id != 0 => {
+                        return Err(format!("the {} has id {}, not 0", set.index_name(), e.id));
+                    }
+                    true if index.is_none() => *index = Some(*e),
+                    true => return Err(format!("two {} segments", set.index_name())),
+                    false => blobs.insert(e)?,
+                }
             }
-            KIND_FAR_INDEX if far_index.is_none() => far_index = Some(*e),
-            KIND_FAR_INDEX => return Err("two far-field index segments".into()),
-            KIND_FAR_CELL => far_cells.insert(e)?,
-            kind => return Err(format!("segment {} has unknown kind {kind}", e.id)),
         }
     }
-    if far_index.is_none() && !far_cells.slots.is_empty() {
-        return Err(format!(
-            "{} far-field cell segments but no far-field index",
-            far_cells.slots.len()
-        ));
+    for (set, (index, blobs)) in BlobSet::ALL.iter().zip(&sets) {
+        if index.is_none() && !blobs.slots.is_empty() {
+            return Err(format!(
+                "{} {} segments but no {}",
+                blobs.slots.len(),
+                set.blob_name(),
+                set.index_name()
+            ));
+        }
     }
     Ok(Layout {
         skeleton: skeleton.ok_or("no skeleton segment")?,
         chunks: chunks.into_entries(),
-        far_index,
-        far_cells: far_cells.into_entries(),
+        blobs: sets.map(|(index, blobs)| BlobSegments {
+            index,
+            blobs: blobs.into_entries(),
+        }),
     })
 }
 

@@ -23,8 +23,12 @@
 //!   renderer) are kept beside the geometry as opaque blobs: one far-field
 //!   index segment and one segment per cell, read one at a time
 //!   ([`Store::far_field_cell`]) and replaced by [`write_far_fields`], which
-//!   can keep the cells that are not stale. The store does not know their
-//!   encoding, so their producer can change it without a new format version.
+//!   can keep the cells that are not stale. The level-of-detail hierarchy
+//!   (merged, simplified proxies of the tree's upper nodes, made by
+//!   `dmu_app::lod`) is a second such set ([`BlobSet::Lod`]: an index and a
+//!   blob per node, written streamed by a [`BlobWriter`]). The store does not
+//!   know their encoding, so their producer can change it without a new
+//!   format version.
 //! - Every byte is covered by a checksum (xxh3-64): the header and the table of
 //!   contents at open, the skeleton at open, a chunk's segment when first
 //!   touched. Every offset and length is checked before use, so a truncated,
@@ -81,7 +85,7 @@ mod walk;
 mod write;
 
 pub use error::{ResidencyError, StoreError, WalkError};
-pub use format::{FORMAT_VERSION, reseal};
+pub use format::{BlobSet, FORMAT_VERSION, reseal};
 pub use geometry::OwnedChunkGeometry;
 pub use import::{ImportOptions, ImportSummary, import_gltf};
 pub use open::open_scene;
@@ -89,7 +93,7 @@ pub use prefetch::{PrefetchOptions, Prefetcher};
 pub use priority::{Class, LoadOrder, Request};
 pub use read::{Store, StoreInfo};
 pub use residency::{Pacing, Residency, ResidencyOptions, ResidencyStats};
-pub use save::{SavedFormat, prepare_save, save_edits, save_scene, write_far_fields};
+pub use save::{BlobWriter, SavedFormat, prepare_save, save_edits, save_scene, write_far_fields};
 pub use streamer::{KEEP_VISIBLE_FRAMES, Streamer};
 pub use view::{CameraFrame, View, Viewport, Wanted, wanted};
 pub use walk::{

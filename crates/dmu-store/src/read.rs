@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use dmu_scene::{ChunkId, MeshId, Scene};
 
 use crate::error::StoreError;
-use crate::format::{self, FORMAT_VERSION, Layout, TocEntry};
+use crate::format::{self, BlobSet, FORMAT_VERSION, Layout, TocEntry};
 use crate::geometry::{self, OwnedChunkGeometry, resident_bytes};
 use crate::skeleton;
 
@@ -51,6 +51,10 @@ pub struct StoreInfo {
     pub far_field_cells: u64,
     /// Bytes of the far-field index and cell segments in the file.
     pub far_field_bytes: u64,
+    /// Level-of-detail node segments (0 without the hierarchy).
+    pub lod_nodes: u64,
+    /// Bytes of the level-of-detail index and node segments in the file.
+    pub lod_bytes: u64,
 }
 
 impl Store {
@@ -120,8 +124,10 @@ impl Store {
                 .map(|c| self.chunk_resident_bytes(ChunkId::from_index(c)))
                 .sum(),
             skeleton_bytes: self.layout.skeleton.length,
-            far_field_cells: self.layout.far_cells.len() as u64,
+            far_field_cells: self.far_field_cells() as u64,
             far_field_bytes: self.far_field_bytes(),
+            lod_nodes: self.blob_count(BlobSet::Lod) as u64,
+            lod_bytes: self.blob_bytes(BlobSet::Lod),
         }
     }
 
@@ -176,60 +182,81 @@ impl Store {
         )
     }
 
-    /// The far-field index blob, its checksum verified; `None` when the store
-    /// has no far fields. Its encoding is the caller's: the store keeps bytes.
-    pub fn far_field_index(&self) -> Result<Option<Vec<u8>>, StoreError> {
+    /// The index of blob set `set`, its checksum verified; `None` when the
+    /// store has none (no far fields, no level-of-detail hierarchy). Its
+    /// encoding is the caller's: the store keeps bytes.
+    pub fn blob_index(&self, set: BlobSet) -> Result<Option<Vec<u8>>, StoreError> {
         self.layout
-            .far_index
+            .blob_set(set)
+            .index
             .as_ref()
             .map(|entry| {
                 format::verified(
                     &self.file,
                     entry,
-                    || "the far-field index".into(),
+                    || format!("the {}", set.index_name()),
                     &self.path,
                 )
             })
             .transpose()
     }
 
-    /// How many far-field cells the store holds (numbered `0..n`; 0 without
-    /// far fields).
-    pub fn far_field_cells(&self) -> usize {
-        self.layout.far_cells.len()
+    /// How many blobs of `set` the store holds (numbered `0..n`; 0 without
+    /// the set).
+    pub fn blob_count(&self, set: BlobSet) -> usize {
+        self.layout.blob_set(set).blobs.len()
     }
 
-    /// One far-field cell's blob, its checksum verified (a damaged cell fails
-    /// alone; the rest of the store still reads). A cell the store does not
-    /// have is [`StoreError::NoSuchFarCell`].
-    pub fn far_field_cell(&self, cell: u32) -> Result<Vec<u8>, StoreError> {
-        let entry =
-            self.layout
-                .far_cells
-                .get(cell as usize)
-                .ok_or_else(|| StoreError::NoSuchFarCell {
-                    path: self.path.clone(),
-                    cell: u64::from(cell),
-                    cells: self.layout.far_cells.len() as u64,
-                })?;
+    /// Blob `blob` of `set`, its checksum verified (a damaged blob fails
+    /// alone; the rest of the store still reads). One the store does not have
+    /// is [`StoreError::NoSuchBlob`].
+    pub fn blob(&self, set: BlobSet, blob: u32) -> Result<Vec<u8>, StoreError> {
+        let blobs = &self.layout.blob_set(set).blobs;
+        let entry = blobs
+            .get(blob as usize)
+            .ok_or_else(|| StoreError::NoSuchBlob {
+                path: self.path.clone(),
+                what: set.blob_name(),
+                blob: u64::from(blob),
+                blobs: blobs.len() as u64,
+            })?;
         format::verified(
             &self.file,
             entry,
-            || format!("far-field cell #{cell}"),
+            || format!("{} #{blob}", set.blob_name()),
             &self.path,
         )
     }
 
-    /// Bytes the far-field index and cells take in the file (0 without far
-    /// fields).
-    pub fn far_field_bytes(&self) -> u64 {
-        let layout = &self.layout;
-        layout
-            .far_index
+    /// Bytes the index and blobs of `set` take in the file (0 without it).
+    pub fn blob_bytes(&self, set: BlobSet) -> u64 {
+        let segments = self.layout.blob_set(set);
+        segments
+            .index
             .iter()
-            .chain(&layout.far_cells)
+            .chain(&segments.blobs)
             .map(TocEntry::padded_len)
             .sum()
+    }
+
+    /// The far-field index ([`Store::blob_index`] of [`BlobSet::FarField`]).
+    pub fn far_field_index(&self) -> Result<Option<Vec<u8>>, StoreError> {
+        self.blob_index(BlobSet::FarField)
+    }
+
+    /// How many far-field cells the store holds.
+    pub fn far_field_cells(&self) -> usize {
+        self.blob_count(BlobSet::FarField)
+    }
+
+    /// One far-field cell's blob ([`Store::blob`]).
+    pub fn far_field_cell(&self, cell: u32) -> Result<Vec<u8>, StoreError> {
+        self.blob(BlobSet::FarField, cell)
+    }
+
+    /// Bytes the far-field index and cells take in the file.
+    pub fn far_field_bytes(&self) -> u64 {
+        self.blob_bytes(BlobSet::FarField)
     }
 
     /// A mesh's chunks, read and decoded in order (for

@@ -6,6 +6,7 @@ use std::path::Path;
 use dmu_scene::{ChunkId, Scene, Structure};
 
 use crate::error::StoreError;
+use crate::format::BlobSet;
 use crate::read::Store;
 use crate::skeleton::structure_difference;
 use crate::write::{PendingStore, StoreSummary, StoreWriter, WriteOptions};
@@ -34,14 +35,7 @@ pub fn prepare_save(store: &Store, scene: &Scene) -> Result<PendingStore, StoreE
             what,
         });
     }
-    let mut writer = with_geometry_of(store)?;
-    if let Some(index) = store.far_field_index()? {
-        writer.far_field_index(&index)?;
-        for cell in 0..store.far_field_cells() {
-            writer.far_field_cell(&store.far_field_cell(cell_number(cell))?)?;
-        }
-    }
-    writer.finish(&Structure::of(scene))
+    with_geometry_of(store, None)?.finish(&Structure::of(scene))
 }
 
 /// Replaces the far fields of `store` (an index and one blob per cell, opaque
@@ -55,7 +49,7 @@ pub fn prepare_save(store: &Store, scene: &Scene) -> Result<PendingStore, StoreE
 /// yields, the store will have. Each item is:
 /// - `Ok(Some(blob))`: this cell's new blob;
 /// - `Ok(None)`: keep the store's blob of this cell (copied verified); a cell
-///   the store does not have is [`StoreError::NoSuchFarCell`];
+///   the store does not have is [`StoreError::NoSuchBlob`];
 /// - `Err(e)`: the caller's failure, returned as it is.
 ///
 /// So rebuilding a few stale cells is
@@ -93,22 +87,65 @@ pub fn write_far_fields<E: From<StoreError>>(
     index: &[u8],
     cells: impl IntoIterator<Item = Result<Option<Vec<u8>>, E>>,
 ) -> Result<PendingStore, E> {
-    let mut writer = with_geometry_of(store)?;
-    writer.far_field_index(index)?;
+    let mut writer = BlobWriter::new(store, BlobSet::FarField)?;
     for (cell, blob) in cells.into_iter().enumerate() {
-        let blob = match blob? {
-            Some(blob) => blob,
-            None => store.far_field_cell(cell_number(cell))?,
+        match blob? {
+            Some(blob) => writer.push(&blob)?,
+            None => writer.keep(cell_number(cell))?,
         };
-        writer.far_field_cell(&blob)?;
     }
-    Ok(writer.finish_copied(&store.skeleton_segment()?)?)
+    Ok(writer.finish(index)?)
+}
+
+/// A rewrite of a store that replaces one [`BlobSet`] (the far fields, the
+/// level-of-detail hierarchy) with blobs pushed one at a time, so a builder
+/// never holds them all: a new file under a temporary name holding the
+/// store's skeleton, chunk segments and other blob sets, copied verified byte
+/// for byte (edits the caller made to the skeleton are not saved: use
+/// [`save_edits`] for those). [`BlobWriter::finish`] writes the set's index
+/// and gives the [`PendingStore`], whose commit renames it over the store.
+#[derive(Debug)]
+pub struct BlobWriter<'a> {
+    store: &'a Store,
+    set: BlobSet,
+    writer: StoreWriter,
+}
+
+impl<'a> BlobWriter<'a> {
+    /// Starts the rewrite of `store` with a new `set`.
+    pub fn new(store: &'a Store, set: BlobSet) -> Result<Self, StoreError> {
+        Ok(Self {
+            store,
+            set,
+            writer: with_geometry_of(store, Some(set))?,
+        })
+    }
+
+    /// Appends the next blob; its number.
+    pub fn push(&mut self, blob: &[u8]) -> Result<u32, StoreError> {
+        self.writer.blob(self.set, blob)
+    }
+
+    /// Appends the store's own blob `blob` of the set as the next one
+    /// (copied verified); a blob the store does not have is
+    /// [`StoreError::NoSuchBlob`].
+    pub fn keep(&mut self, blob: u32) -> Result<u32, StoreError> {
+        let bytes = self.store.blob(self.set, blob)?;
+        self.push(&bytes)
+    }
+
+    /// Writes the set's index, the skeleton (the store's, as it is in the
+    /// file) and the table of contents, and syncs the file.
+    pub fn finish(mut self, index: &[u8]) -> Result<PendingStore, StoreError> {
+        self.writer.blob_index(self.set, index)?;
+        self.writer.finish_copied(&self.store.skeleton_segment()?)
+    }
 }
 
 /// A writer for a new file at `store`'s path holding `store`'s chunk
-/// segments, copied verified byte for byte: what every rewrite of a store
-/// starts with.
-fn with_geometry_of(store: &Store) -> Result<StoreWriter, StoreError> {
+/// segments and its blob sets but `replaced`, copied verified byte for byte:
+/// what every rewrite of a store starts with.
+fn with_geometry_of(store: &Store, replaced: Option<BlobSet>) -> Result<StoreWriter, StoreError> {
     let mut writer = StoreWriter::create(store.path(), WriteOptions::default())?;
     for (c, chunk) in store.skeleton().chunks().iter().enumerate() {
         let id = ChunkId::from_index(c);
@@ -118,13 +155,21 @@ fn with_geometry_of(store: &Store) -> Result<StoreWriter, StoreError> {
             chunk.triangle_count(),
         )?;
     }
+    for set in BlobSet::ALL.into_iter().filter(|&s| Some(s) != replaced) {
+        if let Some(index) = store.blob_index(set)? {
+            writer.blob_index(set, &index)?;
+            for blob in 0..store.blob_count(set) {
+                writer.blob(set, &store.blob(set, cell_number(blob))?)?;
+            }
+        }
+    }
     Ok(writer)
 }
 
-/// A cell position as a cell number (ids are `u32` on disk).
+/// A blob position as a blob number (ids are `u32` on disk).
 ///
 /// # Panics
-/// Past `u32::MAX` cells, which no store holds (each takes a 32-byte entry).
+/// Past `u32::MAX` blobs, which no store holds (each takes a 32-byte entry).
 fn cell_number(cell: usize) -> u32 {
     u32::try_from(cell).expect("over 4G far-field cells")
 }

@@ -11,9 +11,7 @@ use dmu_scene::{AtomicFile, ChunkGeometry, ChunkedMesh, Scene, Structure};
 use xxhash_rust::xxh3::Xxh3;
 
 use crate::error::StoreError;
-use crate::format::{
-    ALIGN, HEADER_LEN, Header, KIND_CHUNK, KIND_FAR_CELL, KIND_FAR_INDEX, KIND_SKELETON, TocEntry,
-};
+use crate::format::{ALIGN, BlobSet, HEADER_LEN, Header, KIND_CHUNK, KIND_SKELETON, TocEntry};
 use crate::geometry::{self, resident_bytes};
 use crate::skeleton;
 
@@ -54,10 +52,9 @@ pub struct StoreWriter {
     toc: Vec<TocEntry>,
     /// (vertices, triangles) of each chunk written, checked against the skeleton.
     shapes: Vec<(u32, u32)>,
-    /// Whether the far-field index is written; far-field cells need it.
-    far_index: bool,
-    /// Far-field cells written (the next cell's number).
-    far_cells: u32,
+    /// Per [`BlobSet`]: whether its index is written, and its blobs written
+    /// (the next blob's number).
+    blob_sets: [(bool, u32); 2],
     options: WriteOptions,
     summary: StoreSummary,
 }
@@ -89,8 +86,7 @@ impl StoreWriter {
             offset: HEADER_LEN,
             toc: Vec::new(),
             shapes: Vec::new(),
-            far_index: false,
-            far_cells: 0,
+            blob_sets: [(false, 0); 2],
             options,
             summary: StoreSummary::default(),
         })
@@ -178,30 +174,31 @@ impl StoreWriter {
         Ok(())
     }
 
-    /// Appends the far-field index (opaque bytes).
+    /// Appends the index of blob set `set` (opaque bytes), before or after
+    /// its blobs.
     ///
     /// # Panics
-    /// When an index was written already.
-    pub(crate) fn far_field_index(&mut self, bytes: &[u8]) -> Result<(), StoreError> {
-        assert!(!self.far_index, "a second far-field index");
-        self.segment(0, KIND_FAR_INDEX, &[bytes])?;
-        self.far_index = true;
+    /// When the set's index was written already.
+    pub(crate) fn blob_index(&mut self, set: BlobSet, bytes: &[u8]) -> Result<(), StoreError> {
+        assert!(
+            !self.blob_sets[set as usize].0,
+            "a second {}",
+            set.index_name()
+        );
+        self.segment(0, set.kinds().0, &[bytes])?;
+        self.blob_sets[set as usize].0 = true;
         Ok(())
     }
 
-    /// Appends the next far-field cell's blob (cell numbers follow the write
-    /// order).
-    ///
-    /// # Panics
-    /// Before the far-field index is written.
-    pub(crate) fn far_field_cell(&mut self, bytes: &[u8]) -> Result<(), StoreError> {
-        assert!(self.far_index, "a far-field cell before the index");
-        self.segment(self.far_cells, KIND_FAR_CELL, &[bytes])?;
-        self.far_cells = self
-            .far_cells
+    /// Appends the next blob of `set` (numbers follow the write order) and
+    /// gives its number.
+    pub(crate) fn blob(&mut self, set: BlobSet, bytes: &[u8]) -> Result<u32, StoreError> {
+        let number = self.blob_sets[set as usize].1;
+        self.segment(number, set.kinds().1, &[bytes])?;
+        self.blob_sets[set as usize].1 = number
             .checked_add(1)
-            .expect("over 4G far-field cells");
-        Ok(())
+            .unwrap_or_else(|| panic!("over 4G {} blobs", set.blob_name()));
+        Ok(number)
     }
 
     /// Chunks written so far.
@@ -242,7 +239,17 @@ impl StoreWriter {
 
     /// Writes the skeleton segment made of `pieces`, the table of contents and
     /// the header, and syncs the file.
+    ///
+    /// # Panics
+    /// When a blob set has blobs but no index.
     fn finish_with_skeleton(mut self, pieces: &[&[u8]]) -> Result<PendingStore, StoreError> {
+        for (set, &(index, blobs)) in BlobSet::ALL.iter().zip(&self.blob_sets) {
+            assert!(
+                index || blobs == 0,
+                "{} blobs but no index",
+                set.blob_name()
+            );
+        }
         let entry = self.segment(0, KIND_SKELETON, pieces)?;
         self.summary.skeleton_bytes = entry.length;
         let toc_offset = self.offset;

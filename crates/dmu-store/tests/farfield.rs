@@ -64,9 +64,9 @@ fn a_store_without_far_fields_has_none() {
     assert!(
         matches!(
             err,
-            StoreError::NoSuchFarCell {
-                cell: 0,
-                cells: 0,
+            StoreError::NoSuchBlob {
+                blob: 0,
+                blobs: 0,
                 ..
             }
         ),
@@ -134,9 +134,9 @@ fn far_fields_round_trip() {
     assert!(
         matches!(
             err,
-            StoreError::NoSuchFarCell {
-                cell: 5,
-                cells: 5,
+            StoreError::NoSuchBlob {
+                blob: 5,
+                blobs: 5,
                 ..
             }
         ),
@@ -384,9 +384,9 @@ fn a_failed_far_field_write_changes_nothing() {
     assert!(
         matches!(
             err,
-            StoreError::NoSuchFarCell {
-                cell: 3,
-                cells: 3,
+            StoreError::NoSuchBlob {
+                blob: 3,
+                blobs: 3,
                 ..
             }
         ),
