@@ -5,7 +5,9 @@
 //! is a hole. The budget is the whole process's: what the skeleton, the tree,
 //! the collision check's whole-part index (built at open) and the renderer
 //! take once the first frame is drawn (with stand-ins only),
-//! the tools' geometry cap and a frame reserve come off it, and the residency
+//! the tools' geometry cap, the stored proxies' share
+//! ([`dmu_app::lod::proxy_budget`], when the store has a level-of-detail
+//! hierarchy) and a frame reserve come off it, and the residency
 //! gets half of the rest (the GPU pool holds a second copy of what is
 //! resident; on lavapipe in the same memory).
 
@@ -126,16 +128,21 @@ impl Streaming {
     /// that is under 16 MB.
     fn size(&mut self, tree: &Tree, fixed_bytes: u64) -> anyhow::Result<()> {
         let tool_bytes = tool_cap_bytes(self.budget_bytes);
-        let taken = fixed_bytes + tool_bytes + FRAME_RESERVE_BYTES;
+        let proxy_bytes = match self.store.blob_count(dmu_store::BlobSet::Lod) {
+            0 => 0,
+            _ => dmu_app::lod::proxy_budget(self.budget_bytes),
+        };
+        let taken = fixed_bytes + tool_bytes + proxy_bytes + FRAME_RESERVE_BYTES;
         let left = self.budget_bytes.saturating_sub(taken);
         anyhow::ensure!(
             left >= 16 << 20,
             "--memory-budget {:.0} MB: the model's structure, its tree and the renderer \
-             take {:.0} MB once a frame is drawn; with {:.0} MB for picks and checks and \
-             {:.0} MB for frames, under 16 MB would be left for geometry",
+             take {:.0} MB once a frame is drawn; with {:.0} MB for picks and checks, \
+             {:.0} MB for proxies and {:.0} MB for frames, under 16 MB would be left for geometry",
             self.budget_bytes as f64 / 1e6,
             fixed_bytes as f64 / 1e6,
             tool_bytes as f64 / 1e6,
+            proxy_bytes as f64 / 1e6,
             FRAME_RESERVE_BYTES as f64 / 1e6
         );
         self.fixed_bytes = fixed_bytes;

@@ -222,8 +222,9 @@ fn run(cli: &Cli, started: Instant) -> anyhow::Result<()> {
     let progress = Arc::new(launch::LoadProgress::default());
     let (send, result) = std::sync::mpsc::channel();
     let (model, record_path, shared) = (cli.model.clone(), cli.record.clone(), progress.clone());
-    // Proxies merge every chunk: not under a memory budget.
-    let proxies = cli.lod_error_px > 0.0 && !cli.no_proxies && cli.memory_budget.is_none();
+    // Made in memory from every chunk, or read from the store's
+    // level-of-detail hierarchy under a memory budget.
+    let proxies = cli.lod_error_px > 0.0 && !cli.no_proxies;
     let budget = cli.memory_budget;
     std::thread::Builder::new()
         .name("dmu load".into())
@@ -369,7 +370,12 @@ fn load_review(
     let mut review = review::Review::new(loaded.scene, loaded.source);
     let tree_ms = tree_start.elapsed().as_secs_f64() * 1e3;
     let mut check_index_ms = None;
+    let mut stored_proxies = None;
     if let (Some(budget), Some(store)) = (memory_budget, store) {
+        if proxies {
+            stored_proxies =
+                dmu_app::lod::stored_proxies(&store, dmu_app::lod::proxy_budget(budget))?;
+        }
         let start = Instant::now();
         review.prepare_checks();
         check_index_ms = Some(start.elapsed().as_secs_f64() * 1e3);
@@ -379,10 +385,13 @@ fn load_review(
         ));
     }
     review.recorder = record_path.map(record::Recorder::create).transpose()?;
-    let proxies = proxies.then(|| {
-        let r = &review;
-        dmu_app::progress::build_proxies(&r.scene, &r.tree, &r.scene, true)
-    });
+    let proxies = match memory_budget {
+        Some(_) => stored_proxies,
+        None => proxies.then(|| {
+            let r = &review;
+            dmu_app::progress::build_proxies(&r.scene, &r.tree, &r.scene, true)
+        }),
+    };
     let b = review.scene.world_bounds();
     let facts = app::to_value(Facts {
         model: ModelFacts {

@@ -224,6 +224,12 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         Budget::Bytes(b) => b,
         Budget::Percent(p) => (info.geometry_resident_bytes as f64 * p / 100.0) as u64,
     };
+    // Stored proxies, drawn by a rendered walk, take their share of the
+    // budget from the chunks'.
+    let proxy_bytes = match args.render && info.lod_nodes > 0 && args.lod_error_px > 0.0 {
+        true => dmu_app::lod::proxy_budget(budget_bytes),
+        false => 0,
+    };
     let tree = Tree::build(store.skeleton(), TreeOptions::default());
     let path = camera_path(args.path.as_deref(), args.fps, args.range, &tree)?;
     let viewport = Viewport {
@@ -237,7 +243,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             Order::Area => LoadOrder::Area,
             Order::Fifo => LoadOrder::Fifo,
         },
-        budget_bytes,
+        budget_bytes: budget_bytes - proxy_bytes,
         loader_threads: args.loader_threads as usize,
         disk_bytes_per_frame: (!args.real_time).then_some(args.disk_per_frame),
         frame_rate_hz: args.fps,
@@ -314,6 +320,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                     predict_next: !args.no_predict_next,
                     predict_scale: args.predict_resolution,
                     progress: true,
+                    proxy_bytes,
                 },
             )?
         };

@@ -5,6 +5,7 @@ mod cmd_bcf;
 mod cmd_bench;
 mod cmd_collide;
 mod cmd_farfield;
+mod cmd_lod;
 mod cmd_generate;
 mod cmd_import;
 mod cmd_info;
@@ -51,6 +52,7 @@ enum Command {
     Bench(cmd_bench::Args),
     Tradeoffs(cmd_tradeoffs::Args),
     Farfield(cmd_farfield::Args),
+    Lod(cmd_lod::Args),
 }
 
 /// Ends the process quietly, as Unix tools do, when the reader of stdout goes
@@ -91,6 +93,7 @@ fn main() -> ExitCode {
         Command::Bench(args) => cmd_bench::run(&args),
         Command::Tradeoffs(args) => cmd_tradeoffs::run(&args),
         Command::Farfield(args) => cmd_farfield::run(&args),
+        Command::Lod(args) => cmd_lod::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

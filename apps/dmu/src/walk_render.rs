@@ -547,6 +547,9 @@ pub struct Resident {
     pub predict_scale: f64,
     /// Show a progress bar.
     pub progress: bool,
+    /// Bytes the store's stored proxies may take when loaded (its
+    /// level-of-detail hierarchy, if it has one).
+    pub proxy_bytes: u64,
 }
 
 /// Renders `path` from `store` through a residency manager within
@@ -583,6 +586,12 @@ pub fn run_resident(
         tree,
         lod_options(&how.culling_options),
     );
+    if how.proxy_bytes > 0
+        && how.culling_options.may_draw_lods()
+        && let Some(proxies) = dmu_app::lod::stored_proxies(store, how.proxy_bytes)?
+    {
+        renderer.set_proxies(proxies);
+    }
     let capture = Capture::new(&device, size);
     let camera = |f: &CameraFrame| camera(f, tree);
     let mut view = View::new(camera(&path[0]), size, how.culling);

@@ -34,6 +34,7 @@ pub mod explain;
 pub mod farfield;
 pub mod hits;
 pub mod load;
+pub mod lod;
 pub mod progress;
 pub mod resident;
 pub mod text;

@@ -159,6 +159,10 @@ impl GeometrySource for StandInSource<'_> {
     fn has(&self, chunk: ChunkId) -> bool {
         chunk.index() < self.boxes.len()
     }
+
+    fn has_own(&self, chunk: ChunkId) -> bool {
+        self.resident.has(chunk)
+    }
 }
 
 /// Which chunks the GPU pool holds as stand-ins (their boxes, uploaded through
@@ -276,6 +280,13 @@ impl GeometrySource for FrameSource<'_> {
         match self {
             Self::StandIns(s) => s.has(chunk),
             Self::Resident(r) => r.has(chunk),
+        }
+    }
+
+    fn has_own(&self, chunk: ChunkId) -> bool {
+        match self {
+            Self::StandIns(s) => s.has_own(chunk),
+            Self::Resident(r) => r.has_own(chunk),
         }
     }
 }

@@ -12,7 +12,8 @@ use crate::budget::KnobsInEffect;
 use crate::farfield::{FarCut, NearField};
 use crate::gpu::QueryBox;
 use crate::hierarchy::{Hierarchy, NodeKind};
-use crate::proxy::proxy_fits;
+use crate::geometry::GeometrySource;
+use crate::proxy::{Proxies, proxy_fits};
 use crate::renderer::Renderer;
 use crate::round::{
     ColorDraws, Draw, LodPick, Model, ProxyRound, Round, RoundResult, Shading, SubmittedRound,
@@ -329,37 +330,26 @@ impl Renderer {
     /// frame's LOD error: the chunk instances to draw and the proxies (mirror
     /// nodes) drawn instead of the rest. Counts the triangles of both, and of
     /// what the proxies stand for, in `triangles_in_frustum`.
+    ///
+    /// With stored proxies this is 3D Tiles' replace refinement: a node
+    /// whose proxy would fit but is not loaded is asked for and refined past
+    /// meanwhile, and a subtree that would draw a chunk `geometry` lacks (a
+    /// box stand-in) is drawn as the nearest loaded proxy above it instead,
+    /// however coarse, so nothing is missing while it loads.
     pub(crate) fn proxy_draws(
         &self,
-        scene: &Scene,
-        tree: &Tree,
+        model: &Model<'_>,
         cull: &Cull,
         fit: &[bool],
         stats: &mut FrameStats,
     ) -> (Vec<Draw>, Vec<u32>) {
         let h = &self.hierarchy;
-        let mut walk = Walk::new(h, scene, tree, cull, stats);
+        let mut walk = Walk::new(h, model.scene, model.tree, cull, stats);
         walk.proxy_fit = fit;
         let mut nodes = Vec::new();
-        if h.is_empty() {
-            return (Vec::new(), nodes);
-        }
-        let mut stack = vec![h.root];
-        while let Some(n) = stack.pop() {
-            let Some(kind) = walk.admit(n) else { continue };
-            if let NodeKind::Entry(e) = kind {
-                walk.draws.push(Draw {
-                    entry: e.0,
-                    query: false,
-                });
-                continue;
-            }
-            if walk.fits(n) {
-                nodes.push(n);
-                walk.count_below(n);
-            } else {
-                stack.extend_from_slice(h.children(n));
-            }
+        if !h.is_empty() {
+            let proxies = self.proxies.as_ref().map(|p| &p.cpu);
+            refine(&mut walk, proxies, model.geometry, h.root, &mut nodes);
         }
         (walk.draws, nodes)
     }
@@ -449,7 +439,7 @@ impl Renderer {
             _ if let FarCut::Near(near) = &cull.far => near_draws(scene, tree, cull, near, stats),
             Culling::None => self.all_draws(scene, tree, cull, stats),
             _ if !fit.is_empty() => {
-                let (draws, nodes) = self.proxy_draws(scene, tree, cull, fit, stats);
+                let (draws, nodes) = self.proxy_draws(&f.model, cull, fit, stats);
                 proxy_nodes = nodes;
                 draws
             }
@@ -494,6 +484,55 @@ impl Renderer {
             },
         )
     }
+}
+
+/// Draws what node `n` stands for into `walk` and `nodes` (see
+/// `Renderer::proxy_draws`); whether all of it is there: every chunk drawn
+/// with its own geometry, every proxy loaded.
+fn refine(
+    walk: &mut Walk<'_>,
+    proxies: Option<&Proxies>,
+    geometry: &dyn GeometrySource,
+    n: u32,
+    nodes: &mut Vec<u32>,
+) -> bool {
+    let Some(kind) = walk.admit(n) else {
+        return true;
+    };
+    if let NodeKind::Entry(e) = kind {
+        walk.draws.push(Draw {
+            entry: e.0,
+            query: false,
+        });
+        return geometry.has_own(walk.tree.entries()[e.0 as usize].chunk);
+    }
+    let loaded = proxies.and_then(|p| p.current(n));
+    if let (Some(p), Some(x)) = (proxies, loaded) {
+        p.used(n);
+        if walk.fits(n) {
+            nodes.push(n);
+            walk.stats.triangles_in_frustum += x.source_triangles;
+            return true;
+        }
+    }
+    if let Some(p) = proxies
+        && loaded.is_none()
+        && p.is_stored_current(n)
+    {
+        p.request(n, walk.cull.coverage.size_px(walk.h.bounds(walk.tree, n)));
+    }
+    let (draws, drawn) = (walk.draws.len(), nodes.len());
+    let mut complete = true;
+    for &c in walk.h.children(n) {
+        complete &= refine(walk, proxies, geometry, c, nodes);
+    }
+    if !complete && loaded.is_some() {
+        walk.draws.truncate(draws);
+        nodes.truncate(drawn);
+        nodes.push(n);
+        return true;
+    }
+    complete
 }
 
 /// The state of an occlusion-culling traversal within a frame.

@@ -18,6 +18,12 @@ pub trait GeometrySource {
     fn has(&self, chunk: ChunkId) -> bool {
         self.chunk_geometry(chunk).is_some()
     }
+
+    /// Whether it would give the chunk's own geometry, not a stand-in for it
+    /// (a source of stand-ins answers a chunk it lacks with its box).
+    fn has_own(&self, chunk: ChunkId) -> bool {
+        self.has(chunk)
+    }
 }
 
 impl GeometrySource for Scene {

@@ -130,7 +130,10 @@ pub use farfield::{
 };
 pub use geometry::{GeometryPool, GeometrySource};
 pub use hierarchy::Hierarchy;
-pub use proxy::{CALM_TICKS, Proxies, ProxyOptions, ProxyStats};
+pub use proxy::{
+    CALM_TICKS, ChunkLoader, Proxies, ProxyBlobs, ProxyOptions, ProxyStats, StoredBuild,
+    build_stored,
+};
 pub use renderer::{Renderer, RendererOptions};
 pub use reproject::{Reprojection, Reprojector};
 pub use settings::{AUTO_PROBE_EVERY, Culling, CullingOptions, MAX_SECTION_PLANES};

@@ -213,12 +213,14 @@ impl Renderer {
         };
         let start = std::time::Instant::now();
         gpu.cpu.sync(&self.hierarchy, scene, tree);
-        let spent = if gpu.cpu.refresh(&self.hierarchy, scene, tree, geometry) {
+        gpu.cpu.refresh(&self.hierarchy, scene, tree, geometry);
+        gpu.cpu.load_requested();
+        let spent = if gpu.cpu.dirty.is_empty() {
+            std::time::Duration::ZERO
+        } else {
             let dirty = std::mem::take(&mut gpu.cpu.dirty);
             self.upload_proxies(&mut gpu, &dirty);
             start.elapsed()
-        } else {
-            std::time::Duration::ZERO
         };
         self.proxies = Some(gpu);
         spent

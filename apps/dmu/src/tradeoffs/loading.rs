@@ -113,6 +113,7 @@ pub fn run_predicted(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
                     predict_next: next,
                     predict_scale: 1.0,
                     progress: false,
+                    proxy_bytes: 0,
                 },
             )?;
             let r = &report["render"];

@@ -34,6 +34,10 @@ use glam::{DVec3, Vec3};
 use crate::geometry::{GeometrySource, pack_normal};
 use crate::hierarchy::{Hierarchy, NodeKind};
 
+mod stored;
+
+pub use stored::{ChunkLoader, ProxyBlobs, StoredBuild, build_stored};
+
 /// meshoptimizer's error is an estimate, not a bound (`dmu_scene::lod`
 /// measured up to 1.82x it on a sphere), and welding and pruning merged CAD
 /// pieces stray further: proxies claim this multiple of it. With 2, pixels
@@ -242,6 +246,8 @@ pub struct Proxies {
     pub(crate) dirty: Vec<u32>,
     /// What the last build or refresh did.
     pub(crate) last: ProxyStats,
+    /// The store the proxies are read from on demand, if they are stored.
+    pub(crate) stored: Option<stored::Stored>,
 }
 
 /// A 64-bit mix (splitmix64's finaliser).
@@ -394,13 +400,15 @@ impl Proxies {
         tree: &Tree,
         source: &dyn GeometrySource,
     ) -> bool {
+        // A current stored proxy is loaded on demand, not remade.
         let due = |p: &Self, n: u32| {
-            let n = n as usize;
-            p.level[n]
-                && p.nodes[n]
+            let i = n as usize;
+            p.level[i]
+                && p.nodes[i]
                     .as_ref()
-                    .is_none_or(|x| x.signature != p.signature[n])
-                && p.tick >= p.changed[n] + CALM_TICKS
+                    .is_none_or(|x| x.signature != p.signature[i])
+                && p.tick >= p.changed[i] + CALM_TICKS
+                && !p.is_stored_current(n)
         };
         if !(0..self.nodes.len() as u32).any(|n| due(self, n)) {
             return false;
@@ -445,6 +453,26 @@ impl Proxies {
         source: &dyn GeometrySource,
         n: u32,
     ) -> bool {
+        let made = self.make(h, scene, tree, source, n);
+        let some = made.is_some();
+        self.nodes[n as usize] = made.map(Box::new);
+        if some {
+            self.dirty.push(n);
+        }
+        some
+    }
+
+    /// Node `n`'s proxy made from its current content, as
+    /// [`Proxies::remake`] makes it (`None` where it makes none); changes
+    /// nothing, so many can be made at once.
+    fn make(
+        &self,
+        h: &Hierarchy,
+        scene: &Scene,
+        tree: &Tree,
+        source: &dyn GeometrySource,
+        n: u32,
+    ) -> Option<Proxy> {
         let mut merged = Merged {
             origin: h.bounds(tree, n).center(),
             ..Merged::default()
@@ -457,15 +485,14 @@ impl Proxies {
                 .all(|&c| self.gather(h, scene, tree, source, c, &mut merged)),
         };
         if !complete {
-            self.nodes[n as usize] = None;
-            return false;
+            return None;
         }
         let target = self.options.error_fraction * h.bounds(tree, n).extent().length();
         let (vertices, indices, error) = simplify(merged.vertices, &merged.indices, target);
         let positions: Vec<Vec3> = vertices.iter().map(|v| Vec3::from(v.position)).collect();
         let solid = dmu_scene::is_solid(&positions, &indices);
         let (vertices, indices, clusters) = cluster(&vertices, &indices);
-        self.nodes[n as usize] = Some(Box::new(Proxy {
+        Some(Proxy {
             solid,
             origin: merged.origin,
             vertices,
@@ -474,9 +501,7 @@ impl Proxies {
             signature: self.signature[n as usize],
             source_triangles: merged.source_triangles,
             clusters,
-        }));
-        self.dirty.push(n);
-        true
+        })
     }
 
     /// Adds what stands below node `c` to `merged`: its proxy at a level,

@@ -1,0 +1,616 @@
+//! Proxies kept in a store (issue 42): made once, at import or by `dmu lod
+//! build`, streamed into the file node by node, and read back on demand by a
+//! renderer that holds only those its views need.
+//!
+//! A model larger than memory cannot have its proxies made at load time from
+//! the whole scene, as [`Proxies::build`] does: every chunk would have to be
+//! read. [`build_stored`] makes the same proxies in post-order, a batch of
+//! the lowest level at a time in parallel (rayon) from the chunks a
+//! [`ChunkLoader`] brings in for that batch, hands each to a sink as bytes
+//! ([`encode`]) and drops it once its parent is made: what it holds is the
+//! proxies still waiting for their parent, a few per level.
+//!
+//! A renderer given stored proxies ([`Proxies::stored`]) knows every node's
+//! error and content signature from the index, so it can decide what fits
+//! without the geometry; it asks for the proxies a frame wanted (coarse
+//! first: the larger on screen for their bytes), loads them within a time
+//! budget per frame and keeps them within a byte budget, least recently
+//! drawn evicted first. A stored proxy whose signature no longer matches its
+//! node (a part moved since it was made) is stale like any other: never
+//! drawn, the frame refines past it.
+
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use bytemuck::{Pod, Zeroable};
+use dmu_geom::Aabb3f;
+use dmu_scene::{ChunkId, Scene};
+use dmu_tree::Tree;
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+
+use super::{Cluster, MAX_CLUSTERS, Proxies, Proxy, ProxyOptions, ProxyStats, ProxyVertex, post_order};
+use crate::geometry::GeometrySource;
+use crate::hierarchy::{Hierarchy, NodeKind};
+
+/// The first bytes of a stored proxy.
+const PROXY_MAGIC: [u8; 8] = *b"DMUPRXY1";
+/// The first bytes of the stored index.
+const INDEX_MAGIC: [u8; 8] = *b"DMULODX1";
+
+/// A stored proxy's fixed part.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct ProxyHeader {
+    magic: [u8; 8],
+    origin: [f64; 3],
+    error: f64,
+    signature: u64,
+    source_triangles: u64,
+    solid: u32,
+    vertices: u32,
+    indices: u32,
+    clusters: u32,
+}
+const _: () = assert!(size_of::<ProxyHeader>() == 72);
+
+/// A cluster as stored.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct ClusterRecord {
+    first_index: u32,
+    index_count: u32,
+    min: [f32; 3],
+    max: [f32; 3],
+}
+const _: () = assert!(size_of::<ClusterRecord>() == 32);
+
+/// The index's fixed part.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct IndexHeader {
+    magic: [u8; 8],
+    /// Mirror nodes of the hierarchy the proxies were made for.
+    mirror_nodes: u64,
+    /// [`ProxyOptions::error_fraction`] they were made with.
+    error_fraction: f64,
+    nodes: u64,
+}
+
+/// One node's entry in the stored index.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub(crate) struct StoredNode {
+    /// Mirror node id.
+    pub node: u32,
+    /// Blob number in the store.
+    pub blob: u32,
+    /// The proxy's claimed error, world units.
+    pub error: f64,
+    /// The content it shows.
+    pub signature: u64,
+    /// Bytes it takes in memory once loaded (CPU and GPU copies).
+    pub bytes: u64,
+}
+const _: () = assert!(size_of::<StoredNode>() == 32);
+
+/// A proxy as bytes.
+pub(crate) fn encode(p: &Proxy) -> Vec<u8> {
+    let header = ProxyHeader {
+        magic: PROXY_MAGIC,
+        origin: p.origin.to_array(),
+        error: p.error,
+        signature: p.signature,
+        source_triangles: p.source_triangles,
+        solid: u32::from(p.solid),
+        vertices: p.vertices.len() as u32,
+        indices: p.indices.len() as u32,
+        clusters: p.clusters.len() as u32,
+    };
+    let clusters: Vec<ClusterRecord> = p
+        .clusters
+        .iter()
+        .map(|c| ClusterRecord {
+            first_index: c.first_index,
+            index_count: c.index_count,
+            min: c.bounds.min.to_array(),
+            max: c.bounds.max.to_array(),
+        })
+        .collect();
+    let mut out = Vec::with_capacity(
+        size_of::<ProxyHeader>()
+            + size_of_val(clusters.as_slice())
+            + size_of_val(p.vertices.as_slice())
+            + size_of_val(p.indices.as_slice()),
+    );
+    out.extend_from_slice(bytemuck::bytes_of(&header));
+    out.extend_from_slice(bytemuck::cast_slice(&clusters));
+    out.extend_from_slice(bytemuck::cast_slice(&p.vertices));
+    out.extend_from_slice(bytemuck::cast_slice(&p.indices));
+    out
+}
+
+/// Reads `n` records of `T` at `*at`, advancing it.
+fn take<T: Pod>(bytes: &[u8], at: &mut usize, n: usize, what: &str) -> Result<Vec<T>, String> {
+    let len = n
+        .checked_mul(size_of::<T>())
+        .filter(|&len| len <= bytes.len() - *at)
+        .ok_or_else(|| format!("{n} {what} run past the end ({} bytes)", bytes.len()))?;
+    let out = bytes[*at..*at + len]
+        .chunks_exact(size_of::<T>())
+        .map(bytemuck::pod_read_unaligned)
+        .collect();
+    *at += len;
+    Ok(out)
+}
+
+/// A stored proxy read back, every count and index checked: an error says
+/// what is wrong, in a few words.
+pub(crate) fn decode(bytes: &[u8]) -> Result<Proxy, String> {
+    let mut at = 0;
+    let header: ProxyHeader = take(bytes, &mut at, 1, "headers")?[0];
+    if header.magic != PROXY_MAGIC {
+        return Err("not a stored proxy".into());
+    }
+    let origin = DVec3::from_array(header.origin);
+    if !origin.is_finite() || !header.error.is_finite() || header.error < 0.0 {
+        return Err("its origin or error is not finite".into());
+    }
+    if header.clusters as usize > MAX_CLUSTERS {
+        return Err(format!("{} clusters (at most {MAX_CLUSTERS})", header.clusters));
+    }
+    let records: Vec<ClusterRecord> = take(bytes, &mut at, header.clusters as usize, "clusters")?;
+    let vertices: Vec<ProxyVertex> =
+        take(bytes, &mut at, header.vertices as usize, "vertices")?;
+    let indices: Vec<u32> = take(bytes, &mut at, header.indices as usize, "indices")?;
+    if at != bytes.len() {
+        return Err(format!("{} bytes after its indices", bytes.len() - at));
+    }
+    if !indices.len().is_multiple_of(3) {
+        return Err(format!("{} indices, not whole triangles", indices.len()));
+    }
+    if let Some(i) = indices.iter().find(|&&i| i as usize >= vertices.len()) {
+        return Err(format!("index {i} of {} vertices", vertices.len()));
+    }
+    if vertices
+        .iter()
+        .any(|v| !Vec3::from(v.position).is_finite() || !Vec3::from(v.base).is_finite())
+    {
+        return Err("a vertex is not finite".into());
+    }
+    let mut next = 0u32;
+    let clusters = records
+        .iter()
+        .map(|r| {
+            let end = r.first_index.checked_add(r.index_count);
+            if r.first_index != next || end.is_none_or(|e| e as usize > indices.len()) {
+                return Err(format!(
+                    "cluster of indices {}+{} does not follow the last",
+                    r.first_index, r.index_count
+                ));
+            }
+            next = r.first_index + r.index_count;
+            Ok(Cluster {
+                first_index: r.first_index,
+                index_count: r.index_count,
+                bounds: Aabb3f {
+                    min: Vec3::from(r.min),
+                    max: Vec3::from(r.max),
+                },
+            })
+        })
+        .collect::<Result<Vec<_>, String>>()?;
+    if !clusters.is_empty() && next as usize != indices.len() {
+        return Err("its clusters do not cover its indices".into());
+    }
+    Ok(Proxy {
+        origin,
+        vertices,
+        indices,
+        error: header.error,
+        signature: header.signature,
+        source_triangles: header.source_triangles,
+        solid: header.solid != 0,
+        clusters,
+    })
+}
+
+/// Bytes a proxy takes in memory (kept on the CPU and on the GPU).
+fn resident_bytes(p: &Proxy) -> u64 {
+    2 * (size_of_val(p.vertices.as_slice()) + size_of_val(p.indices.as_slice())) as u64
+}
+
+/// Brings in the chunk geometry a stored build needs, a batch at a time.
+pub trait ChunkLoader {
+    /// Makes `chunks` available from [`ChunkLoader::source`]; chunks loaded
+    /// for earlier batches may be dropped.
+    fn load(&mut self, chunks: &[ChunkId]) -> Result<(), String>;
+    /// The chunks loaded.
+    fn source(&self) -> &(dyn GeometrySource + Sync);
+}
+
+/// What [`build_stored`] made.
+#[derive(Clone, Debug, Default)]
+pub struct StoredBuild {
+    /// The index to store beside the blobs ([`Proxies::stored`] reads it).
+    pub index: Vec<u8>,
+    /// Proxies made, their triangles, bytes stored, and the time it took.
+    pub stats: ProxyStats,
+    /// Nodes with no proxy (a chunk the loader could not give).
+    pub missing: u64,
+    /// The most proxies held at once.
+    pub peak_held: usize,
+}
+
+/// Makes the proxies of every node of `tree` as [`Proxies::build`] does,
+/// streamed: each goes to `sink` as bytes as soon as it is made (`sink`
+/// gives its blob number), and is dropped once its parent level is made.
+/// The lowest level is made `batch` nodes at a time in parallel, from chunks
+/// `loader` brings in for the batch; `progress` is told (nodes done, nodes).
+pub fn build_stored(
+    scene: &Scene,
+    tree: &Tree,
+    loader: &mut dyn ChunkLoader,
+    options: ProxyOptions,
+    batch: usize,
+    sink: &mut dyn FnMut(&[u8]) -> Result<u32, String>,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<StoredBuild, String> {
+    let start = Instant::now();
+    let mut h = Hierarchy::default();
+    h.sync(tree);
+    let mut proxies = Proxies {
+        options,
+        ..Proxies::default()
+    };
+    proxies.sync(&h, scene, tree);
+    let order: Vec<u32> = post_order(&h)
+        .into_iter()
+        .filter(|&n| proxies.is_level(n))
+        .collect();
+    let mut out = Emitter {
+        h: &h,
+        sink,
+        index: Vec::new(),
+        held: 0,
+        build: StoredBuild::default(),
+    };
+    let mut pending: Vec<u32> = Vec::new();
+    let total = order.len();
+    for (done, &n) in order.iter().enumerate() {
+        if below_levels(&proxies, &h, n).next().is_none() {
+            pending.push(n);
+            if pending.len() >= batch.max(1) {
+                out.flush(&mut proxies, &mut pending, scene, tree, loader)?;
+            }
+        } else {
+            out.flush(&mut proxies, &mut pending, scene, tree, loader)?;
+            loader.load(&cell_chunks(&proxies, &h, tree, n))?;
+            let made = proxies.make(&h, scene, tree, loader.source(), n);
+            out.emit(&mut proxies, n, made)?;
+        }
+        if (done + 1) % 16 == 0 || done + 1 == total {
+            progress(done + 1, total);
+        }
+    }
+    out.flush(&mut proxies, &mut pending, scene, tree, loader)?;
+    let header = IndexHeader {
+        magic: INDEX_MAGIC,
+        mirror_nodes: h.len() as u64,
+        error_fraction: options.error_fraction,
+        nodes: out.index.len() as u64,
+    };
+    let mut build = out.build;
+    build.index = bytemuck::bytes_of(&header).to_vec();
+    build.index.extend_from_slice(bytemuck::cast_slice(&out.index));
+    build.stats.made = build.stats.proxies;
+    build.stats.ms = start.elapsed().as_secs_f64() * 1e3;
+    Ok(build)
+}
+
+/// Where a stored build's proxies go.
+struct Emitter<'a> {
+    h: &'a Hierarchy,
+    sink: &'a mut dyn FnMut(&[u8]) -> Result<u32, String>,
+    index: Vec<StoredNode>,
+    /// Proxies held now.
+    held: usize,
+    build: StoredBuild,
+}
+
+impl Emitter<'_> {
+    /// Node `n`'s proxy is made (or could not be): out to the sink and into
+    /// the index, held until its parent level is made; the level nodes it
+    /// was made of are dropped.
+    fn emit(&mut self, proxies: &mut Proxies, n: u32, made: Option<Proxy>) -> Result<(), String> {
+        let below: Vec<u32> = below_levels(proxies, self.h, n).collect();
+        for c in below {
+            if proxies.nodes[c as usize].take().is_some() {
+                self.held -= 1;
+            }
+        }
+        let Some(p) = made else {
+            self.build.missing += 1;
+            return Ok(());
+        };
+        let bytes = encode(&p);
+        let blob = (self.sink)(&bytes)?;
+        self.index.push(StoredNode {
+            node: n,
+            blob,
+            error: p.error,
+            signature: p.signature,
+            bytes: resident_bytes(&p),
+        });
+        let stats = &mut self.build.stats;
+        stats.proxies += 1;
+        stats.solid += u64::from(p.solid);
+        stats.triangles += p.triangles();
+        stats.bytes += bytes.len() as u64;
+        proxies.nodes[n as usize] = Some(Box::new(p));
+        self.held += 1;
+        self.build.peak_held = self.build.peak_held.max(self.held);
+        Ok(())
+    }
+
+    /// Makes the lowest-level nodes `pending` in parallel from the chunks
+    /// `loader` brings in for them, and emits them.
+    fn flush(
+        &mut self,
+        proxies: &mut Proxies,
+        pending: &mut Vec<u32>,
+        scene: &Scene,
+        tree: &Tree,
+        loader: &mut dyn ChunkLoader,
+    ) -> Result<(), String> {
+        if pending.is_empty() {
+            return Ok(());
+        }
+        let mut chunks: Vec<ChunkId> = pending
+            .iter()
+            .flat_map(|&n| cell_chunks(proxies, self.h, tree, n))
+            .collect();
+        chunks.sort_unstable();
+        chunks.dedup();
+        loader.load(&chunks)?;
+        let source = loader.source();
+        let h = self.h;
+        let made: Vec<Option<Proxy>> = pending
+            .par_iter()
+            .map(|&n| proxies.make(h, scene, tree, source, n))
+            .collect();
+        for (&n, p) in pending.iter().zip(made) {
+            self.emit(proxies, n, p)?;
+        }
+        pending.clear();
+        Ok(())
+    }
+}
+
+/// The nearest level nodes below `n` (what its proxy is made of, with the
+/// chunk instances of cells with no level between).
+fn below_levels<'a>(
+    proxies: &'a Proxies,
+    h: &'a Hierarchy,
+    n: u32,
+) -> impl Iterator<Item = u32> + 'a {
+    let mut stack: Vec<u32> = match h.kind(n) {
+        NodeKind::Cell(_) => Vec::new(),
+        _ => h.children(n).to_vec(),
+    };
+    std::iter::from_fn(move || {
+        while let Some(c) = stack.pop() {
+            if proxies.is_level(c) {
+                return Some(c);
+            }
+            if let NodeKind::Internal = h.kind(c) {
+                stack.extend_from_slice(h.children(c));
+            }
+        }
+        None
+    })
+}
+
+/// The chunks of the cells whose instances go into `n`'s proxy directly.
+fn cell_chunks(proxies: &Proxies, h: &Hierarchy, tree: &Tree, n: u32) -> Vec<ChunkId> {
+    let mut chunks = Vec::new();
+    let mut stack = vec![n];
+    while let Some(c) = stack.pop() {
+        if c != n && proxies.is_level(c) {
+            continue;
+        }
+        match h.kind(c) {
+            NodeKind::Cell(_) => chunks.extend(
+                h.children(c)
+                    .iter()
+                    .map(|&e| tree.entries()[e as usize].chunk),
+            ),
+            NodeKind::Internal => stack.extend_from_slice(h.children(c)),
+            NodeKind::Entry(_) | NodeKind::Free => {}
+        }
+    }
+    chunks
+}
+
+/// Reads stored proxies' bytes by blob number (the application's store).
+pub trait ProxyBlobs: Send + Sync + std::fmt::Debug {
+    /// Blob `blob`'s bytes, or why not (one line).
+    fn blob(&self, blob: u32) -> Result<Vec<u8>, String>;
+}
+
+/// The stored side of [`Proxies`]: the index, the blobs, and what is loaded.
+#[derive(Debug)]
+pub(crate) struct Stored {
+    /// By mirror node: its entry in the index.
+    pub nodes: Vec<Option<StoredNode>>,
+    blobs: Box<dyn ProxyBlobs>,
+    /// Bytes loaded proxies may take.
+    budget: u64,
+    /// Bytes loaded proxies take.
+    pub resident: u64,
+    /// Nodes frames asked for since the last load, with their priority
+    /// (screen size over bytes).
+    pub requested: Mutex<Vec<(u32, f64)>>,
+    /// Nodes frames drew since the last load.
+    pub drawn: Mutex<Vec<u32>>,
+    /// Per mirror node: the load tick it was last drawn or loaded at.
+    last_used: Vec<u64>,
+    /// Loads run (a tick each).
+    tick: u64,
+    /// Time loads may take per frame (at least one is made when any is due).
+    load_budget: Duration,
+    /// Loaded, evicted and failed so far.
+    pub loads: u64,
+    pub evictions: u64,
+    pub failures: u64,
+}
+
+impl Proxies {
+    /// Proxies read on demand from a store: `index` as [`build_stored`]
+    /// made it, `blobs` its blobs; loaded ones take at most `budget` bytes,
+    /// loading at most `load_budget` a frame. An index that does not decode
+    /// is an error of a few words.
+    pub fn stored(
+        index: &[u8],
+        blobs: Box<dyn ProxyBlobs>,
+        budget: u64,
+        load_budget: Duration,
+    ) -> Result<Self, String> {
+        let mut at = 0;
+        let header: IndexHeader = take(index, &mut at, 1, "index headers")?[0];
+        if header.magic != INDEX_MAGIC {
+            return Err("not a level-of-detail index".into());
+        }
+        let entries: Vec<StoredNode> = take(index, &mut at, header.nodes as usize, "nodes")?;
+        if at != index.len() || header.mirror_nodes > u64::from(u32::MAX) {
+            return Err("the index's size does not match its node count".into());
+        }
+        let mut nodes = vec![None; header.mirror_nodes as usize];
+        for e in entries {
+            let slot = nodes
+                .get_mut(e.node as usize)
+                .ok_or_else(|| format!("node {} of {}", e.node, header.mirror_nodes))?;
+            *slot = Some(e);
+        }
+        Ok(Self {
+            options: ProxyOptions {
+                error_fraction: header.error_fraction,
+                ..ProxyOptions::default()
+            },
+            stored: Some(Stored {
+                last_used: vec![0; nodes.len()],
+                nodes,
+                blobs,
+                budget,
+                resident: 0,
+                requested: Mutex::default(),
+                drawn: Mutex::default(),
+                tick: 0,
+                load_budget,
+                loads: 0,
+                evictions: 0,
+                failures: 0,
+            }),
+            ..Self::default()
+        })
+    }
+
+    /// Whether node `n` has a current stored proxy (loaded or not).
+    pub(crate) fn is_stored_current(&self, n: u32) -> bool {
+        self.stored.as_ref().is_some_and(|s| {
+            s.nodes
+                .get(n as usize)
+                .and_then(Option::as_ref)
+                .is_some_and(|e| self.signature.get(n as usize) == Some(&e.signature))
+        })
+    }
+
+    /// A frame wants node `n`'s proxy, which is not loaded; `priority`: the
+    /// larger, the sooner.
+    pub(crate) fn request(&self, n: u32, size_px: f64) {
+        if let Some(s) = &self.stored
+            && let Some(e) = s.nodes.get(n as usize).and_then(Option::as_ref)
+        {
+            let priority = size_px / (e.bytes.max(1) as f64);
+            s.requested
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .push((n, priority));
+        }
+    }
+
+    /// A frame drew node `n`'s proxy.
+    pub(crate) fn used(&self, n: u32) {
+        if let Some(s) = &self.stored {
+            s.drawn
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .push(n);
+        }
+    }
+
+    /// Loads the proxies frames asked for, the highest priority first, within
+    /// the time budget (at least one), then evicts the least recently drawn
+    /// past the byte budget (never one drawn since the last load). The nodes
+    /// loaded or evicted go to `dirty`.
+    pub(crate) fn load_requested(&mut self) {
+        let Some(s) = self.stored.as_mut() else {
+            return;
+        };
+        s.tick += 1;
+        let tick = s.tick;
+        let drawn = std::mem::take(s.drawn.get_mut().unwrap_or_else(|e| e.into_inner()));
+        for &n in &drawn {
+            s.last_used[n as usize] = tick;
+        }
+        let mut requested =
+            std::mem::take(s.requested.get_mut().unwrap_or_else(|e| e.into_inner()));
+        requested.sort_unstable_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+        requested.dedup_by_key(|r| r.0);
+        let start = Instant::now();
+        let mut made = 0;
+        for (n, _) in requested {
+            if made > 0 && start.elapsed() >= s.load_budget {
+                break;
+            }
+            let slot = n as usize;
+            let Some(entry) = s.nodes[slot] else { continue };
+            if self.nodes.get(slot).is_none_or(Option::is_some) {
+                continue;
+            }
+            match s.blobs.blob(entry.blob).and_then(|b| decode(&b)) {
+                Ok(p) => {
+                    s.resident += resident_bytes(&p);
+                    s.last_used[slot] = tick;
+                    self.nodes[slot] = Some(Box::new(p));
+                    self.dirty.push(n);
+                    s.loads += 1;
+                }
+                Err(e) => {
+                    // Never asked for again: the node refines past it.
+                    eprintln!("warning: level-of-detail node #{}: {e}", entry.blob);
+                    s.nodes[slot] = None;
+                    s.failures += 1;
+                }
+            }
+            made += 1;
+        }
+        if s.resident <= s.budget {
+            return;
+        }
+        let mut loaded: Vec<u32> = (0..self.nodes.len() as u32)
+            .filter(|&n| self.nodes[n as usize].is_some() && s.last_used[n as usize] < tick)
+            .collect();
+        loaded.sort_unstable_by_key(|&n| s.last_used[n as usize]);
+        for n in loaded {
+            if s.resident <= s.budget {
+                break;
+            }
+            if let Some(p) = self.nodes[n as usize].take() {
+                s.resident -= resident_bytes(&p);
+                self.dirty.push(n);
+                s.evictions += 1;
+            }
+        }
+    }
+}
