@@ -48,7 +48,12 @@ struct BuildArgs {
 
 pub fn run(args: &Args) -> anyhow::Result<()> {
     let Sub::Build(args) = &args.command;
-    let report = build_into(&args.file, args.chunk_budget, args.error_fraction, args.json)?;
+    let report = build_into(
+        &args.file,
+        args.chunk_budget,
+        args.error_fraction,
+        args.json,
+    )?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {

@@ -10,9 +10,9 @@ use glam::{DAffine3, DVec3};
 
 use crate::budget::KnobsInEffect;
 use crate::farfield::{FarCut, NearField};
+use crate::geometry::GeometrySource;
 use crate::gpu::QueryBox;
 use crate::hierarchy::{Hierarchy, NodeKind};
-use crate::geometry::GeometrySource;
 use crate::proxy::{Proxies, proxy_fits};
 use crate::renderer::Renderer;
 use crate::round::{

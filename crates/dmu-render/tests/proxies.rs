@@ -118,58 +118,161 @@ fn surface_changes(
 #[test]
 fn an_edited_part_leaves_its_proxies_at_once() {
     dmu_testkit::with_gpu(|gpu| {
-        let (mut scene, mut tree) = small_plant();
-        let size = (480, 270);
-        let mut rig = Rig::with_proxies(gpu, &scene, &tree, size);
-        let mut plain = Rig::new(gpu, &scene, &tree, size);
-        let cam = overview(&tree);
-        let mut view = View::new(cam, size, Culling::Frustum);
-        view.options.lod_error_px = 1.0;
-        let before = rig.frame(&mut view, &scene, &tree);
-        assert!(before.proxies_drawn > 0 && before.proxies_stale == 0);
-        // The part with the most pixels in the exact image.
-        let mut ids = View::new(cam, size, Culling::Frustum);
-        let image_ids = plain.ids(&mut ids, &scene, &tree);
-        let mut count = vec![0usize; scene.parts().len()];
-        for &id in image_ids.ids.iter().filter(|&&id| id != 0) {
-            count[tree.entries()[id as usize - 1].part.index()] += 1;
-        }
-        let part = PartId((0..count.len()).max_by_key(|&p| count[p]).unwrap() as u32);
-        let region = owned_by(&mut plain, cam, &scene, &tree, part);
-        assert!(region.len() > 100, "{} pixels", region.len());
+        let (scene, tree) = small_plant();
+        let rig = Rig::with_proxies(gpu, &scene, &tree, (480, 270));
+        edited_part_leaves_its_proxies(gpu, rig, scene, tree, true);
+    });
+}
 
-        for edit in ["move", "hide"] {
-            match edit {
-                "move" => {
-                    let up = DAffine3::from_translation(DVec3::new(0.0, 0.0, 1e6));
-                    let world = up * scene.part_world(part);
-                    tree.move_part(&mut scene, part, world);
-                }
-                _ => scene.set_part_hidden(part, true),
+/// The same with proxies read from a store's level-of-detail hierarchy,
+/// made before the edit: a stale stored proxy is never drawn either (the
+/// frame refines past it), whether or not it can be made again.
+#[test]
+fn an_edited_part_leaves_its_stored_proxies_at_once() {
+    dmu_testkit::with_gpu(|gpu| {
+        let (scene, tree) = small_plant();
+        let rig = Rig::with_stored_proxies(gpu, &scene, &tree, (480, 270), u64::MAX);
+        edited_part_leaves_its_proxies(gpu, rig, scene, tree, false);
+    });
+}
+
+/// Moves, then hides, the part with the most pixels in the overview, and
+/// checks that `rig`'s frames no longer show it where it was, at once and
+/// once calm (when the stale proxies are made again, if `remade`).
+fn edited_part_leaves_its_proxies(
+    gpu: &dmu_testkit::Gpu,
+    mut rig: Rig,
+    mut scene: Scene,
+    mut tree: Tree,
+    remade: bool,
+) {
+    let size = rig.capture.size();
+    let mut plain = Rig::new(gpu, &scene, &tree, size);
+    let cam = overview(&tree);
+    let mut view = View::new(cam, size, Culling::Frustum);
+    view.options.lod_error_px = 1.0;
+    // Stored proxies load on the frames that ask for them.
+    let mut before = rig.frame(&mut view, &scene, &tree);
+    for _ in 0..4 {
+        before = rig.frame(&mut view, &scene, &tree);
+    }
+    assert!(before.proxies_drawn > 0 && before.proxies_stale == 0);
+    // The part with the most pixels in the exact image.
+    let mut ids = View::new(cam, size, Culling::Frustum);
+    let image_ids = plain.ids(&mut ids, &scene, &tree);
+    let mut count = vec![0usize; scene.parts().len()];
+    for &id in image_ids.ids.iter().filter(|&&id| id != 0) {
+        count[tree.entries()[id as usize - 1].part.index()] += 1;
+    }
+    let part = PartId((0..count.len()).max_by_key(|&p| count[p]).unwrap() as u32);
+    let region = owned_by(&mut plain, cam, &scene, &tree, part);
+    assert!(region.len() > 100, "{} pixels", region.len());
+
+    for edit in ["move", "hide"] {
+        match edit {
+            "move" => {
+                let up = DAffine3::from_translation(DVec3::new(0.0, 0.0, 1e6));
+                let world = up * scene.part_world(part);
+                tree.move_part(&mut scene, part, world);
             }
-            let stats = rig.frame(&mut view, &scene, &tree);
-            let exact = plain.shot(cam, Culling::Frustum, &scene, &tree);
-            let changed = surface_changes(&exact, &rig.image(), &region);
-            println!(
-                "{edit}: {} stale, {} proxies, {changed} of {} pixels where the part was show another surface",
-                stats.proxies_stale,
-                stats.proxies_drawn,
-                region.len()
-            );
-            assert!(stats.proxies_stale > 0, "{edit}");
-            assert!(
-                changed * 20 <= region.len(),
-                "{edit}: the part still shows where it was"
-            );
-            let mut last = stats;
-            for _ in 0..4 * dmu_render::CALM_TICKS + 40 {
-                last = rig.frame(&mut view, &scene, &tree);
-            }
-            let changed = surface_changes(&exact, &rig.image(), &region);
-            assert_eq!(last.proxies_stale, 0, "{edit}: made again once calm");
-            assert!(last.proxies_drawn > 0);
-            assert!(changed * 20 <= region.len(), "{edit}, calm: {changed}");
+            _ => scene.set_part_hidden(part, true),
         }
+        let stats = rig.frame(&mut view, &scene, &tree);
+        let exact = plain.shot(cam, Culling::Frustum, &scene, &tree);
+        let changed = surface_changes(&exact, &rig.image(), &region);
+        println!(
+            "{edit}: {} stale, {} proxies, {changed} of {} pixels where the part was show another surface",
+            stats.proxies_stale,
+            stats.proxies_drawn,
+            region.len()
+        );
+        assert!(stats.proxies_stale > 0, "{edit}");
+        assert!(
+            changed * 20 <= region.len(),
+            "{edit}: the part still shows where it was"
+        );
+        let mut last = stats;
+        for _ in 0..4 * dmu_render::CALM_TICKS + 40 {
+            last = rig.frame(&mut view, &scene, &tree);
+        }
+        let changed = surface_changes(&exact, &rig.image(), &region);
+        if remade {
+            assert_eq!(last.proxies_stale, 0, "{edit}: made again once calm");
+        }
+        assert!(last.proxies_drawn > 0);
+        assert!(changed * 20 <= region.len(), "{edit}, calm: {changed}");
+    }
+}
+
+/// Stored proxies are loaded on demand, within a byte budget, and a frame
+/// never leaves a hole while they load (3D Tiles' replace refinement): over
+/// random views, random sets of resident chunks and budgets from all of
+/// them down to a sixth, once the first frame has asked for the root's
+/// proxy, every chunk instance a frame would draw without its geometry is
+/// drawn as a loaded proxy above it instead.
+#[test]
+fn stored_proxies_never_leave_a_hole_over_random_views_and_budgets() {
+    dmu_testkit::with_gpu(|gpu| {
+        let (scene, tree) = small_plant();
+        let size = (320, 180);
+        let (_, all) = crate::support::stored_proxies(&scene, &tree, u64::MAX);
+        let mut rng = dmu_samples::Rng::new(42);
+        let b = tree.bounds();
+        let (c, d) = (b.center(), b.extent().length());
+        let mut holes_without = 0;
+        for round in 0..8 {
+            let budget = [u64::MAX, all / 2, all / 6][round % 3];
+            let mut rig = Rig::with_stored_proxies(gpu, &scene, &tree, size, budget);
+            // A share of the chunks resident: all, or from none to all.
+            let share = match round % 2 {
+                0 => 1.0,
+                _ => rng.range(0.0, 1.0),
+            };
+            let source = crate::support::Subset {
+                scene: &scene,
+                has: (0..scene.chunks().len())
+                    .map(|_| rng.range(0.0, 1.0) < share)
+                    .collect(),
+            };
+            let frame = |rig: &mut Rig, cam: Camera, lod_error_px: f64| {
+                let mut view = View::new(cam, size, Culling::Frustum);
+                view.options.lod_error_px = lod_error_px;
+                rig.renderer
+                    .render(
+                        &mut view,
+                        &scene,
+                        &tree,
+                        &source,
+                        rig.capture.frame_target(),
+                    )
+                    .expect("render")
+            };
+            let first = frame(&mut rig, overview(&tree), 1.0);
+            holes_without += first.not_resident;
+            for k in 0..12 {
+                // From far outside to among the parts.
+                let far = [0.7, 0.3, 0.1][k % 3];
+                let eye = c + DVec3::new(
+                    rng.range(-far, far),
+                    rng.range(-far, far),
+                    rng.range(-0.05, far),
+                ) * d;
+                let target =
+                    eye + DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), -0.2) * d * 0.1;
+                let stats = frame(&mut rig, camera(eye, target, d * 1e-5), rng.range(0.5, 4.0));
+                println!(
+                    "round {round} view {k}: budget {budget}, {:.0} % resident: {} proxies, {} chunks, {} holes",
+                    share * 100.0,
+                    stats.proxies_drawn,
+                    stats.chunks_drawn,
+                    stats.not_resident
+                );
+                assert_eq!(stats.not_resident, 0, "round {round} view {k}: a hole");
+            }
+        }
+        // The first frame, before any proxy is loaded, shows what the
+        // refinement covers.
+        assert!(holes_without > 0, "some first frame lacked chunks");
     });
 }
 

@@ -49,6 +49,21 @@ impl Rig {
         rig
     }
 
+    /// A rig drawing stored proxies ([`stored_proxies`]) loaded within
+    /// `budget` bytes.
+    pub fn with_stored_proxies(
+        gpu: &Gpu,
+        scene: &Scene,
+        tree: &Tree,
+        size: (u32, u32),
+        budget: u64,
+    ) -> Rig {
+        let mut rig = Self::with_lods(gpu, scene, tree, size);
+        rig.renderer
+            .set_proxies(stored_proxies(scene, tree, budget).0);
+        rig
+    }
+
     pub fn with_options(
         gpu: &Gpu,
         scene: &Scene,
@@ -109,6 +124,77 @@ impl Rig {
         let mut view = View::new(camera, self.capture.size(), culling);
         self.frame(&mut view, scene, tree);
         self.image()
+    }
+}
+
+/// Blobs held in memory, as a store holds them.
+#[derive(Debug)]
+pub struct Blobs(pub Vec<Vec<u8>>);
+
+impl dmu_render::ProxyBlobs for Blobs {
+    fn blob(&self, blob: u32) -> Result<Vec<u8>, String> {
+        self.0
+            .get(blob as usize)
+            .cloned()
+            .ok_or_else(|| format!("no blob #{blob}"))
+    }
+}
+
+/// The whole scene as a stored build's chunk loader.
+pub struct Loaded<'a>(pub &'a Scene);
+
+impl dmu_render::ChunkLoader for Loaded<'_> {
+    fn load(&mut self, _: &[dmu_scene::ChunkId]) -> Result<(), String> {
+        Ok(())
+    }
+
+    fn source(&self) -> &(dyn dmu_render::GeometrySource + Sync) {
+        self.0
+    }
+}
+
+/// The scene's proxies built as a store keeps them, read back on demand
+/// within `budget` bytes (at most 1 s of loading a frame, so a test's frames
+/// load everything they ask for), and the bytes they take loaded (CPU and
+/// GPU copies).
+pub fn stored_proxies(scene: &Scene, tree: &Tree, budget: u64) -> (Proxies, u64) {
+    let mut blobs = Vec::new();
+    let mut sink = |b: &[u8]| {
+        blobs.push(b.to_vec());
+        Ok(blobs.len() as u32 - 1)
+    };
+    let built = dmu_render::build_stored(
+        scene,
+        tree,
+        &mut Loaded(scene),
+        ProxyOptions::default(),
+        8,
+        &mut sink,
+        &mut |_, _| {},
+    )
+    .expect("a scene in memory has every chunk");
+    let loaded = 2 * built.stats.bytes;
+    let proxies = Proxies::stored(
+        &built.index,
+        Box::new(Blobs(blobs)),
+        budget,
+        std::time::Duration::from_secs(1),
+    )
+    .expect("the index just built");
+    (proxies, loaded)
+}
+
+/// A source holding only the chunks `has` marks.
+pub struct Subset<'a> {
+    pub scene: &'a Scene,
+    pub has: Vec<bool>,
+}
+
+impl dmu_render::GeometrySource for Subset<'_> {
+    fn chunk_geometry(&self, chunk: dmu_scene::ChunkId) -> Option<dmu_scene::ChunkGeometry<'_>> {
+        self.has[chunk.index()]
+            .then(|| self.scene.chunk_geometry(chunk))
+            .flatten()
     }
 }
 

@@ -19,6 +19,7 @@
 //! node (a part moved since it was made) is stale like any other: never
 //! drawn, the frame refines past it.
 
+use std::collections::HashMap;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
@@ -29,7 +30,9 @@ use dmu_tree::Tree;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use super::{Cluster, MAX_CLUSTERS, Proxies, Proxy, ProxyOptions, ProxyStats, ProxyVertex, post_order};
+use super::{
+    Cluster, MAX_CLUSTERS, Proxies, Proxy, ProxyOptions, ProxyStats, ProxyVertex, post_order,
+};
 use crate::geometry::GeometrySource;
 use crate::hierarchy::{Hierarchy, NodeKind};
 
@@ -75,6 +78,9 @@ struct IndexHeader {
     /// [`ProxyOptions::error_fraction`] they were made with.
     error_fraction: f64,
     nodes: u64,
+    /// The root's mirror node: its proxy, once loaded, is never evicted
+    /// (it is what a frame falls back to last).
+    root: u64,
 }
 
 /// One node's entry in the stored index.
@@ -157,11 +163,13 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<Proxy, String> {
         return Err("its origin or error is not finite".into());
     }
     if header.clusters as usize > MAX_CLUSTERS {
-        return Err(format!("{} clusters (at most {MAX_CLUSTERS})", header.clusters));
+        return Err(format!(
+            "{} clusters (at most {MAX_CLUSTERS})",
+            header.clusters
+        ));
     }
     let records: Vec<ClusterRecord> = take(bytes, &mut at, header.clusters as usize, "clusters")?;
-    let vertices: Vec<ProxyVertex> =
-        take(bytes, &mut at, header.vertices as usize, "vertices")?;
+    let vertices: Vec<ProxyVertex> = take(bytes, &mut at, header.vertices as usize, "vertices")?;
     let indices: Vec<u32> = take(bytes, &mut at, header.indices as usize, "indices")?;
     if at != bytes.len() {
         return Err(format!("{} bytes after its indices", bytes.len() - at));
@@ -299,10 +307,13 @@ pub fn build_stored(
         mirror_nodes: h.len() as u64,
         error_fraction: options.error_fraction,
         nodes: out.index.len() as u64,
+        root: u64::from(h.root),
     };
     let mut build = out.build;
     build.index = bytemuck::bytes_of(&header).to_vec();
-    build.index.extend_from_slice(bytemuck::cast_slice(&out.index));
+    build
+        .index
+        .extend_from_slice(bytemuck::cast_slice(&out.index));
     build.stats.made = build.stats.proxies;
     build.stats.ms = start.elapsed().as_secs_f64() * 1e3;
     Ok(build)
@@ -441,11 +452,14 @@ pub trait ProxyBlobs: Send + Sync + std::fmt::Debug {
 /// The stored side of [`Proxies`]: the index, the blobs, and what is loaded.
 #[derive(Debug)]
 pub(crate) struct Stored {
-    /// By mirror node: its entry in the index.
-    pub nodes: Vec<Option<StoredNode>>,
+    /// By mirror node: its entry in the index (a map: an index names few
+    /// of the mirror's nodes, and a damaged one may name any).
+    pub nodes: HashMap<u32, StoredNode>,
     blobs: Box<dyn ProxyBlobs>,
     /// Bytes loaded proxies may take.
     budget: u64,
+    /// The root's mirror node, never evicted.
+    root: u32,
     /// Bytes loaded proxies take.
     pub resident: u64,
     /// Nodes frames asked for since the last load, with their priority
@@ -453,8 +467,8 @@ pub(crate) struct Stored {
     pub requested: Mutex<Vec<(u32, f64)>>,
     /// Nodes frames drew since the last load.
     pub drawn: Mutex<Vec<u32>>,
-    /// Per mirror node: the load tick it was last drawn or loaded at.
-    last_used: Vec<u64>,
+    /// Per loaded mirror node: the load tick it was last drawn or loaded at.
+    last_used: HashMap<u32, u64>,
     /// Loads run (a tick each).
     tick: u64,
     /// Time loads may take per frame (at least one is made when any is due).
@@ -482,15 +496,21 @@ impl Proxies {
             return Err("not a level-of-detail index".into());
         }
         let entries: Vec<StoredNode> = take(index, &mut at, header.nodes as usize, "nodes")?;
-        if at != index.len() || header.mirror_nodes > u64::from(u32::MAX) {
+        if at != index.len()
+            || header.mirror_nodes > u64::from(u32::MAX)
+            || header.root >= header.mirror_nodes
+        {
             return Err("the index's size does not match its node count".into());
         }
-        let mut nodes = vec![None; header.mirror_nodes as usize];
+        let mut nodes = HashMap::with_capacity(entries.len());
         for e in entries {
-            let slot = nodes
-                .get_mut(e.node as usize)
-                .ok_or_else(|| format!("node {} of {}", e.node, header.mirror_nodes))?;
-            *slot = Some(e);
+            if u64::from(e.node) >= header.mirror_nodes || !e.error.is_finite() {
+                return Err(format!(
+                    "node {} of {} is damaged",
+                    e.node, header.mirror_nodes
+                ));
+            }
+            nodes.insert(e.node, e);
         }
         Ok(Self {
             options: ProxyOptions {
@@ -498,10 +518,11 @@ impl Proxies {
                 ..ProxyOptions::default()
             },
             stored: Some(Stored {
-                last_used: vec![0; nodes.len()],
+                last_used: HashMap::new(),
                 nodes,
                 blobs,
                 budget,
+                root: header.root as u32,
                 resident: 0,
                 requested: Mutex::default(),
                 drawn: Mutex::default(),
@@ -519,8 +540,7 @@ impl Proxies {
     pub(crate) fn is_stored_current(&self, n: u32) -> bool {
         self.stored.as_ref().is_some_and(|s| {
             s.nodes
-                .get(n as usize)
-                .and_then(Option::as_ref)
+                .get(&n)
                 .is_some_and(|e| self.signature.get(n as usize) == Some(&e.signature))
         })
     }
@@ -529,7 +549,7 @@ impl Proxies {
     /// larger, the sooner.
     pub(crate) fn request(&self, n: u32, size_px: f64) {
         if let Some(s) = &self.stored
-            && let Some(e) = s.nodes.get(n as usize).and_then(Option::as_ref)
+            && let Some(e) = s.nodes.get(&n)
         {
             let priority = size_px / (e.bytes.max(1) as f64);
             s.requested
@@ -551,7 +571,8 @@ impl Proxies {
 
     /// Loads the proxies frames asked for, the highest priority first, within
     /// the time budget (at least one), then evicts the least recently drawn
-    /// past the byte budget (never one drawn since the last load). The nodes
+    /// past the byte budget (never one drawn since the last load, nor the
+    /// root's, the last fallback of every frame). The nodes
     /// loaded or evicted go to `dirty`.
     pub(crate) fn load_requested(&mut self) {
         let Some(s) = self.stored.as_mut() else {
@@ -561,7 +582,7 @@ impl Proxies {
         let tick = s.tick;
         let drawn = std::mem::take(s.drawn.get_mut().unwrap_or_else(|e| e.into_inner()));
         for &n in &drawn {
-            s.last_used[n as usize] = tick;
+            s.last_used.insert(n, tick);
         }
         let mut requested =
             std::mem::take(s.requested.get_mut().unwrap_or_else(|e| e.into_inner()));
@@ -574,14 +595,16 @@ impl Proxies {
                 break;
             }
             let slot = n as usize;
-            let Some(entry) = s.nodes[slot] else { continue };
+            let Some(&entry) = s.nodes.get(&n) else {
+                continue;
+            };
             if self.nodes.get(slot).is_none_or(Option::is_some) {
                 continue;
             }
             match s.blobs.blob(entry.blob).and_then(|b| decode(&b)) {
                 Ok(p) => {
                     s.resident += resident_bytes(&p);
-                    s.last_used[slot] = tick;
+                    s.last_used.insert(n, tick);
                     self.nodes[slot] = Some(Box::new(p));
                     self.dirty.push(n);
                     s.loads += 1;
@@ -589,7 +612,7 @@ impl Proxies {
                 Err(e) => {
                     // Never asked for again: the node refines past it.
                     eprintln!("warning: level-of-detail node #{}: {e}", entry.blob);
-                    s.nodes[slot] = None;
+                    s.nodes.remove(&n);
                     s.failures += 1;
                 }
             }
@@ -598,19 +621,176 @@ impl Proxies {
         if s.resident <= s.budget {
             return;
         }
-        let mut loaded: Vec<u32> = (0..self.nodes.len() as u32)
-            .filter(|&n| self.nodes[n as usize].is_some() && s.last_used[n as usize] < tick)
+        let mut loaded: Vec<(u64, u32)> = (s.last_used.iter())
+            .filter(|&(&n, &at)| at < tick && n != s.root)
+            .map(|(&n, &at)| (at, n))
             .collect();
-        loaded.sort_unstable_by_key(|&n| s.last_used[n as usize]);
-        for n in loaded {
+        loaded.sort_unstable();
+        for (_, n) in loaded {
             if s.resident <= s.budget {
                 break;
             }
-            if let Some(p) = self.nodes[n as usize].take() {
+            s.last_used.remove(&n);
+            if let Some(p) = self.nodes.get_mut(n as usize).and_then(Option::take) {
                 s.resident -= resident_bytes(&p);
                 self.dirty.push(n);
                 s.evictions += 1;
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dmu_samples::{PlantOptions, Rng, plant};
+    use dmu_tree::TreeOptions;
+
+    /// The whole scene as a loader.
+    struct InMemory<'a>(&'a Scene);
+
+    impl ChunkLoader for InMemory<'_> {
+        fn load(&mut self, _: &[ChunkId]) -> Result<(), String> {
+            Ok(())
+        }
+
+        fn source(&self) -> &(dyn GeometrySource + Sync) {
+            self.0
+        }
+    }
+
+    fn plant_250k() -> (Scene, Tree) {
+        let scene = plant(&PlantOptions {
+            triangles: 250_000,
+            ..Default::default()
+        });
+        let tree = Tree::build(&scene, TreeOptions::default());
+        (scene, tree)
+    }
+
+    fn stored(scene: &Scene, tree: &Tree, batch: usize) -> (StoredBuild, Vec<Vec<u8>>) {
+        let mut blobs = Vec::new();
+        let mut sink = |b: &[u8]| {
+            blobs.push(b.to_vec());
+            Ok(blobs.len() as u32 - 1)
+        };
+        let built = build_stored(
+            scene,
+            tree,
+            &mut InMemory(scene),
+            ProxyOptions::default(),
+            batch,
+            &mut sink,
+            &mut |_, _| {},
+        )
+        .unwrap();
+        (built, blobs)
+    }
+
+    /// A streamed build, batched and parallel, stores byte for byte the
+    /// proxies the in-memory build makes (the oracle), holds a handful at
+    /// a time, and its index gives each node's error and signature.
+    #[test]
+    fn a_stored_build_stores_what_the_in_memory_build_makes() {
+        let (scene, tree) = plant_250k();
+        let truth = Proxies::build(
+            &scene,
+            &tree,
+            &scene,
+            ProxyOptions::default(),
+            &mut |_, _| {},
+        );
+        for batch in [1, 5, 64] {
+            let (built, blobs) = stored(&scene, &tree, batch);
+            assert_eq!(built.stats.proxies, truth.stats().proxies, "batch {batch}");
+            assert_eq!(built.missing, 0);
+            // At this size every level waits on few (10M: 927 proxies).
+            assert!(
+                built.peak_held < built.stats.proxies as usize,
+                "batch {batch}: held {} of {}",
+                built.peak_held,
+                built.stats.proxies
+            );
+            let mut index = Proxies::stored(
+                &built.index,
+                Box::new(VecBlobs(blobs.clone())),
+                u64::MAX,
+                Duration::ZERO,
+            )
+            .unwrap();
+            let stored = index.stored.take().unwrap();
+            let mut seen = 0;
+            for n in 0..truth.nodes.len() {
+                let entry = stored.nodes.get(&(n as u32));
+                let want = truth.nodes[n].as_deref();
+                match (entry, want) {
+                    (Some(e), Some(t)) => {
+                        let p = decode(&blobs[e.blob as usize]).unwrap();
+                        assert_eq!(encode(&p), encode(t), "node {n}");
+                        assert_eq!((e.error, e.signature), (t.error, t.signature));
+                        seen += 1;
+                    }
+                    (None, None) => {}
+                    _ => panic!("node {n}: stored {entry:?}, in memory {}", want.is_some()),
+                }
+            }
+            assert_eq!(seen, truth.stats().proxies);
+        }
+    }
+
+    #[derive(Debug)]
+    struct VecBlobs(Vec<Vec<u8>>);
+
+    impl ProxyBlobs for VecBlobs {
+        fn blob(&self, blob: u32) -> Result<Vec<u8>, String> {
+            Ok(self.0[blob as usize].clone())
+        }
+    }
+
+    /// A damaged stored proxy or index is an error of a few words, never a
+    /// panic: crafted cases, then random byte flips and truncations.
+    #[test]
+    fn damaged_stored_proxies_are_refused() {
+        let (scene, tree) = plant_250k();
+        let (built, blobs) = stored(&scene, &tree, 8);
+        let good = &blobs[blobs.len() - 1];
+        let p = decode(good).unwrap();
+        let header = size_of::<ProxyHeader>();
+        let index_at = header
+            + p.clusters.len() * size_of::<ClusterRecord>()
+            + p.vertices.len() * size_of::<ProxyVertex>();
+        let mut bad_index = good.clone();
+        bad_index[index_at..index_at + 4].copy_from_slice(&u32::MAX.to_le_bytes());
+        let mut bad_magic = good.clone();
+        bad_magic[0] ^= 1;
+        let mut bad_cluster = good.clone();
+        bad_cluster[header..header + 4].copy_from_slice(&7u32.to_le_bytes());
+        for (bytes, needle) in [
+            (&good[..good.len() - 1], "run past the end"),
+            (&bad_index[..], "of"),
+            (&bad_magic[..], "not a stored proxy"),
+            (&bad_cluster[..], "does not follow"),
+            (&[][..], "run past the end"),
+        ] {
+            let err = decode(bytes).unwrap_err();
+            assert!(err.contains(needle), "{err}");
+            assert!(!err.contains('\n'));
+        }
+        let mut rng = Rng::new(3);
+        for _ in 0..2000 {
+            let mut bytes = if rng.below(2) == 0 {
+                good.clone()
+            } else {
+                built.index.clone()
+            };
+            let cut = rng.below(bytes.len() as u64 + 1) as usize;
+            if rng.below(4) == 0 {
+                bytes.truncate(cut);
+            } else if let Some(b) = bytes.get_mut(cut) {
+                *b ^= 1 << rng.below(8);
+            }
+            let _ = decode(&bytes);
+            let _ = Proxies::stored(&bytes, Box::new(VecBlobs(Vec::new())), 0, Duration::ZERO);
         }
     }
 }
