@@ -119,6 +119,9 @@ pub(crate) fn retint(now: &mut Vec<PartId>, want: Vec<PartId>, mut set: impl FnM
 pub struct App {
     /// Proxies for the renderer, until it is made.
     pub proxies: Option<dmu_render::Proxies>,
+    /// Where stored proxies stand for subtrees, for the streaming's wanted
+    /// set (a store's level-of-detail hierarchy, under a memory budget).
+    lod_cut: Option<Arc<dmu_store::LodCut>>,
     /// The store's far fields (`--far-field on|auto`), until the renderer
     /// is made.
     pub far_field_set: Option<dmu_app::farfield::FarFieldSet>,
@@ -201,6 +204,7 @@ impl App {
         let runner = Runner::new(options.script.clone());
         Self {
             proxies: None,
+            lod_cut: None,
             far_field_set: None,
             far: None,
             options,
@@ -255,6 +259,11 @@ impl App {
             },
         );
         if let Some(proxies) = self.proxies.take() {
+            let slots = proxies.stored_slots(&self.review.tree);
+            self.lod_cut = (!slots.is_empty()).then(|| {
+                let px = self.panes[0].view.options.lod_error_px;
+                Arc::new(dmu_store::LodCut::new(slots, px))
+            });
             renderer.set_proxies(proxies);
         }
         if let Some(set) = self.far_field_set.take() {
@@ -424,6 +433,7 @@ impl App {
             },
             main.options.min_pixels,
             self.options.stand_ins,
+            self.lod_cut.clone(),
         ));
     }
 

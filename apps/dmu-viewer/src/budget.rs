@@ -17,8 +17,8 @@ use dmu_app::resident::{FrameSource, StreamedFrames};
 use dmu_render::{Camera, GeometryPool};
 use dmu_scene::{ChunkId, Scene};
 use dmu_store::{
-    CameraFrame, LoadOrder, Pacing, PrefetchOptions, ResidencyOptions, Store, Streamer, View,
-    Viewport,
+    CameraFrame, LoadOrder, LodCut, Pacing, PrefetchOptions, ResidencyOptions, Store, Streamer,
+    View, Viewport,
 };
 use dmu_tree::{EntryId, Tree};
 use serde::Serialize;
@@ -64,6 +64,8 @@ pub struct Streaming {
     frames_with_standin: u64,
     holes: u64,
     stand_ins_drawn: u64,
+    /// Where the renderer draws stored proxies: no chunk below is wanted.
+    cut: Option<Arc<LodCut>>,
 }
 
 impl Streaming {
@@ -78,10 +80,14 @@ impl Streaming {
         viewport: Viewport,
         min_pixels: f64,
         stand_ins: bool,
+        cut: Option<Arc<LodCut>>,
     ) -> Self {
         let chunks = store.skeleton().chunks().len();
+        let mut streamer = Self::streamer(Arc::clone(&store), tree, 0, viewport, min_pixels);
+        streamer.set_cut(cut.clone());
         Self {
-            streamer: Self::streamer(Arc::clone(&store), tree, 0, viewport, min_pixels),
+            streamer,
+            cut,
             store,
             viewport,
             min_pixels,
@@ -156,6 +162,7 @@ impl Streaming {
             self.viewport,
             self.min_pixels,
         );
+        self.streamer.set_cut(self.cut.clone());
         self.sized = true;
         Ok(())
     }

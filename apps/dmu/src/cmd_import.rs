@@ -32,6 +32,11 @@ pub struct Args {
     /// normals to 32 bits (10 instead of 24 bytes a vertex).
     #[arg(long)]
     quantize: bool,
+    /// Do not build the level-of-detail hierarchy (`dmu lod build` adds it
+    /// later). By default it is built after the geometry, reading chunks
+    /// within a quarter of --memory-budget.
+    #[arg(long)]
+    no_lod: bool,
     /// Print a JSON summary instead of text.
     #[arg(long)]
     json: bool,
@@ -63,6 +68,17 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     });
     bar.finish_and_clear();
     let summary = result?;
+    let geometry_ms = start.elapsed().as_secs_f64() * 1e3;
+    let lod = (!args.no_lod)
+        .then(|| {
+            crate::cmd_lod::build_into(
+                &args.output,
+                args.memory_budget / 4,
+                dmu_render::ProxyOptions::default().error_fraction,
+                args.json,
+            )
+        })
+        .transpose()?;
     let import_ms = start.elapsed().as_secs_f64() * 1e3;
     let peak_rss = peak_rss_bytes();
     if summary.fixed_bytes > args.memory_budget {
@@ -75,6 +91,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     if args.json {
         let mut value = serde_json::to_value(&summary)?;
         value["import_ms"] = import_ms.into();
+        value["geometry_ms"] = geometry_ms.into();
+        value["lod"] = serde_json::to_value(&lod)?;
         value["memory_budget_bytes"] = args.memory_budget.into();
         value["peak_rss_bytes"] = peak_rss.into();
         println!("{}", serde_json::to_string_pretty(&value)?);
@@ -98,5 +116,14 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         import_ms / 1e3,
         peak_rss.map_or_else(|| "unknown".into(), |b| format!("{:.0} MB", b as f64 / 1e6))
     );
+    if let Some(lod) = lod {
+        println!(
+            "  level-of-detail hierarchy: {} proxies, {} triangles, {:.1} MB, {:.1} s",
+            lod.nodes,
+            lod.triangles,
+            lod.stored_bytes as f64 / 1e6,
+            lod.seconds
+        );
+    }
     Ok(())
 }

@@ -252,6 +252,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         prefetch,
         warmup_frames: args.warmup_frames,
         opening_frames: args.opening_frames,
+        lod_cut: None,
     };
     if args.render {
         let culling: Culling = args.culling.parse().map_err(anyhow::Error::msg)?;

@@ -586,12 +586,18 @@ pub fn run_resident(
         tree,
         lod_options(&how.culling_options),
     );
+    let mut options = options.clone();
     if how.proxy_bytes > 0
         && how.culling_options.may_draw_lods()
         && let Some(proxies) = dmu_app::lod::stored_proxies(store, how.proxy_bytes)?
     {
+        options.lod_cut = Some(Arc::new(dmu_store::LodCut::new(
+            proxies.stored_slots(tree),
+            how.culling_options.lod_error_px,
+        )));
         renderer.set_proxies(proxies);
     }
+    let options = &options;
     let capture = Capture::new(&device, size);
     let camera = |f: &CameraFrame| camera(f, tree);
     let mut view = View::new(camera(&path[0]), size, how.culling);

@@ -58,7 +58,7 @@ fn the_wanted_set_is_what_the_renderer_draws() {
     let mut subpixel = 0;
     for frame in viewpoints(&scene) {
         let view = dmu_store::View::new(&frame, viewport).unwrap();
-        wanted(&tree, &scene, &view, min_pixels, false, &mut out);
+        wanted(&tree, &scene, &view, min_pixels, false, None, &mut out);
         let loader: BTreeSet<ChunkId> = out.drawn.iter().map(|&(c, _)| c).collect();
         assert!(!loader.is_empty(), "{frame:?} wants nothing");
         subpixel += out.subpixel.len();

@@ -150,6 +150,15 @@ impl Coverage {
         }
         (b.max - b.min).length() / distance * self.focal_px
     }
+
+    /// Whether a stand-in for `b` that lies at most `error` world units from
+    /// what it stands for shows within `max_error_px` pixels: the error's
+    /// share of the box's diagonal, times the box's [`Coverage::size_px`]
+    /// (what chunk levels and merged proxies are drawn by).
+    pub fn error_fits(&self, b: &Aabb3d, error: f64, max_error_px: f64) -> bool {
+        let diagonal = (b.max - b.min).length();
+        diagonal > 0.0 && self.size_px(b) * error / diagonal <= max_error_px
+    }
 }
 
 /// A right-handed perspective projection with reverse-Z depth: view-space

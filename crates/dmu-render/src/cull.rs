@@ -13,7 +13,7 @@ use crate::farfield::{FarCut, NearField};
 use crate::geometry::GeometrySource;
 use crate::gpu::QueryBox;
 use crate::hierarchy::{Hierarchy, NodeKind};
-use crate::proxy::{Proxies, proxy_fits};
+use crate::proxy::Proxies;
 use crate::renderer::Renderer;
 use crate::round::{
     ColorDraws, Draw, LodPick, Model, ProxyRound, Round, RoundResult, Shading, SubmittedRound,
@@ -369,7 +369,7 @@ impl Renderer {
                 .map(|n| {
                     p.cpu.current(n).is_some_and(|x| {
                         let b = h.bounds(tree, n);
-                        proxy_fits(&cull.coverage, b, x.error, cull.lod_error_px)
+                        cull.coverage.error_fits(b, x.error, cull.lod_error_px)
                     })
                 })
                 .collect(),

@@ -95,7 +95,7 @@ pub use read::{Store, StoreInfo};
 pub use residency::{Pacing, Residency, ResidencyOptions, ResidencyStats};
 pub use save::{BlobWriter, SavedFormat, prepare_save, save_edits, save_scene, write_far_fields};
 pub use streamer::{KEEP_VISIBLE_FRAMES, Streamer};
-pub use view::{CameraFrame, View, Viewport, Wanted, wanted};
+pub use view::{CameraFrame, LodCut, View, Viewport, Wanted, wanted};
 pub use walk::{
     DrawError, DrawFrame, Drawn, FrameReport, OPENING_STALL_FRAMES, Opening, WalkOptions,
     WalkReport, WalkTotals, walk, walk_with,

@@ -18,7 +18,7 @@ use dmu_tree::Tree;
 use glam::DVec3;
 
 use crate::priority::{Class, Request};
-use crate::view::{View, Viewport, Wanted, wanted};
+use crate::view::{LodCut, View, Viewport, Wanted, wanted};
 
 /// Settings of a [`Prefetcher`].
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -105,7 +105,14 @@ impl Prefetcher {
 
     /// Takes the frame's view (`dt` seconds after the previous) and rebuilds the
     /// requests when a rule says so; returns whether it did.
-    pub fn update(&mut self, tree: &Tree, scene: &Scene, view: &View, dt: f64) -> bool {
+    pub fn update(
+        &mut self,
+        tree: &Tree,
+        scene: &Scene,
+        view: &View,
+        dt: f64,
+        cut: Option<&LodCut>,
+    ) -> bool {
         if let Some(last) = self.last_eye
             && dt > 0.0
         {
@@ -125,14 +132,14 @@ impl Prefetcher {
             }
         };
         if rebuild {
-            self.build(tree, scene, view, fast);
+            self.build(tree, scene, view, fast, cut);
             self.built = Some((view.eye, view.dir, fast));
             self.rebuilds += 1;
         }
         rebuild
     }
 
-    fn build(&mut self, tree: &Tree, scene: &Scene, view: &View, fast: bool) {
+    fn build(&mut self, tree: &Tree, scene: &Scene, view: &View, fast: bool, cut: Option<&LodCut>) {
         self.requests.clear();
         let o = self.options;
         // Viewpoints with how far along the prediction they are (in steps), and
@@ -168,7 +175,15 @@ impl Prefetcher {
             let Some(at) = view.moved_to(eye, self.viewport) else {
                 continue;
             };
-            wanted(tree, scene, &at, o.min_pixels, !fast, &mut self.scratch);
+            wanted(
+                tree,
+                scene,
+                &at,
+                o.min_pixels,
+                !fast,
+                cut,
+                &mut self.scratch,
+            );
             let discount = (1.0 + steps) as f32;
             self.requests
                 .extend(self.scratch.drawn.iter().map(|&(chunk, area)| Request {

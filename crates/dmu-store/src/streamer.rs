@@ -13,7 +13,7 @@ use crate::prefetch::{PrefetchOptions, Prefetcher};
 use crate::priority::{Class, Request};
 use crate::read::Store;
 use crate::residency::{Residency, ResidencyOptions};
-use crate::view::{View, Viewport, Wanted, wanted};
+use crate::view::{LodCut, View, Viewport, Wanted, wanted};
 
 /// Turns each frame's view into requests to a [`Residency`] it owns.
 #[derive(Debug)]
@@ -31,6 +31,8 @@ pub struct Streamer {
     /// The chunks drawn in the last [`KEEP_VISIBLE_FRAMES`] frames.
     recent: Vec<ChunkId>,
     requests: Vec<Request>,
+    /// Where merged proxies stand for subtrees: not wanted below.
+    cut: Option<Arc<LodCut>>,
 }
 
 /// For how many frames after it was last drawn a chunk is still requested
@@ -69,7 +71,14 @@ impl Streamer {
             requested: false,
             recent: Vec::new(),
             requests: Vec::new(),
+            cut: None,
         }
+    }
+
+    /// From now on, wants no chunk below a node `cut` draws as its proxy
+    /// (in view and prefetched alike).
+    pub fn set_cut(&mut self, cut: Option<Arc<LodCut>>) {
+        self.cut = cut;
     }
 
     /// The residency manager (its [`Residency::get`] gives resident geometry).
@@ -96,7 +105,16 @@ impl Streamer {
     /// replace the load queue. Returns whether
     /// the prefetch queue was rebuilt.
     pub fn request(&mut self, tree: &Tree, scene: &Scene, view: &View, dt: f64) -> bool {
-        wanted(tree, scene, view, self.min_pixels, false, &mut self.set);
+        let cut = self.cut.as_deref();
+        wanted(
+            tree,
+            scene,
+            view,
+            self.min_pixels,
+            false,
+            cut,
+            &mut self.set,
+        );
         let (drawn_at, frame, residency) = (&self.drawn_at, self.frame, &self.residency);
         let class = |c: ChunkId| match drawn_at[c.index()] {
             at if at == frame && at > 0 => Class::Visible,
@@ -131,7 +149,7 @@ impl Streamer {
         );
         let rebuilt = match &mut self.prefetcher {
             Some(p) => {
-                let rebuilt = p.update(tree, scene, view, dt);
+                let rebuilt = p.update(tree, scene, view, dt, cut);
                 self.requests.extend_from_slice(p.requests());
                 rebuilt
             }

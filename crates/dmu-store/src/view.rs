@@ -95,6 +95,35 @@ impl View {
     }
 }
 
+/// Tree nodes a renderer draws as one merged proxy (a store's
+/// level-of-detail hierarchy) where the proxy's error projects within
+/// `lod_error_px`: a view's wanted set stops there, since the chunks below
+/// are not drawn.
+#[derive(Clone, Debug, Default)]
+pub struct LodCut {
+    /// Each proxy's error, world units, by tree node slot.
+    errors: std::collections::HashMap<u32, f64>,
+    lod_error_px: f64,
+}
+
+impl LodCut {
+    /// Proxies of `errors` (tree node slot, error in world units) drawn at
+    /// `lod_error_px`.
+    pub fn new(errors: impl IntoIterator<Item = (u32, f64)>, lod_error_px: f64) -> Self {
+        Self {
+            errors: errors.into_iter().collect(),
+            lod_error_px,
+        }
+    }
+
+    /// Whether the node at `slot`, of box `bounds`, is drawn as its proxy.
+    fn cuts(&self, coverage: &Coverage, slot: u32, bounds: &Aabb3d) -> bool {
+        self.errors
+            .get(&slot)
+            .is_some_and(|&e| coverage.error_fits(bounds, e, self.lod_error_px))
+    }
+}
+
 /// Chunks wanted by a view, each once, with its projected area (the largest of
 /// its instances').
 #[derive(Debug, Default)]
@@ -155,6 +184,7 @@ pub fn wanted(
     view: &View,
     min_pixels: f64,
     omni: bool,
+    cut: Option<&LodCut>,
     out: &mut Wanted,
 ) {
     out.begin(scene.chunks().len());
@@ -162,13 +192,21 @@ pub fn wanted(
         planes: [Plane::ACCEPT_ALL; 6],
     };
     let frustum = if omni { &all } else { &view.frustum };
-    tree.visit_visible(frustum, &view.coverage, min_pixels, &mut |_, entry, v| {
-        if let EntryVisibility::InFrustum { size_px, wanted } = v
-            && !scene.part(entry.part).hidden
-        {
-            let area = (size_px * size_px).min(f64::from(f32::MAX)) as f32;
-            out.add(entry.chunk, area, wanted);
-        }
-    });
+    let stop =
+        |slot: u32, bounds: &Aabb3d| cut.is_some_and(|c| c.cuts(&view.coverage, slot, bounds));
+    tree.visit_visible_above(
+        frustum,
+        &view.coverage,
+        min_pixels,
+        &stop,
+        &mut |_, entry, v| {
+            if let EntryVisibility::InFrustum { size_px, wanted } = v
+                && !scene.part(entry.part).hidden
+            {
+                let area = (size_px * size_px).min(f64::from(f32::MAX)) as f32;
+                out.add(entry.chunk, area, wanted);
+            }
+        },
+    );
     out.end();
 }

@@ -25,10 +25,10 @@ use crate::priority::LoadOrder;
 use crate::read::Store;
 use crate::residency::{Pacing, Residency, ResidencyOptions};
 use crate::streamer::Streamer;
-use crate::view::{CameraFrame, View, Viewport, Wanted};
+use crate::view::{CameraFrame, LodCut, View, Viewport, Wanted};
 
 /// Settings of [`walk`].
-#[derive(Clone, Copy, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize)]
 pub struct WalkOptions {
     /// Queue order.
     pub order: LoadOrder,
@@ -58,6 +58,10 @@ pub struct WalkOptions {
     /// a viewer opening on a view shows it once it has loaded. Not counted
     /// among the walk's frames; [`WalkReport::opening`] says what they took.
     pub opening_frames: usize,
+    /// Where a renderer draws merged proxies instead of chunks (a store's
+    /// level-of-detail hierarchy): chunks below are not wanted.
+    #[serde(skip)]
+    pub lod_cut: Option<Arc<LodCut>>,
 }
 
 /// Opening frames in a row that miss no fewer chunks than the fewest before
@@ -240,6 +244,7 @@ pub fn walk_with(
         options.viewport,
         options.min_pixels,
     );
+    streamer.set_cut(options.lod_cut.clone());
     let dt = 1.0 / options.frame_rate_hz;
     let view_of = |i: usize| {
         let frame = &path[i];
@@ -357,7 +362,7 @@ pub fn walk_with(
         wall_ms: start.elapsed().as_secs_f64() * 1e3,
     };
     Ok(WalkReport {
-        options: *options,
+        options: options.clone(),
         opening,
         frames,
         total,

@@ -217,6 +217,7 @@ fn options(budget: u64, order: LoadOrder) -> WalkOptions {
         prefetch: None,
         warmup_frames: 10,
         opening_frames: 0,
+        lod_cut: None,
     }
 }
 

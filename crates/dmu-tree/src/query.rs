@@ -74,6 +74,9 @@ pub struct FrustumNode {
     pub containment: Containment,
     /// The cell, when the node is a leaf.
     pub cell: Option<CellId>,
+    /// The node's slot in the tree (what the renderer's mirror numbers after
+    /// the entries).
+    pub slot: u32,
 }
 
 impl Tree {
@@ -294,6 +297,7 @@ impl Tree {
                 bounds: n.bounds,
                 containment,
                 cell,
+                slot: node,
             }) && let Kind::Internal(children) = n.kind
             {
                 stack.extend(children.map(|c| (c, containment)));

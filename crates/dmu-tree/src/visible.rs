@@ -48,12 +48,29 @@ impl Tree {
         min_pixels: f64,
         visit: &mut dyn FnMut(EntryId, &Entry, EntryVisibility),
     ) -> VisibleNodes {
+        self.visit_visible_above(frustum, coverage, min_pixels, &|_, _| false, visit)
+    }
+
+    /// [`Tree::visit_visible`], not descending below the nodes `cut` names
+    /// (by slot, [`crate::FrustumNode::slot`], and box): where something
+    /// else stands for a subtree, such as a merged proxy drawn instead.
+    pub fn visit_visible_above(
+        &self,
+        frustum: &Frustum,
+        coverage: &Coverage,
+        min_pixels: f64,
+        cut: &dyn Fn(u32, &dmu_geom::Aabb3d) -> bool,
+        visit: &mut dyn FnMut(EntryId, &Entry, EntryVisibility),
+    ) -> VisibleNodes {
         let mut counts = VisibleNodes::default();
         let mut expected = 1u64;
         self.visit_frustum(frustum, &mut |node| {
             counts.visited += 1;
             if coverage.size_px(&node.bounds) < min_pixels {
                 counts.culled_coverage += 1;
+                return false;
+            }
+            if cut(node.slot, &node.bounds) {
                 return false;
             }
             let Some(cell) = node.cell else {

@@ -80,6 +80,7 @@ fn walk_options(
         warmup_frames: frames / 10,
         // From a cold start: the warm frames are what the knobs are judged by.
         opening_frames: 0,
+        lod_cut: None,
     }
 }
 

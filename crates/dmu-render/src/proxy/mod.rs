@@ -26,7 +26,7 @@
 use std::time::{Duration, Instant};
 
 use bytemuck::{Pod, Zeroable};
-use dmu_geom::{Aabb3d, Aabb3f};
+use dmu_geom::Aabb3f;
 use dmu_scene::Scene;
 use dmu_tree::Tree;
 use glam::{DVec3, Vec3};
@@ -711,18 +711,6 @@ fn first_use_order(vertices: &[ProxyVertex], indices: &mut [u32]) -> Vec<ProxyVe
         *i = *slot;
     }
     kept
-}
-
-/// Whether `bounds` is drawn by its proxy of `error` world units at
-/// `max_error_px` pixels, as `coverage` measures it.
-pub(crate) fn proxy_fits(
-    coverage: &dmu_geom::Coverage,
-    bounds: &Aabb3d,
-    error: f64,
-    max_error_px: f64,
-) -> bool {
-    let diagonal = bounds.extent().length();
-    diagonal > 0.0 && coverage.size_px(bounds) * error / diagonal <= max_error_px
 }
 
 /// Proxies and the vertex and index buffer of each current one (by mirror node).

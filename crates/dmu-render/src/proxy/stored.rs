@@ -536,6 +536,19 @@ impl Proxies {
         })
     }
 
+    /// Every stored proxy's tree node (its slot in `tree`, for
+    /// `dmu_store::LodCut`) and error: where a loader need not bring the
+    /// chunks below, once the proxy fits.
+    pub fn stored_slots(&self, tree: &Tree) -> Vec<(u32, f64)> {
+        let entries = tree.entries().len() as u32;
+        self.stored.as_ref().map_or_else(Vec::new, |s| {
+            s.nodes
+                .values()
+                .filter_map(|e| Some((e.node.checked_sub(entries)?, e.error)))
+                .collect()
+        })
+    }
+
     /// Whether node `n` has a current stored proxy (loaded or not).
     pub(crate) fn is_stored_current(&self, n: u32) -> bool {
         self.stored.as_ref().is_some_and(|s| {
