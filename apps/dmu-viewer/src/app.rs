@@ -258,8 +258,8 @@ impl App {
                 ..Default::default()
             },
         );
-        if let Some(proxies) = self.proxies.take() {
-            let slots = proxies.stored_slots(&self.review.tree);
+        if let Some(mut proxies) = self.proxies.take() {
+            let slots = proxies.stored_slots(&self.review.scene, &self.review.tree);
             self.lod_cut = (!slots.is_empty()).then(|| {
                 let px = self.panes[0].view.options.lod_error_px;
                 Arc::new(dmu_store::LodCut::new(slots, px))

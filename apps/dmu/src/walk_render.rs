@@ -589,10 +589,10 @@ pub fn run_resident(
     let mut options = options.clone();
     if how.proxy_bytes > 0
         && how.culling_options.may_draw_lods()
-        && let Some(proxies) = dmu_app::lod::stored_proxies(store, how.proxy_bytes)?
+        && let Some(mut proxies) = dmu_app::lod::stored_proxies(store, how.proxy_bytes)?
     {
         options.lod_cut = Some(Arc::new(dmu_store::LodCut::new(
-            proxies.stored_slots(tree),
+            proxies.stored_slots(scene, tree),
             how.culling_options.lod_error_px,
         )));
         renderer.set_proxies(proxies);

@@ -78,8 +78,8 @@ struct IndexHeader {
     /// [`ProxyOptions::error_fraction`] they were made with.
     error_fraction: f64,
     nodes: u64,
-    /// The root's mirror node: its proxy, once loaded, is never evicted
-    /// (it is what a frame falls back to last).
+    /// The root's content signature: its proxy, once loaded, is never
+    /// evicted (it is what a frame falls back to last).
     root: u64,
 }
 
@@ -307,7 +307,7 @@ pub fn build_stored(
         mirror_nodes: h.len() as u64,
         error_fraction: options.error_fraction,
         nodes: out.index.len() as u64,
-        root: u64::from(h.root),
+        root: proxies.signature[h.root as usize],
     };
     let mut build = out.build;
     build.index = bytemuck::bytes_of(&header).to_vec();
@@ -452,14 +452,16 @@ pub trait ProxyBlobs: Send + Sync + std::fmt::Debug {
 /// The stored side of [`Proxies`]: the index, the blobs, and what is loaded.
 #[derive(Debug)]
 pub(crate) struct Stored {
-    /// By mirror node: its entry in the index (a map: an index names few
-    /// of the mirror's nodes, and a damaged one may name any).
-    pub nodes: HashMap<u32, StoredNode>,
+    /// By content signature: its entry in the index. Keyed by what a node
+    /// holds, not by its number, since the tree's parallel build numbers its
+    /// nodes differently from run to run; a node whose content was stored
+    /// finds its proxy whatever its number.
+    pub nodes: HashMap<u64, StoredNode>,
     blobs: Box<dyn ProxyBlobs>,
     /// Bytes loaded proxies may take.
     budget: u64,
-    /// The root's mirror node, never evicted.
-    root: u32,
+    /// The root's content signature: its proxy is never evicted.
+    root: u64,
     /// Bytes loaded proxies take.
     pub resident: u64,
     /// Nodes frames asked for since the last load, with their priority
@@ -496,21 +498,15 @@ impl Proxies {
             return Err("not a level-of-detail index".into());
         }
         let entries: Vec<StoredNode> = take(index, &mut at, header.nodes as usize, "nodes")?;
-        if at != index.len()
-            || header.mirror_nodes > u64::from(u32::MAX)
-            || header.root >= header.mirror_nodes
-        {
+        if at != index.len() || header.mirror_nodes > u64::from(u32::MAX) {
             return Err("the index's size does not match its node count".into());
         }
         let mut nodes = HashMap::with_capacity(entries.len());
         for e in entries {
-            if u64::from(e.node) >= header.mirror_nodes || !e.error.is_finite() {
-                return Err(format!(
-                    "node {} of {} is damaged",
-                    e.node, header.mirror_nodes
-                ));
+            if !e.error.is_finite() || e.error < 0.0 {
+                return Err(format!("node {}'s error is damaged", e.node));
             }
-            nodes.insert(e.node, e);
+            nodes.insert(e.signature, e);
         }
         Ok(Self {
             options: ProxyOptions {
@@ -522,7 +518,7 @@ impl Proxies {
                 nodes,
                 blobs,
                 budget,
-                root: header.root as u32,
+                root: header.root,
                 resident: 0,
                 requested: Mutex::default(),
                 drawn: Mutex::default(),
@@ -536,33 +532,39 @@ impl Proxies {
         })
     }
 
-    /// Every stored proxy's tree node (its slot in `tree`, for
-    /// `dmu_store::LodCut`) and error: where a loader need not bring the
-    /// chunks below, once the proxy fits.
-    pub fn stored_slots(&self, tree: &Tree) -> Vec<(u32, f64)> {
-        let entries = tree.entries().len() as u32;
-        self.stored.as_ref().map_or_else(Vec::new, |s| {
-            s.nodes
-                .values()
-                .filter_map(|e| Some((e.node.checked_sub(entries)?, e.error)))
-                .collect()
-        })
+    /// The tree nodes of `tree` (their slots, for `dmu_store::LodCut`)
+    /// that hold what a stored proxy shows, with its error: where a loader
+    /// need not bring the chunks below, once the proxy fits.
+    pub fn stored_slots(&mut self, scene: &Scene, tree: &Tree) -> Vec<(u32, f64)> {
+        let mut h = Hierarchy::default();
+        h.sync(tree);
+        self.sync(&h, scene, tree);
+        let entries = tree.entries().len();
+        (entries..h.len())
+            .filter_map(|n| {
+                let e = self.stored_entry(n as u32)?;
+                Some(((n - entries) as u32, e.error))
+            })
+            .collect()
+    }
+
+    /// Node `n`'s entry in the stored index, when it holds what a stored
+    /// proxy shows.
+    fn stored_entry(&self, n: u32) -> Option<&StoredNode> {
+        let signature = self.signature.get(n as usize)?;
+        self.stored.as_ref()?.nodes.get(signature)
     }
 
     /// Whether node `n` has a current stored proxy (loaded or not).
     pub(crate) fn is_stored_current(&self, n: u32) -> bool {
-        self.stored.as_ref().is_some_and(|s| {
-            s.nodes
-                .get(&n)
-                .is_some_and(|e| self.signature.get(n as usize) == Some(&e.signature))
-        })
+        self.stored_entry(n).is_some()
     }
 
     /// A frame wants node `n`'s proxy, which is not loaded; `priority`: the
     /// larger, the sooner.
     pub(crate) fn request(&self, n: u32, size_px: f64) {
         if let Some(s) = &self.stored
-            && let Some(e) = s.nodes.get(&n)
+            && let Some(e) = self.stored_entry(n)
         {
             let priority = size_px / (e.bytes.max(1) as f64);
             s.requested
@@ -608,7 +610,7 @@ impl Proxies {
                 break;
             }
             let slot = n as usize;
-            let Some(&entry) = s.nodes.get(&n) else {
+            let Some(&entry) = self.signature.get(slot).and_then(|sig| s.nodes.get(sig)) else {
                 continue;
             };
             if self.nodes.get(slot).is_none_or(Option::is_some) {
@@ -625,7 +627,7 @@ impl Proxies {
                 Err(e) => {
                     // Never asked for again: the node refines past it.
                     eprintln!("warning: level-of-detail node #{}: {e}", entry.blob);
-                    s.nodes.remove(&n);
+                    s.nodes.remove(&entry.signature);
                     s.failures += 1;
                 }
             }
@@ -634,8 +636,15 @@ impl Proxies {
         if s.resident <= s.budget {
             return;
         }
+        let nodes = &self.nodes;
+        let is_root = |n: u32| {
+            nodes
+                .get(n as usize)
+                .and_then(Option::as_ref)
+                .is_some_and(|p| p.signature == s.root)
+        };
         let mut loaded: Vec<(u64, u32)> = (s.last_used.iter())
-            .filter(|&(&n, &at)| at < tick && n != s.root)
+            .filter(|&(&n, &at)| at < tick && !is_root(n))
             .map(|(&n, &at)| (at, n))
             .collect();
         loaded.sort_unstable();
@@ -734,7 +743,7 @@ mod tests {
             let stored = index.stored.take().unwrap();
             let mut seen = 0;
             for n in 0..truth.nodes.len() {
-                let entry = stored.nodes.get(&(n as u32));
+                let entry = stored.nodes.values().find(|e| e.node == n as u32);
                 let want = truth.nodes[n].as_deref();
                 match (entry, want) {
                     (Some(e), Some(t)) => {
