@@ -258,13 +258,13 @@ impl App {
                 ..Default::default()
             },
         );
-        if let Some(mut proxies) = self.proxies.take() {
-            let slots = proxies.stored_slots(&self.review.scene, &self.review.tree);
+        if let Some(proxies) = self.proxies.take() {
+            renderer.set_proxies(proxies);
+            let slots = renderer.stored_proxy_slots(&self.review.scene, &self.review.tree);
             self.lod_cut = (!slots.is_empty()).then(|| {
                 let px = self.panes[0].view.options.lod_error_px;
                 Arc::new(dmu_store::LodCut::new(slots, px))
             });
-            renderer.set_proxies(proxies);
         }
         if let Some(set) = self.far_field_set.take() {
             // The model as loaded, before any edit: what the far fields show.

@@ -589,13 +589,13 @@ pub fn run_resident(
     let mut options = options.clone();
     if how.proxy_bytes > 0
         && how.culling_options.may_draw_lods()
-        && let Some(mut proxies) = dmu_app::lod::stored_proxies(store, how.proxy_bytes)?
+        && let Some(proxies) = dmu_app::lod::stored_proxies(store, how.proxy_bytes)?
     {
+        renderer.set_proxies(proxies);
         options.lod_cut = Some(Arc::new(dmu_store::LodCut::new(
-            proxies.stored_slots(scene, tree),
+            renderer.stored_proxy_slots(scene, tree),
             how.culling_options.lod_error_px,
         )));
-        renderer.set_proxies(proxies);
     }
     let options = &options;
     let capture = Capture::new(&device, size);

@@ -455,9 +455,11 @@ impl Renderer {
                         );
                     }
                     GroupKey::Proxy(k) => {
-                        let Some((v, i)) = self.proxies.as_ref().and_then(|p| {
-                            p.buffers.get(proxy_nodes[k as usize] as usize)?.as_ref()
-                        }) else {
+                        let Some((v, i)) = self
+                            .proxies
+                            .as_ref()
+                            .and_then(|p| p.buffers.get(&proxy_nodes[k as usize]))
+                        else {
                             continue;
                         };
                         pass.set_vertex_buffer(0, v.slice(..));

@@ -185,12 +185,40 @@ impl Renderer {
     /// layer-at-a-time passes; proxies that go stale are remade as frames go.
     pub fn set_proxies(&mut self, proxies: Proxies) {
         let mut gpu = ProxyGpu {
-            buffers: Vec::new(),
+            buffers: std::collections::HashMap::new(),
             cpu: proxies,
         };
         let all: Vec<u32> = (0..gpu.cpu.nodes.len() as u32).collect();
         self.upload_proxies(&mut gpu, &all);
         self.proxies = Some(gpu);
+    }
+
+    /// The tree nodes (their slots in `tree`, for `dmu_store::LodCut`) that
+    /// hold what a stored proxy shows, with its error: where a loader need
+    /// not bring the chunks below once the proxy fits. Empty without stored
+    /// proxies.
+    pub fn stored_proxy_slots(&mut self, scene: &Scene, tree: &Tree) -> Vec<(u32, f64)> {
+        self.hierarchy.sync(tree);
+        let Some(p) = self.proxies.as_mut() else {
+            return Vec::new();
+        };
+        p.cpu.sync(&self.hierarchy, scene, tree);
+        p.cpu.stored_slots(&self.hierarchy, tree.entries().len())
+    }
+
+    /// Lists in `drawn` what drawing node `n`'s proxy (of `h`, this
+    /// renderer's mirror, which a frame may hold apart) drew: the chunk
+    /// instances below it, approximated, for proxies made in memory; nothing
+    /// for a store's, which stand for chunks that need not be loaded (a
+    /// loader asked for them all would bring the model in).
+    pub(crate) fn proxy_drawn(&self, h: &Hierarchy, n: u32, drawn: &mut Vec<u32>) {
+        if self
+            .proxies
+            .as_ref()
+            .is_some_and(|p| p.cpu.stored.is_none())
+        {
+            h.leaves(n, drawn);
+        }
     }
 
     /// The proxies' state: how many are current and stale, their size, and
@@ -229,9 +257,8 @@ impl Renderer {
     /// Uploads the proxies of mirror nodes `nodes` (dropping the buffers of
     /// those that have none now).
     fn upload_proxies(&self, gpu: &mut ProxyGpu, nodes: &[u32]) {
-        gpu.buffers.resize_with(gpu.cpu.nodes.len(), || None);
         for &n in nodes {
-            gpu.buffers[n as usize] = gpu.cpu.nodes[n as usize]
+            let made = gpu.cpu.nodes[n as usize]
                 .as_ref()
                 .filter(|p| !p.indices.is_empty())
                 .map(|p| {
@@ -258,6 +285,10 @@ impl Renderer {
                         ),
                     )
                 });
+            match made {
+                Some(buffers) => gpu.buffers.insert(n, buffers),
+                None => gpu.buffers.remove(&n),
+            };
         }
     }
 

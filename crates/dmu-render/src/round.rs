@@ -639,7 +639,7 @@ impl Renderer {
         (proxies.nodes.iter().enumerate())
             .filter_map(|(k, &n)| {
                 let proxy = p.cpu.nodes[n as usize].as_ref()?;
-                let (vertices, indices) = p.buffers.get(n as usize)?.as_ref()?;
+                let (vertices, indices) = p.buffers.get(&n)?;
                 let mask = proxies.clusters.get(k).copied().unwrap_or(u64::MAX);
                 Some(ProxyDraw {
                     place: k as u32,

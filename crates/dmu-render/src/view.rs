@@ -161,7 +161,8 @@ impl View {
     }
 
     /// The chunk instances the last frame drew, in draw order (then those
-    /// its proxies drew, approximated).
+    /// its proxies made in memory drew, approximated; a store's proxies
+    /// stand for chunks not listed).
     pub fn drawn_entries(&self) -> impl ExactSizeIterator<Item = dmu_tree::EntryId> + '_ {
         self.state.drawn.iter().map(|&e| dmu_tree::EntryId(e))
     }

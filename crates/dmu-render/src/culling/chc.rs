@@ -254,7 +254,7 @@ impl Renderer {
             view.state.drawn.extend(draws.iter().map(|d| d.entry));
             walk.stats.proxies_drawn += proxy_nodes.len() as u64;
             for &n in &proxy_nodes {
-                h.leaves(n, &mut view.state.drawn);
+                self.proxy_drawn(&h, n, &mut view.state.drawn);
             }
             let (box_samples, check_samples) = if target.is_multiview() {
                 r.box_samples.split_at(queries.len())

@@ -35,9 +35,8 @@ fn draw_plain(culling: Culling, r: &mut Renderer, f: &mut Frame<'_>) -> Result<(
     f.stats.proxies_drawn = plain.nodes.len() as u64;
     let drawn = &mut f.view.state.drawn;
     drawn.extend(plain.draws.iter().map(|d| d.entry));
-    // A proxy draws the chunk instances below it, approximated.
     for &n in &plain.nodes {
-        r.hierarchy.leaves(n, drawn);
+        r.proxy_drawn(&r.hierarchy, n, drawn);
     }
     f.stats.rounds = 1;
     let round = r.submit_color(f, &plain);

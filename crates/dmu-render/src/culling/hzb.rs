@@ -193,7 +193,6 @@ impl Renderer {
             .state
             .drawn
             .extend(first_draws.iter().map(|d| d.entry));
-        let h = &self.hierarchy;
         let mut visible_now = HzbVisible {
             frame,
             revision: Some(tree.revision()),
@@ -245,7 +244,7 @@ impl Renderer {
             }
             if proxy_drawn[k] != 0 || seen != 0 {
                 f.stats.proxies_drawn += 1;
-                h.leaves(n, &mut f.view.state.drawn);
+                self.proxy_drawn(&self.hierarchy, n, &mut f.view.state.drawn);
             }
             f.stats.newly_visible += u64::from(proxy_new[k]);
         }

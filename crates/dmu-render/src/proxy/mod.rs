@@ -717,7 +717,8 @@ fn first_use_order(vertices: &[ProxyVertex], indices: &mut [u32]) -> Vec<ProxyVe
 #[derive(Debug)]
 pub(crate) struct ProxyGpu {
     pub cpu: Proxies,
-    pub buffers: Vec<Option<(wgpu::Buffer, wgpu::Buffer)>>,
+    /// By mirror node (a map: a store's proxies are loaded a few at a time).
+    pub buffers: std::collections::HashMap<u32, (wgpu::Buffer, wgpu::Buffer)>,
 }
 
 #[cfg(test)]

@@ -532,14 +532,10 @@ impl Proxies {
         })
     }
 
-    /// The tree nodes of `tree` (their slots, for `dmu_store::LodCut`)
-    /// that hold what a stored proxy shows, with its error: where a loader
-    /// need not bring the chunks below, once the proxy fits.
-    pub fn stored_slots(&mut self, scene: &Scene, tree: &Tree) -> Vec<(u32, f64)> {
-        let mut h = Hierarchy::default();
-        h.sync(tree);
-        self.sync(&h, scene, tree);
-        let entries = tree.entries().len();
+    /// The tree nodes of `h` (their slots in the tree, for
+    /// `dmu_store::LodCut`) that hold what a stored proxy shows, with its
+    /// error, as of the last [`Proxies::sync`].
+    pub(crate) fn stored_slots(&self, h: &Hierarchy, entries: usize) -> Vec<(u32, f64)> {
         (entries..h.len())
             .filter_map(|n| {
                 let e = self.stored_entry(n as u32)?;
