@@ -9,7 +9,7 @@
 //! are *stale*, skipped in the hierarchy and tested at their current box
 //! instead, until there are enough of them to make a rebuild worth it.
 
-use dmu_geom::Aabb3d;
+use dmu_geom::{Aabb3d, Aabb3f};
 use dmu_scene::{PartId, Scene};
 use dmu_tree::{Change, Changes, Revision, Tree};
 
@@ -18,13 +18,17 @@ const LEAF_PARTS: usize = 4;
 
 /// A node of the hierarchy: a leaf holds `count > 0` parts from `first` in
 /// [`Enclosers::parts`]; an internal node (`count == 0`) has its children at
-/// the next index and at `first`.
+/// the next index and at `first`. Its box only prunes (a leaf's parts are
+/// tested at their own f64 boxes), so it is kept in f32 rounded outwards:
+/// never smaller than its parts' union, and 32 bytes a node instead of 56
+/// (13 MB less at 900k parts, docs/measurements.md).
 #[derive(Clone, Copy, Debug)]
 struct Node {
-    bounds: Aabb3d,
+    bounds: Aabb3f,
     first: u32,
     count: u32,
 }
+const _: () = assert!(size_of::<Node>() == 32);
 
 /// The index (see the module docs).
 #[derive(Debug, Default)]
@@ -95,7 +99,7 @@ impl Enclosers {
         }
         while let Some(i) = self.stack.pop() {
             let node = self.nodes[i as usize];
-            if !node.bounds.contains(inner) {
+            if !node.bounds.as_dvec().contains(inner) {
                 continue;
             }
             if node.count == 0 {
@@ -125,7 +129,7 @@ fn build_node(nodes: &mut Vec<Node>, parts: &mut [(PartId, Aabb3d)], offset: u32
         .fold(Aabb3d::EMPTY, |acc, (_, b)| acc.union(*b));
     let at = nodes.len();
     nodes.push(Node {
-        bounds,
+        bounds: bounds.as_vec_outward(),
         first: offset,
         count: parts.len() as u32,
     });
@@ -146,4 +150,65 @@ fn build_node(nodes: &mut Vec<Node>, parts: &mut [(PartId, Aabb3d)], offset: u32
     build_node(nodes, right, offset + mid as u32);
     nodes[at].first = second;
     nodes[at].count = 0;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dmu_geom::glam::{DAffine3, DVec3};
+    use dmu_tree::TreeOptions;
+
+    /// The parts found holding a box are those a brute force over every
+    /// part finds, for parts far from the origin (where an f32 box rounded
+    /// to nearest would shrink past a part's f64 box) and boxes that touch
+    /// a part's own box exactly, slightly inside it or slightly beyond.
+    #[test]
+    fn containing_finds_what_a_brute_force_finds_far_from_the_origin() {
+        let mut rng = dmu_samples::Rng::new(5);
+        let mut scene = dmu_samples::grid(6, 3.0, 4.0, 4);
+        let far = DVec3::new(4_756_000.3, 5_353_000.7, 13_700.1);
+        for p in scene.part_ids().collect::<Vec<_>>() {
+            let jitter = DVec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            );
+            let world = DAffine3::from_translation(far + jitter) * scene.part_world(p);
+            scene.set_part_world(p, world);
+        }
+        let tree = Tree::build(&scene, TreeOptions::default());
+        let mut index = Enclosers::default();
+        index.sync(&scene, &tree);
+        let parts: Vec<PartId> = scene.part_ids().collect();
+        let mut found = Vec::new();
+        for _ in 0..2_000 {
+            let own = scene.part_world_bounds(parts[rng.below(parts.len() as u64) as usize]);
+            let inner = match rng.below(3) {
+                0 => own,
+                // Within a few f64 ulps of the part's box, either side.
+                1 => {
+                    let d = DVec3::splat(rng.range(-4.0, 4.0) * f64::EPSILON * far.length());
+                    Aabb3d {
+                        min: own.min + d,
+                        max: own.max - d,
+                    }
+                }
+                _ => {
+                    let c = own.center() + DVec3::splat(rng.range(-3.0, 3.0));
+                    let h = DVec3::splat(rng.range(0.01, 1.5));
+                    Aabb3d {
+                        min: c - h,
+                        max: c + h,
+                    }
+                }
+            };
+            found.clear();
+            index.containing(&scene, &inner, &mut found);
+            found.sort_unstable();
+            let brute: Vec<PartId> = (parts.iter().copied())
+                .filter(|&p| scene.part_world_bounds(p).contains(&inner))
+                .collect();
+            assert_eq!(found, brute, "parts holding {inner:?}");
+        }
+    }
 }

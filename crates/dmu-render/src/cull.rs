@@ -583,7 +583,7 @@ impl<'a> Walk<'a> {
 
     /// Node `n` is visible: its proxy is drawn next round, what it stands
     /// for is counted, and its chunk instances are visible this frame.
-    pub(crate) fn draw_proxy(&mut self, n: u32, view: &mut View, frame: u64) {
+    pub(crate) fn draw_proxy(&mut self, n: u32, view: &mut View, frame: u32) {
         self.proxy_draws.push(n);
         self.count_below(n);
         let mut leaves = Vec::new();
@@ -652,7 +652,7 @@ impl<'a> Walk<'a> {
     /// A queried inner node turned out visible: its descendants `levels` down
     /// (or chunk instances, if reached first) are queried in the next round;
     /// ones the eye is in are opened without a query.
-    pub(crate) fn expand(&mut self, n: u32, levels: u32, view: &mut View, frame: u64) {
+    pub(crate) fn expand(&mut self, n: u32, levels: u32, view: &mut View, frame: u32) {
         let mut stack: Vec<(u32, u32)> = self.h.children(n).iter().map(|&c| (c, 1)).collect();
         while let Some((c, depth)) = stack.pop() {
             let Some(kind) = self.admit(c) else { continue };

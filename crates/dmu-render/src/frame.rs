@@ -44,7 +44,7 @@ impl Renderer {
             geometry,
         } = model;
         let start = Instant::now();
-        view.state.frame += 1;
+        view.state.next_frame();
         self.hierarchy.sync(tree);
         self.sync_part_flags(scene, tree);
         let proxy_time = self.sync_proxies(scene, tree, geometry);
@@ -52,7 +52,7 @@ impl Renderer {
             view.state.entries = vec![EntryState::default(); tree.entries().len()];
         }
         let mut stats = FrameStats {
-            frame: view.state.frame,
+            frame: u64::from(view.state.frame),
             ..FrameStats::default()
         };
         let knobs = match view.options.target_ms {

@@ -7,7 +7,9 @@
 //! the tree is mirror node `entries + n`; entry `e` is mirror node `e`), so a
 //! move updates it by re-reading only what the tree's change log names: a
 //! drag step costs the same on any model size. Per-view state is kept per
-//! entry, whose ids never change.
+//! entry, whose ids never change. Boxes are never copied: a node's is the
+//! tree's, read through [`Hierarchy::bounds`] (the tree node boxes alone
+//! were 25 MB at 500M triangles, docs/measurements.md).
 
 use dmu_geom::Aabb3d;
 use dmu_tree::{CellId, Change, Changes, EntryId, InvariantError, NodeId, Revision, Tree};
@@ -28,17 +30,16 @@ pub(crate) enum NodeKind {
     Free,
 }
 
-/// A node of the tree (entries have none: they are implicit).
+/// A node of the tree (entries have none: they are implicit); its box is
+/// the tree's.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Node {
-    bounds: Aabb3d,
     kind: NodeKind,
     /// The children of an internal node.
     children: [u32; 2],
 }
 
 const FREE: Node = Node {
-    bounds: Aabb3d::EMPTY,
     kind: NodeKind::Free,
     children: [NONE; 2],
 };
@@ -47,9 +48,9 @@ const FREE: Node = Node {
 /// keeps one and brings it up to date with [`Hierarchy::sync`] each frame; it
 /// needs no GPU, so its update cost is measured alone (`dmu bench tree`).
 ///
-/// Entries are implicit: mirror node `e` below the entry count is entry `e`,
-/// a leaf whose box is the tree's (`Hierarchy::bounds`); the mirror holds
-/// no copy of the entries' boxes (76 MB at 500M triangles).
+/// Entries are implicit: mirror node `e` below the entry count is entry `e`.
+/// Every box is the tree's (`Hierarchy::bounds`); the mirror holds no copy
+/// of the entries' boxes (76 MB at 500M triangles) nor of the nodes'.
 #[derive(Debug, Default, PartialEq)]
 pub struct Hierarchy {
     /// The tree's node slots (mirror node `entries + n` is slot `n`).
@@ -131,11 +132,7 @@ impl Hierarchy {
             dmu_tree::NodeKind::Cell(c) => (NodeKind::Cell(c), [NONE; 2]),
             dmu_tree::NodeKind::Free => (NodeKind::Free, [NONE; 2]),
         };
-        self.tree_nodes[node.0 as usize] = Node {
-            bounds: tree.node_bounds(node),
-            kind,
-            children,
-        };
+        self.tree_nodes[node.0 as usize] = Node { kind, children };
     }
 
     fn read_cell(&mut self, tree: &Tree, cell: CellId) {
@@ -172,11 +169,11 @@ impl Hierarchy {
             .map_or(NodeKind::Entry(EntryId(node)), |n| n.kind)
     }
 
-    /// The box of mirror node `node`; an entry's is `tree`'s (the tree this
-    /// mirror was last synced with).
-    pub(crate) fn bounds<'a>(&'a self, tree: &'a Tree, node: u32) -> &'a Aabb3d {
-        match self.tree_slot(node) {
-            Some(n) => &n.bounds,
+    /// The box of mirror node `node`: `tree`'s (the tree this mirror was
+    /// last synced with).
+    pub(crate) fn bounds<'a>(&self, tree: &'a Tree, node: u32) -> &'a Aabb3d {
+        match (node as usize).checked_sub(self.entry_cell.len()) {
+            Some(slot) => tree.node_bounds(NodeId(slot as u32)),
             None => &tree.entries()[node as usize].bounds,
         }
     }
@@ -219,8 +216,8 @@ impl Hierarchy {
         }
     }
 
-    /// Checks the mirror against the tree: the same root, children and boxes
-    /// for every live tree node, every entry below the root exactly once, in
+    /// Checks the mirror against the tree: the same root and children for
+    /// every live tree node, every entry below the root exactly once, in
     /// the cell holding it, boxes nesting.
     pub fn validate(&self, tree: &Tree) -> Result<(), InvariantError> {
         self.check(tree).map_err(InvariantError::new)
@@ -263,13 +260,6 @@ impl Hierarchy {
                 NodeKind::Free => return Err(format!("free node {n} in the tree")),
                 NodeKind::Internal | NodeKind::Cell(_) => {
                     let t = NodeId(n - self.entry_cell.len() as u32);
-                    if node.bounds != tree.node_bounds(t) {
-                        return Err(format!(
-                            "node {n}: box {:?}, tree {:?}",
-                            node.bounds,
-                            tree.node_bounds(t)
-                        ));
-                    }
                     let same = match (node.kind, tree.node_kind(t)) {
                         (NodeKind::Internal, dmu_tree::NodeKind::Internal(c)) => {
                             node.children == c.map(|c| self.tree_node(c))
@@ -283,7 +273,7 @@ impl Hierarchy {
                         return Err(format!("node {n} differs from the tree's"));
                     }
                     for &c in self.children(n) {
-                        if !node.bounds.contains(self.bounds(tree, c)) {
+                        if !self.bounds(tree, n).contains(self.bounds(tree, c)) {
                             return Err(format!("node {n}: child {c} pokes out"));
                         }
                     }
@@ -293,6 +283,53 @@ impl Hierarchy {
         match seen.iter().position(|s| !s) {
             Some(e) => Err(format!("entry {e} unreachable")),
             None => Ok(()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dmu_geom::glam::{DAffine3, DVec3};
+    use dmu_scene::PartId;
+    use dmu_tree::TreeOptions;
+
+    /// Every node's box, read from the tree rather than copied, is the
+    /// union of the boxes of the chunk instances below it (the brute force)
+    /// after each sync of a run of random moves that split, merge and
+    /// rotate cells.
+    #[test]
+    fn node_boxes_are_the_union_of_their_entries_after_random_moves() {
+        let options = TreeOptions {
+            cell_triangles: 96,
+            sah_bins: 8,
+            rotations_per_move: 8,
+            insert_search_nodes: 64,
+        };
+        let mut rng = dmu_samples::Rng::new(11);
+        let mut scene = dmu_samples::grid(4, 10.0, 4.0, 4);
+        let mut tree = Tree::build(&scene, options);
+        let mut h = Hierarchy::default();
+        let mut leaves = Vec::new();
+        for _ in 0..60 {
+            let part = PartId(rng.below(scene.parts().len() as u64) as u32);
+            let reach = if rng.chance(0.3) { 60.0 } else { 1.5 };
+            let step = DVec3::new(
+                rng.range(-reach, reach),
+                rng.range(-reach, reach),
+                rng.range(-reach, reach),
+            );
+            let world = DAffine3::from_translation(step) * scene.part_world(part);
+            tree.move_part(&mut scene, part, world);
+            h.sync(&tree);
+            for n in h.pre_order() {
+                leaves.clear();
+                h.leaves(n, &mut leaves);
+                let union = (leaves.iter())
+                    .map(|&e| tree.entries()[e as usize].bounds)
+                    .fold(Aabb3d::EMPTY, Aabb3d::union);
+                assert_eq!(*h.bounds(&tree, n), union, "node {n}");
+            }
         }
     }
 }

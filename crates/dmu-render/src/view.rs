@@ -181,8 +181,7 @@ impl View {
     /// Forgets visibility (after a jump of the camera, say): the next frame
     /// starts occlusion culling from scratch.
     pub fn reset_visibility(&mut self) {
-        self.state.entries.clear();
-        self.state.hzb = Default::default();
+        self.state.forget_visibility();
     }
 }
 

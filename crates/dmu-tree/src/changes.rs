@@ -153,8 +153,8 @@ impl Tree {
     }
 
     /// A node's box (empty for a free slot).
-    pub fn node_bounds(&self, node: NodeId) -> Aabb3d {
-        self.nodes[node.0 as usize].bounds
+    pub fn node_bounds(&self, node: NodeId) -> &Aabb3d {
+        &self.nodes[node.0 as usize].bounds
     }
 
     /// What a node slot holds.

@@ -11,7 +11,7 @@ fn a_move_names_its_entries_and_the_nodes_whose_boxes_changed() {
     assert_eq!(tree.changes_since(start), Changes::Touched(&[]));
     let part = scene.find_part("box_1_2_3").expect("a grid part");
     let boxes: Vec<_> = (0..tree.node_slots() as u32)
-        .map(|n| tree.node_bounds(dmu_tree::NodeId(n)))
+        .map(|n| *tree.node_bounds(dmu_tree::NodeId(n)))
         .collect();
     let world = DAffine3::from_translation(DVec3::new(0.5, 0.0, 0.0)) * scene.part_world(part);
     tree.move_part(&mut scene, part, world);
@@ -34,7 +34,7 @@ fn a_move_names_its_entries_and_the_nodes_whose_boxes_changed() {
     // Oracle: every node whose box differs from before is named.
     for (n, before) in boxes.iter().enumerate() {
         let node = dmu_tree::NodeId(n as u32);
-        if tree.node_bounds(node) != *before {
+        if tree.node_bounds(node) != before {
             assert!(
                 changes.contains(&Change::Node(node)),
                 "node {n} changed unnamed"

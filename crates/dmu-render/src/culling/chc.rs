@@ -136,14 +136,16 @@ impl Renderer {
         let mut was_visible = vec![false; h.len()];
         for &n in order.iter().rev() {
             was_visible[n as usize] = match h.kind(n) {
-                NodeKind::Entry(e) => view.state.entries[e.0 as usize].visible_frame + 1 == frame,
+                NodeKind::Entry(e) => view.state.entries[e.0 as usize].visible_frame == frame - 1,
                 _ => h.children(n).iter().any(|&c| was_visible[c as usize]),
             };
         }
-        let interval = u64::from(view.options.requery_interval.max(1));
+        let interval = view.options.requery_interval.max(1);
         // A per-chunk offset spreads re-checks evenly over frames.
-        let schedule =
-            |e: u32| frame + interval + (u64::from(e).wrapping_mul(0x9E37_79B9) >> 7) % interval;
+        let schedule = |e: u32| {
+            let offset = (u64::from(e).wrapping_mul(0x9E37_79B9) >> 7) % u64::from(interval);
+            frame.saturating_add(interval).saturating_add(offset as u32)
+        };
 
         // Nodes drawn as their proxies: leaves of the traversal, drawn when
         // visible and queried by their boxes as any node.
@@ -304,7 +306,7 @@ impl Renderer {
                         for &e in &leaves {
                             let state = &mut view.state.entries[e as usize];
                             state.visible_frame = frame;
-                            state.requery_frame = frame + 1;
+                            state.requery_frame = frame.saturating_add(1);
                         }
                     }
                     _ if walk.fits(n) => {

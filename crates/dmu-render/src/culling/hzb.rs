@@ -53,7 +53,7 @@ impl Renderer {
         // so the traversal runs while the GPU draws.
         let last = std::mem::take(&mut f.view.state.hzb.visible);
         let fit = self.frame_fit(Culling::Hzb, tree, cull, target);
-        let early = (last.frame + 1 == frame
+        let early = (last.frame == frame - 1
             && last.revision == Some(tree.revision())
             && matches!(cull.far, FarCut::None))
         .then(|| self.last_visible(scene, tree, cull, cell_distance, &fit, &last));
@@ -87,7 +87,7 @@ impl Renderer {
                 None => {
                     let was = f.view.state.hzb.proxy_visible[n as usize];
                     let near = cull.eye_near(h.bounds(tree, n));
-                    if near || (was > 0 && was + 1 == frame) {
+                    if near || (was > 0 && was == frame - 1) {
                         u64::MAX
                     } else {
                         0
@@ -107,7 +107,7 @@ impl Renderer {
                 Some((entries, _)) => entries.binary_search(&d.entry).is_ok(),
                 None => {
                     let was = f.view.state.entries[d.entry as usize].visible_frame;
-                    cull.eye_near(&b) || (was > 0 && was + 1 == frame)
+                    cull.eye_near(&b) || (was > 0 && was == frame - 1)
                 }
             };
             listed.push((CandidateKind::Entry(d.entry), b, drawn));
