@@ -42,8 +42,10 @@ pub struct LodLevel {
 /// The simplified levels of `geometry`, coarser each time: about half the
 /// triangles of the one before, down to a few dozen. A level that would keep
 /// more than 3/4 of the one before (the simplifier is stuck on locked
-/// borders or features) ends the chain; chunks under [`MIN_LOD_TRIANGLES`]
-/// get none.
+/// borders or features) ends the chain, and so does one that would bring the
+/// levels' triangles together past the chunk's own: a chunk with its levels
+/// holds at most twice its indices, the bound a store's residency budget
+/// counts before reading it. Chunks under [`MIN_LOD_TRIANGLES`] get none.
 pub fn lod_levels(geometry: &ChunkGeometry<'_>) -> Vec<LodLevel> {
     let triangles = geometry.indices.len() / 3;
     let mut levels: Vec<LodLevel> = Vec::new();
@@ -55,6 +57,7 @@ pub fn lod_levels(geometry: &ChunkGeometry<'_>) -> Vec<LodLevel> {
         | meshopt::SimplifyOptions::ErrorAbsolute
         | meshopt::SimplifyOptions::Prune;
     let mut previous = triangles;
+    let mut total = 0;
     while levels.len() < MAX_LOD_LEVELS && previous / 2 >= FEWEST_TRIANGLES {
         let target = previous / 2;
         let mut error = 0.0f32;
@@ -67,7 +70,8 @@ pub fn lod_levels(geometry: &ChunkGeometry<'_>) -> Vec<LodLevel> {
             Some(&mut error),
         );
         let kept = indices.len() / 3;
-        if kept == 0 || 4 * kept > 3 * previous || !error.is_finite() {
+        total += kept;
+        if kept == 0 || 4 * kept > 3 * previous || total > triangles || !error.is_finite() {
             break;
         }
         // A coarser level never claims less error than a finer one.
@@ -168,10 +172,13 @@ mod tests {
             positions: &positions,
             normals: &normals,
             indices: &indices,
+            levels: None,
         };
         let levels = lod_levels(&geometry);
         let full_depth = depth_inside(&positions, &indices, radius);
         assert!(levels.len() >= 4, "{} levels", levels.len());
+        let all: usize = levels.iter().map(|l| l.indices.len()).sum();
+        assert!(all <= indices.len(), "{all} level indices");
         let mut previous = indices.len() / 3;
         let mut previous_error = 0.0;
         for (k, level) in levels.iter().enumerate() {
@@ -219,6 +226,7 @@ mod tests {
             positions: &positions,
             normals: &normals,
             indices: &indices,
+            levels: None,
         };
         assert!(lod_levels(&geometry).is_empty());
     }

@@ -4,11 +4,12 @@
 use std::path::Path;
 
 use dmu_scene::{ChunkId, Scene, Structure};
+use rayon::prelude::*;
 
 use crate::error::StoreError;
 use crate::read::Store;
 use crate::skeleton::structure_difference;
-use crate::write::{PendingStore, StoreSummary, StoreWriter, WriteOptions};
+use crate::write::{PendingStore, StoreSummary, StoreWriter, WriteOptions, batches};
 
 /// Saves `scene`'s transforms and part visibility into the store it was opened
 /// from, replacing the file by rename (a crash leaves the previous file).
@@ -106,17 +107,25 @@ pub fn write_far_fields<E: From<StoreError>>(
 }
 
 /// A writer for a new file at `store`'s path holding `store`'s chunk
-/// segments, copied verified byte for byte: what every rewrite of a store
-/// starts with.
+/// segments, copied verified byte for byte (a version-3 store's with their
+/// levels added, computed in parallel): what every rewrite of a store starts
+/// with.
 fn with_geometry_of(store: &Store) -> Result<StoreWriter, StoreError> {
     let mut writer = StoreWriter::create(store.path(), WriteOptions::default())?;
-    for (c, chunk) in store.skeleton().chunks().iter().enumerate() {
-        let id = ChunkId::from_index(c);
-        writer.chunk_segment(
-            &store.chunk_segment(id)?,
-            chunk.vertices.end - chunk.vertices.start,
-            chunk.triangle_count(),
-        )?;
+    let chunks = store.skeleton().chunks();
+    for batch in batches(chunks.iter().map(|c| c.triangle_count() as usize)) {
+        let segments: Vec<Vec<u8>> = batch
+            .clone()
+            .into_par_iter()
+            .map(|c| store.chunk_segment_with_levels(ChunkId::from_index(c)))
+            .collect::<Result<_, _>>()?;
+        for (chunk, bytes) in chunks[batch].iter().zip(segments) {
+            writer.chunk_segment(
+                &bytes,
+                chunk.vertices.end - chunk.vertices.start,
+                chunk.triangle_count(),
+            )?;
+        }
     }
     Ok(writer)
 }
