@@ -12,6 +12,7 @@
 use glam::Vec3;
 
 use crate::ChunkGeometry;
+use crate::nearest::farthest_from_surface;
 
 /// At most this many levels after the full chunk.
 pub const MAX_LOD_LEVELS: usize = 7;
@@ -24,8 +25,10 @@ const FEWEST_TRIANGLES: usize = 16;
 
 /// meshoptimizer's error is a quadric estimate, not a bound: on a sphere the
 /// surface strayed 1.33 (half the triangles) to 1.82 (a sixteenth) times the
-/// estimate (the test below). Levels claim this multiple of it, so the pixel
-/// bound drawn from it holds there; the images measure the rest.
+/// estimate (the test below), on the plant's chunks up to 23 times (a pipe
+/// elbow's level, `dmu-store`'s levels test). Levels claim at least this
+/// multiple of it, and at least the measured distance from every vertex of
+/// the chunk to the level's surface.
 const ERROR_MARGIN: f32 = 2.0;
 
 /// One simplified level.
@@ -34,8 +37,11 @@ pub struct LodLevel {
     /// Chunk-local indices, three per triangle, into the chunk's vertices.
     pub indices: Vec<u32>,
     /// How far the simplified surface may lie from the full one, in the
-    /// chunk's local units: meshoptimizer's estimate of the largest distance
-    /// with a margin (it is not a strict bound).
+    /// chunk's local units: the farthest any vertex of the chunk lies from
+    /// the level's surface (measured), or meshoptimizer's estimate with a
+    /// margin where that is more. The other way, the level's surface from the
+    /// chunk's, is only estimated (on the plant's chunks it never strayed
+    /// farther than the vertices did).
     pub error: f32,
 }
 
@@ -75,7 +81,8 @@ pub fn lod_levels(geometry: &ChunkGeometry<'_>) -> Vec<LodLevel> {
             break;
         }
         // A coarser level never claims less error than a finer one.
-        let error = ERROR_MARGIN * error;
+        let measured = farthest_from_surface(geometry.positions, geometry.positions, &indices);
+        let error = (ERROR_MARGIN * error).max(measured);
         let error = levels.last().map_or(error, |l| l.error.max(error));
         levels.push(LodLevel { indices, error });
         previous = kept;
