@@ -7,10 +7,10 @@ use std::path::{Path, PathBuf};
 
 use dmu_geom::closest_point_on_triangle;
 use dmu_scene::{ChunkId, LodLevel, lod_levels};
-use dmu_store::{OwnedChunkGeometry, Store, StoreError, WriteOptions, reseal};
+use dmu_store::{OwnedChunkGeometry, Store, StoreError, WriteOptions, reseal, save_edits};
 use glam::{DVec3, Vec3};
 
-use crate::support::{KIND_CHUNK, entry, small_plant, stored};
+use crate::support::{KIND_CHUNK, assert_same_scene, entry, small_plant, stored};
 
 /// Every chunk of `store`, decoded.
 fn decoded(store: &Store) -> Vec<OwnedChunkGeometry> {
@@ -193,4 +193,45 @@ fn damaged_levels_are_one_line_errors_naming_the_chunk() {
 /// The index count of the level whose table entry is at `at`.
 fn levels_len(segment: &[u8], at: usize) -> u32 {
     u32::from_le_bytes(segment[at..at + 4].try_into().unwrap())
+}
+
+/// A version-3 store, written by the build before format 4 (7f1c359):
+/// `dmu generate plant --triangles 10k -o plant10k_version3.dmu`.
+pub fn version_3_store() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/plant10k_version3.dmu")
+}
+
+#[test]
+fn a_version_3_store_reads_without_levels_and_gains_them_when_rewritten() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("old.dmu");
+    std::fs::copy(version_3_store(), &path).unwrap();
+    let store = Store::open(&path).unwrap();
+    assert_eq!(store.info().version, 3);
+    let old = decoded(&store);
+    assert!(old.iter().all(|g| g.levels.is_none()));
+    // The same plant as the generator makes today, geometry and all.
+    assert_same_scene(&store.load_scene().unwrap(), &small_plant(10_000));
+    // Its budget counts no levels: it holds none.
+    let old_budget = store.info().geometry_resident_bytes;
+    let expected: u64 = old.iter().map(OwnedChunkGeometry::resident_bytes).sum();
+    assert_eq!(old_budget, expected);
+
+    save_edits(&store, store.skeleton()).unwrap();
+    let store = Store::open(&path).unwrap();
+    assert_eq!(store.info().version, 4);
+    let new = decoded(&store);
+    let mut with_levels = 0;
+    for (c, (old, new)) in old.iter().zip(&new).enumerate() {
+        assert_eq!(
+            (&old.positions, &old.normals, &old.indices),
+            (&new.positions, &new.normals, &new.indices),
+            "chunk {c}"
+        );
+        let levels = new.levels.as_ref().expect("a rewritten chunk has levels");
+        assert_eq!(*levels, computed(old), "chunk {c}");
+        with_levels += usize::from(!levels.is_empty());
+    }
+    assert!(with_levels > 0);
+    assert!(store.info().geometry_resident_bytes > old_budget);
 }
