@@ -81,8 +81,12 @@ pub fn lod_levels(geometry: &ChunkGeometry<'_>) -> Vec<LodLevel> {
             break;
         }
         // A coarser level never claims less error than a finer one.
-        let measured = farthest_from_surface(geometry.positions, geometry.positions, &indices);
-        let error = (ERROR_MARGIN * error).max(measured);
+        let error = farthest_from_surface(
+            geometry.positions,
+            geometry.positions,
+            &indices,
+            ERROR_MARGIN * error,
+        );
         let error = levels.last().map_or(error, |l| l.error.max(error));
         levels.push(LodLevel { indices, error });
         previous = kept;

@@ -9,15 +9,23 @@ use glam::{DVec3, IVec3, Vec3};
 const MAX_CELLS: i32 = 16;
 
 /// The farthest any of `points` lies from the surface of `indices` (three per
-/// triangle, into `positions`): for each point its distance to the nearest
-/// triangle, in f64, then the largest, rounded up to f32 (a bound stays a
-/// bound). 0 without points; infinite without triangles.
-pub(crate) fn farthest_from_surface(points: &[Vec3], positions: &[Vec3], indices: &[u32]) -> f32 {
+/// triangle, into `positions`), where that is beyond `floor`; else `floor`.
+/// Each point's distance to its nearest triangle is found in f64, the largest
+/// rounded up to f32 (a bound stays a bound); infinite without triangles.
+///
+/// Only whether a point lies beyond the largest distance so far (at first
+/// `floor`) matters, so a point's search ends at the first triangle within
+/// it: most points of a simplified level lie on it or near it.
+pub(crate) fn farthest_from_surface(
+    points: &[Vec3],
+    positions: &[Vec3],
+    indices: &[u32],
+    floor: f32,
+) -> f32 {
     let grid = Grid::new(positions, indices);
-    let farthest = points
-        .iter()
-        .map(|&p| grid.distance(p.as_dvec3()))
-        .fold(0.0, f64::max);
+    let farthest = points.iter().fold(f64::from(floor), |farthest, &p| {
+        grid.distance_beyond(p.as_dvec3(), farthest).max(farthest)
+    });
     let rounded = farthest as f32;
     if f64::from(rounded) < farthest {
         rounded.next_up()
@@ -106,12 +114,14 @@ impl Grid {
         (c.x + self.cells.x * (c.y + self.cells.y * c.z)) as usize
     }
 
-    /// Distance from `p` to the nearest triangle: cells searched in growing
-    /// blocks around `p`'s, until nothing outside the block can be nearer
-    /// than the nearest found (a triangle outside lies wholly in cells
+    /// Distance from `p` to the nearest triangle when that is beyond
+    /// `floor`; else some distance within `floor`. Cells are searched in
+    /// growing blocks around `p`'s, until nothing outside the block can be
+    /// nearer than the nearest found (a triangle outside lies wholly in cells
     /// beyond one of the block's faces that is not the grid's).
-    fn distance(&self, p: DVec3) -> f64 {
+    fn distance_beyond(&self, p: DVec3, floor: f64) -> f64 {
         let centre = self.cell_of(p);
+        let floor = floor * floor;
         let mut best = f64::INFINITY;
         for r in 0..=MAX_CELLS {
             let lo = (centre - r).max(IVec3::ZERO);
@@ -129,6 +139,9 @@ impl Grid {
                         {
                             let q = closest_point_on_triangle(p, self.triangles[t as usize]);
                             best = best.min(q.distance_squared(p));
+                            if best <= floor {
+                                return best.sqrt();
+                            }
                         }
                     }
                 }
@@ -191,7 +204,14 @@ mod tests {
                     .iter()
                     .map(|&t| closest_point_on_triangle(p.as_dvec3(), t).distance(p.as_dvec3()))
                     .fold(f64::INFINITY, f64::min);
-                assert_eq!(grid.distance(p.as_dvec3()), brute, "case {case}, {p}");
+                for floor in [0.0, brute / 2.0, brute * 2.0] {
+                    let found = grid.distance_beyond(p.as_dvec3(), floor);
+                    if brute > floor {
+                        assert_eq!(found, brute, "case {case}, {p}, floor {floor}");
+                    } else {
+                        assert!(found <= floor, "case {case}, {p}, floor {floor}: {found}");
+                    }
+                }
             }
         }
     }
