@@ -141,6 +141,9 @@ fn read_damaged(path: &Path, chunk: ChunkId, damage: impl FnOnce(&mut [u8])) -> 
         .unwrap_err()
 }
 
+/// A change to a chunk's segment.
+type Damage = Box<dyn FnOnce(&mut [u8])>;
+
 #[test]
 fn damaged_levels_are_one_line_errors_naming_the_chunk() {
     let (_dir, path, chunk, g) = a_chunk_with_levels();
@@ -148,11 +151,9 @@ fn damaged_levels_are_one_line_errors_naming_the_chunk() {
     // Unquantized, u16 indices: the level table follows the chunk's indices.
     assert!(g.positions.len() <= 1 << 16);
     let table = 16 + 24 * g.positions.len() + 2 * g.indices.len();
-    let word = |at: usize| at..at + 4;
-    let set = |b: &mut [u8], at: usize, v: u32| b[word(at)].copy_from_slice(&v.to_le_bytes());
     let vertices = g.positions.len() as u16;
     let last = format!("level {}: index {vertices} >= {vertices}", levels.len() - 1);
-    let cases: [(&str, Box<dyn FnOnce(&mut [u8])>); 5] = [
+    let cases: [(&str, Damage); 5] = [
         (
             &last,
             Box::new(move |b: &mut [u8]| {
@@ -162,24 +163,24 @@ fn damaged_levels_are_one_line_errors_naming_the_chunk() {
         ),
         (
             "bytes where its counts make",
-            Box::new(move |b: &mut [u8]| set(b, table, levels_len(b, table) + 3)),
+            Box::new(move |b: &mut [u8]| set_word(b, table, levels_len(b, table) + 3)),
         ),
         (
             "not whole triangles",
             Box::new(move |b: &mut [u8]| {
                 // One index moved from level 0 to level 1: the length holds.
                 let (first, second) = (levels_len(b, table), levels_len(b, table + 8));
-                set(b, table, first - 1);
-                set(b, table + 8, second + 1);
+                set_word(b, table, first - 1);
+                set_word(b, table + 8, second + 1);
             }),
         ),
         (
             "claims error",
-            Box::new(move |b: &mut [u8]| set(b, table + 12, f32::NAN.to_bits())),
+            Box::new(move |b: &mut [u8]| set_word(b, table + 12, f32::NAN.to_bits())),
         ),
         (
             "8 levels, more than 7",
-            Box::new(|b: &mut [u8]| set(b, 12, 8)),
+            Box::new(|b: &mut [u8]| set_word(b, 12, 8)),
         ),
     ];
     for (what, damage) in cases {
@@ -193,6 +194,11 @@ fn damaged_levels_are_one_line_errors_naming_the_chunk() {
 /// The index count of the level whose table entry is at `at`.
 fn levels_len(segment: &[u8], at: usize) -> u32 {
     u32::from_le_bytes(segment[at..at + 4].try_into().unwrap())
+}
+
+/// Writes the little-endian word `v` at `at`.
+fn set_word(segment: &mut [u8], at: usize, v: u32) {
+    segment[at..at + 4].copy_from_slice(&v.to_le_bytes());
 }
 
 /// A version-3 store, written by the build before format 4 (7f1c359):
