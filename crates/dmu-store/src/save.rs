@@ -20,6 +20,8 @@ use crate::write::{PendingStore, StoreSummary, StoreWriter, WriteOptions, batche
 /// made far-field cells stale is the caller's to decide: see
 /// [`write_far_fields`]). Cost: the whole file is read and written once
 /// (sequential I/O, no decoding), e.g. about a second per gigabyte on an SSD.
+/// A version-3 store is the exception: its chunks are decoded and given their
+/// levels (format version 4), as an import would (seconds per 10M triangles).
 /// The open `store` keeps reading the file it opened; open the path again to
 /// see the saved one.
 pub fn save_edits(store: &Store, scene: &Scene) -> Result<StoreSummary, StoreError> {
