@@ -33,6 +33,9 @@ struct ModeFrame {
     /// Frame time on the CPU, waiting for the GPU included, ms.
     frame_ms: f64,
     gpu_ms: f64,
+    /// Of `frame_ms`, uploading chunks to the GPU (and simplifying those
+    /// whose levels the store does not hold), ms.
+    upload_ms: f64,
     triangles_drawn: u64,
     chunks_drawn: u64,
     /// Proxies drawn (merged subtrees).
@@ -145,6 +148,7 @@ fn mode_frame(stats: &FrameStats, differing: Option<Differing>) -> ModeFrame {
         culling: stats.culling.name(),
         frame_ms: stats.cpu_ms,
         gpu_ms: stats.gpu_ms,
+        upload_ms: stats.upload_ms,
         triangles_drawn: stats.triangles_drawn,
         chunks_drawn: stats.chunks_drawn,
         proxies_drawn: stats.proxies_drawn,

@@ -153,6 +153,8 @@ impl GeometrySource for StandInSource<'_> {
             positions: &g.positions,
             normals: &g.normals,
             indices: &g.indices,
+            // Twelve triangles: too few for levels.
+            levels: Some(&[]),
         })
     }
 

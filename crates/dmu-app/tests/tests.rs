@@ -5,4 +5,5 @@ mod bcf;
 mod fuzz_bcf_read;
 #[path = "../../../fuzz/replay.rs"]
 mod fuzz_replay;
+mod levels;
 mod visibility;

@@ -686,7 +686,6 @@ pub(crate) fn add_round(stats: &mut FrameStats, r: &RoundResult) {
     stats.not_resident += r.not_resident;
     stats.chunks_drawn += r.chunks;
     stats.draw_calls += r.draw_calls;
-    stats.upload_ms += r.upload_ms;
     stats.triangles_drawn += r.triangles;
     stats.gpu_ms += r.gpu_ms;
     stats.gpu_draw_ms += r.gpu_draw_ms;

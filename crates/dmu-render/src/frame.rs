@@ -78,6 +78,9 @@ impl Renderer {
         }
         let mut gpu = self.prepare_view(view, cull.eye_views());
         view.state.drawn.clear();
+        // Counted over the whole frame: rounds upload chunks, and so do
+        // passes that resolve their draws outside a round (hzb's).
+        let uploaded_before = self.pool.upload_time;
         let strategy = culling::strategy(view.culling);
         let outcome = strategy.draw(
             self,
@@ -98,7 +101,8 @@ impl Renderer {
             stats.far_field_moved_parts = near.always.len() as u64;
             stats.far_field_triangles = self.draw_far_field(view, target.all())?;
         }
-        stats.upload_ms += proxy_time.as_secs_f64() * 1e3;
+        let uploaded = self.pool.upload_time - uploaded_before;
+        stats.upload_ms = (uploaded + proxy_time).as_secs_f64() * 1e3;
         stats.proxies_stale = self.proxies.as_ref().map_or(0, |p| p.cpu.stats().stale);
         stats.cpu_ms = start.elapsed().as_secs_f64() * 1e3;
         view.state.knobs = Some(knobs.next(&view.options, stats.cpu_ms - stats.upload_ms));

@@ -221,7 +221,8 @@ pub struct GeometryPool {
     resident_bytes: u64,
     /// Reused staging for one chunk's packed data.
     scratch: Vec<u8>,
-    /// Whether chunks get simplified levels when uploaded.
+    /// Whether chunks are uploaded with their simplified levels (the ones
+    /// the source lends, else computed).
     lods: bool,
     /// Time spent uploading (and simplifying) chunks so far.
     pub(crate) upload_time: std::time::Duration,
@@ -229,8 +230,10 @@ pub struct GeometryPool {
 
 impl GeometryPool {
     /// An empty pool whose buffers are `page_bytes` each (chunks larger than a
-    /// page get a page of their own size); with `lods`, chunks get their
-    /// simplified levels ([`dmu_scene::lod_levels`]) when uploaded.
+    /// page get a page of their own size); with `lods`, chunks are uploaded
+    /// with their simplified levels: those the source lends
+    /// ([`dmu_scene::ChunkGeometry::levels`]), else [`dmu_scene::lod_levels`]
+    /// computed then.
     pub(crate) fn new(chunk_count: usize, page_bytes: u64, lods: bool) -> Self {
         Self {
             vertex_pages: Vec::new(),
@@ -311,10 +314,11 @@ impl GeometryPool {
         }
         let geometry = source.chunk_geometry(chunk)?;
         let start = std::time::Instant::now();
-        let lods = if self.lods {
-            dmu_scene::lod_levels(&geometry)
-        } else {
-            Vec::new()
+        // A store's chunks bring their levels; a scene's are simplified here.
+        let lods = match (self.lods, geometry.levels) {
+            (false, _) => std::borrow::Cow::Borrowed(&[][..]),
+            (true, Some(levels)) => std::borrow::Cow::Borrowed(levels),
+            (true, None) => std::borrow::Cow::Owned(dmu_scene::lod_levels(&geometry)),
         };
         let vertex_count = geometry.positions.len() as u32;
         let short_indices = vertex_count <= u32::from(u16::MAX) + 1;
@@ -360,7 +364,7 @@ impl GeometryPool {
             (hi - lo).length()
         };
         let mut first = slot.first_index + slot.index_count;
-        for (range, level) in slot.levels.iter_mut().zip(&lods) {
+        for (range, level) in slot.levels.iter_mut().zip(lods.iter()) {
             *range = LodRange {
                 first_index: first,
                 index_count: level.indices.len() as u32,

@@ -121,8 +121,6 @@ pub(crate) struct RoundResult {
     pub chunks: u64,
     /// Draw calls recorded (chunks per pass, and boxes).
     pub draw_calls: u64,
-    /// Time the pool spent uploading chunks, ms.
-    pub upload_ms: f64,
     pub gpu_ms: f64,
     pub gpu_draw_ms: f64,
 }
@@ -488,7 +486,6 @@ impl Renderer {
         self.slots.clear();
         let mut queried = Vec::with_capacity(draws.len());
         let mut resident = Vec::with_capacity(draws.len());
-        let uploaded_before = self.pool.upload_time;
         for d in draws {
             let slot = self.resolve_slot(model.geometry, model.tree, d.entry, lod);
             resident.push(slot.is_some());
@@ -502,7 +499,6 @@ impl Renderer {
                 None => result.not_resident += 1,
             }
         }
-        result.upload_ms = (self.pool.upload_time - uploaded_before).as_secs_f64() * 1e3;
         // Queried draw k's place among the round's queried draws, in draw order.
         let mut rank = Vec::with_capacity(queried.len());
         let mut queried_draws = 0;

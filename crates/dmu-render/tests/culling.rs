@@ -372,6 +372,64 @@ fn lod_levels_trade_triangles_for_bounded_pixel_error() {
     });
 }
 
+/// A source with no chunk resident.
+struct NoChunks;
+
+impl dmu_render::GeometrySource for NoChunks {
+    fn chunk_geometry(&self, _: dmu_scene::ChunkId) -> Option<dmu_scene::ChunkGeometry<'_>> {
+        None
+    }
+}
+
+/// Every chunk of a scene with one level lent: no triangles, no error.
+struct EmptyLevels<'a>(&'a Scene);
+
+static EMPTY_LEVEL: [dmu_scene::LodLevel; 1] = [dmu_scene::LodLevel {
+    indices: Vec::new(),
+    error: 0.0,
+}];
+
+impl dmu_render::GeometrySource for EmptyLevels<'_> {
+    fn chunk_geometry(&self, chunk: dmu_scene::ChunkId) -> Option<dmu_scene::ChunkGeometry<'_>> {
+        let g = self.0.chunk_geometry(chunk)?;
+        Some(dmu_scene::ChunkGeometry {
+            levels: Some(&EMPTY_LEVEL),
+            ..g
+        })
+    }
+}
+
+/// Levels a source lends (a store's) are the ones uploaded, not computed
+/// again: lent empty levels with no error, drawn at any τ, leave the image
+/// as empty as a source with no chunks at all, where the scene's own levels
+/// draw the plant.
+#[test]
+fn lent_levels_are_drawn_instead_of_computed_ones() {
+    dmu_testkit::with_gpu(|gpu| {
+        let (scene, tree) = small_plant();
+        let size = (240, 135);
+        let cam = viewpoints()[0];
+        let shot = |source: &dyn dmu_render::GeometrySource| {
+            let mut rig = Rig::with_lods(gpu, &scene, &tree, size);
+            let mut view = View::new(cam, size, Culling::Frustum);
+            view.options.lod_error_px = 1.0;
+            rig.renderer
+                .render(&mut view, &scene, &tree, source, rig.capture.frame_target())
+                .expect("render");
+            rig.image()
+        };
+        let empty = shot(&NoChunks);
+        let lent = shot(&EmptyLevels(&scene));
+        let own = shot(&scene);
+        assert!(differing(&empty, &own).len() > 1000, "the plant is in view");
+        assert_eq!(
+            differing(&empty, &lent).len(),
+            0,
+            "lent empty levels drew something"
+        );
+    });
+}
+
 /// A frame-time budget on a real renderer: one no frame can meet raises the
 /// LOD error to its ceiling and then the coverage threshold, frame after
 /// frame, drawing fewer triangles; one every frame meets gives the error back

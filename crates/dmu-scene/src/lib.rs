@@ -40,6 +40,7 @@ mod gltf_export;
 mod gltf_import;
 mod ids;
 mod lod;
+mod nearest;
 mod scene;
 mod solid;
 mod structure;

@@ -12,6 +12,7 @@
 use glam::Vec3;
 
 use crate::ChunkGeometry;
+use crate::nearest::farthest_from_surface;
 
 /// At most this many levels after the full chunk.
 pub const MAX_LOD_LEVELS: usize = 7;
@@ -24,8 +25,10 @@ const FEWEST_TRIANGLES: usize = 16;
 
 /// meshoptimizer's error is a quadric estimate, not a bound: on a sphere the
 /// surface strayed 1.33 (half the triangles) to 1.82 (a sixteenth) times the
-/// estimate (the test below). Levels claim this multiple of it, so the pixel
-/// bound drawn from it holds there; the images measure the rest.
+/// estimate (the test below), on the plant's chunks up to 23 times (a pipe
+/// elbow's level, `dmu-store`'s levels test). Levels claim at least this
+/// multiple of it, and at least the measured distance from every vertex of
+/// the chunk to the level's surface.
 const ERROR_MARGIN: f32 = 2.0;
 
 /// One simplified level.
@@ -34,16 +37,21 @@ pub struct LodLevel {
     /// Chunk-local indices, three per triangle, into the chunk's vertices.
     pub indices: Vec<u32>,
     /// How far the simplified surface may lie from the full one, in the
-    /// chunk's local units: meshoptimizer's estimate of the largest distance
-    /// with a margin (it is not a strict bound).
+    /// chunk's local units: the farthest any vertex of the chunk lies from
+    /// the level's surface (measured), or meshoptimizer's estimate with a
+    /// margin where that is more. The other way, the level's surface from the
+    /// chunk's, is only estimated (on the plant's chunks it never strayed
+    /// farther than the vertices did).
     pub error: f32,
 }
 
 /// The simplified levels of `geometry`, coarser each time: about half the
 /// triangles of the one before, down to a few dozen. A level that would keep
 /// more than 3/4 of the one before (the simplifier is stuck on locked
-/// borders or features) ends the chain; chunks under [`MIN_LOD_TRIANGLES`]
-/// get none.
+/// borders or features) ends the chain, and so does one that would bring the
+/// levels' triangles together past the chunk's own: a chunk with its levels
+/// holds at most twice its indices, the bound a store's residency budget
+/// counts before reading it. Chunks under [`MIN_LOD_TRIANGLES`] get none.
 pub fn lod_levels(geometry: &ChunkGeometry<'_>) -> Vec<LodLevel> {
     let triangles = geometry.indices.len() / 3;
     let mut levels: Vec<LodLevel> = Vec::new();
@@ -55,6 +63,7 @@ pub fn lod_levels(geometry: &ChunkGeometry<'_>) -> Vec<LodLevel> {
         | meshopt::SimplifyOptions::ErrorAbsolute
         | meshopt::SimplifyOptions::Prune;
     let mut previous = triangles;
+    let mut total = 0;
     while levels.len() < MAX_LOD_LEVELS && previous / 2 >= FEWEST_TRIANGLES {
         let target = previous / 2;
         let mut error = 0.0f32;
@@ -67,11 +76,17 @@ pub fn lod_levels(geometry: &ChunkGeometry<'_>) -> Vec<LodLevel> {
             Some(&mut error),
         );
         let kept = indices.len() / 3;
-        if kept == 0 || 4 * kept > 3 * previous || !error.is_finite() {
+        total += kept;
+        if kept == 0 || 4 * kept > 3 * previous || total > triangles || !error.is_finite() {
             break;
         }
         // A coarser level never claims less error than a finer one.
-        let error = ERROR_MARGIN * error;
+        let error = farthest_from_surface(
+            geometry.positions,
+            geometry.positions,
+            &indices,
+            ERROR_MARGIN * error,
+        );
         let error = levels.last().map_or(error, |l| l.error.max(error));
         levels.push(LodLevel { indices, error });
         previous = kept;
@@ -168,10 +183,13 @@ mod tests {
             positions: &positions,
             normals: &normals,
             indices: &indices,
+            levels: None,
         };
         let levels = lod_levels(&geometry);
         let full_depth = depth_inside(&positions, &indices, radius);
         assert!(levels.len() >= 4, "{} levels", levels.len());
+        let all: usize = levels.iter().map(|l| l.indices.len()).sum();
+        assert!(all <= indices.len(), "{all} level indices");
         let mut previous = indices.len() / 3;
         let mut previous_error = 0.0;
         for (k, level) in levels.iter().enumerate() {
@@ -219,6 +237,7 @@ mod tests {
             positions: &positions,
             normals: &normals,
             indices: &indices,
+            levels: None,
         };
         assert!(lod_levels(&geometry).is_empty());
     }

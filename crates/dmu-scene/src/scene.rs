@@ -183,6 +183,10 @@ pub struct ChunkGeometry<'a> {
     pub normals: &'a [Vec3],
     /// Chunk-local indices, three per triangle, each `< positions.len()`.
     pub indices: &'a [u32],
+    /// Its simplified levels ([`crate::lod_levels`] of this geometry) where
+    /// they were made already (a store keeps them); `None` where not known,
+    /// for whoever needs them to compute.
+    pub levels: Option<&'a [crate::LodLevel]>,
 }
 
 impl<'a> ChunkGeometry<'a> {
@@ -204,6 +208,7 @@ impl<'a> ChunkGeometry<'a> {
             positions: &positions[v.clone()],
             normals: &normals[v],
             indices: &indices[t],
+            levels: None,
         }
     }
 

@@ -27,8 +27,9 @@ pub enum StoreError {
     },
     /// A store of a format version this build cannot read.
     #[error(
-        "{} is a dmu store of format version {found}; this dmu reads version {supported} (re-import the model)",
-        path.display()
+        "{} is a dmu store of format version {found}; this dmu reads versions {oldest} to {supported} (re-import the model)",
+        path.display(),
+        oldest = crate::format::OLDEST_READABLE_VERSION
     )]
     UnsupportedVersion {
         /// The path.

@@ -45,7 +45,15 @@ pub(crate) const MAGIC: [u8; 8] = *b"DMUSTORE";
 /// a store that has them with "segment N has unknown kind 3" (or 4) rather
 /// than misreading it, which is acceptable for an optional addition. The
 /// level-of-detail hierarchy's segments (kinds 5 and 6) are such a set too.
-pub const FORMAT_VERSION: u32 = 3;
+///
+/// Version 4 (issue 42) stores each chunk's simplified levels after its
+/// indices (`geometry.rs`), made at import rather than on every upload.
+/// Version 3 stores are still read, with the version-3 chunk layout: their
+/// chunks have no levels (the renderer computes them on upload, as it did),
+/// and rewriting one (saving edits, far fields) adds them.
+pub const FORMAT_VERSION: u32 = 4;
+/// The oldest format version this build reads.
+pub const OLDEST_READABLE_VERSION: u32 = 3;
 /// Written as a native `u32` by a little-endian writer: reads back swapped on a
 /// big-endian one.
 const BYTE_ORDER_MARK: u32 = 0x0102_0304;
@@ -200,6 +208,9 @@ fn header_checksum(header: &[u8]) -> u64 {
 /// fields are.
 #[derive(Debug)]
 pub(crate) struct Layout {
+    /// The file's format version, [`OLDEST_READABLE_VERSION`] to
+    /// [`FORMAT_VERSION`].
+    pub version: u32,
     pub skeleton: TocEntry,
     /// Indexed by chunk id (the ids are exactly `0..n`).
     pub chunks: Vec<TocEntry>,
@@ -262,7 +273,7 @@ pub(crate) fn parse(file: &impl ReadAt, path: &Path) -> Result<Layout, StoreErro
         });
     };
     let header: Header = bytemuck::pod_read_unaligned(head);
-    if header.version != FORMAT_VERSION {
+    if !(OLDEST_READABLE_VERSION..=FORMAT_VERSION).contains(&header.version) {
         return Err(StoreError::UnsupportedVersion {
             path: path.to_owned(),
             found: header.version,
@@ -337,7 +348,9 @@ pub(crate) fn parse(file: &impl ReadAt, path: &Path) -> Result<Layout, StoreErro
         .chunks_exact(ENTRY_LEN as usize)
         .map(bytemuck::pod_read_unaligned)
         .collect();
-    validate_entries(&entries, header.toc_offset).map_err(corrupt)
+    let mut layout = validate_entries(&entries, header.toc_offset).map_err(corrupt)?;
+    layout.version = header.version;
+    Ok(layout)
 }
 
 /// Entries must tile `[HEADER_LEN, toc_offset)` in order, name one skeleton,
@@ -417,6 +430,7 @@ fn validate_entries(entries: &[TocEntry], toc_offset: u64) -> Result<Layout, Str
         }
     }
     Ok(Layout {
+        version: FORMAT_VERSION,
         skeleton: skeleton.ok_or("no skeleton segment")?,
         chunks: chunks.into_entries(),
         blobs: sets.map(|(index, blobs)| BlobSegments {

@@ -83,7 +83,7 @@ pub fn import_gltf(
         progress: options.progress,
     };
     let streamed = import_gltf_streaming::<Wrapped>(input, &stream, &mut |_, mesh| {
-        writer.add_mesh(&mesh).map_err(Wrapped::Store)
+        writer.add_mesh(mesh).map_err(Wrapped::Store)
     })
     .map_err(|e| match e {
         Wrapped::Store(e) => e,

@@ -19,6 +19,10 @@
 //!   built from it (chunk boxes alone, about 80 ms for 100M triangles) rather
 //!   than stored: it is derived data, and rebuilding it cannot disagree with
 //!   the transforms.
+//! - Each chunk's simplified levels are stored after its indices (format
+//!   version 4, issue 42), computed in parallel as chunks are written: drawing
+//!   a streamed chunk then costs no simplification. Version-3 stores are still
+//!   read (their chunks without levels) and gain levels when rewritten.
 //! - Far fields (a textured depth mesh per viewpoint cell, made by the
 //!   renderer) are kept beside the geometry as opaque blobs: one far-field
 //!   index segment and one segment per cell, read one at a time
@@ -45,7 +49,8 @@
 //!
 //! Conventions: little-endian, segments 16-byte aligned; geometry part-local f32
 //! (optionally quantized to 16 bits in the chunk's box), transforms f64, as in
-//! `dmu-scene`. Budgets count decoded bytes (24 per vertex, 12 per triangle).
+//! `dmu-scene`. Budgets count decoded bytes (24 per vertex, 12 per triangle,
+//! and 12 more per triangle for the levels of a version-4 chunk: their bound).
 //!
 //! ```
 //! use std::sync::Arc;
@@ -85,7 +90,7 @@ mod walk;
 mod write;
 
 pub use error::{ResidencyError, StoreError, WalkError};
-pub use format::{BlobSet, FORMAT_VERSION, reseal};
+pub use format::{BlobSet, FORMAT_VERSION, OLDEST_READABLE_VERSION, reseal};
 pub use geometry::OwnedChunkGeometry;
 pub use import::{ImportOptions, ImportSummary, import_gltf};
 pub use open::open_scene;

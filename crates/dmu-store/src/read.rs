@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use dmu_scene::{ChunkId, MeshId, Scene};
 
 use crate::error::StoreError;
-use crate::format::{self, BlobSet, FORMAT_VERSION, Layout, TocEntry};
+use crate::format::{self, BlobSet, Layout, TocEntry};
 use crate::geometry::{self, OwnedChunkGeometry, resident_bytes};
 use crate::skeleton;
 
@@ -116,7 +116,7 @@ impl Store {
     pub fn info(&self) -> StoreInfo {
         let chunks = &self.layout.chunks;
         StoreInfo {
-            version: FORMAT_VERSION,
+            version: self.layout.version,
             file_bytes: self.file_bytes,
             chunks: chunks.len() as u64,
             geometry_file_bytes: chunks.iter().map(TocEntry::padded_len).sum(),
@@ -136,13 +136,20 @@ impl Store {
         self.layout.chunks[chunk.index()].padded_len()
     }
 
-    /// Bytes a chunk takes decoded: what it costs in a residency budget.
+    /// Bytes a chunk takes decoded (at most, with its levels): what it costs
+    /// in a residency budget.
     pub fn chunk_resident_bytes(&self, chunk: ChunkId) -> u64 {
         let c = self.skeleton.chunk(chunk);
         resident_bytes(
             u64::from(c.vertices.end - c.vertices.start),
             u64::from(c.triangle_count()),
+            self.stores_levels(),
         )
+    }
+
+    /// Whether its chunks hold their simplified levels (format version 4 on).
+    fn stores_levels(&self) -> bool {
+        self.layout.version >= 4
     }
 
     /// Reads and decodes a chunk's geometry, verifying its segment's checksum.
@@ -151,9 +158,15 @@ impl Store {
     /// When `chunk` is not a chunk of this store.
     pub fn chunk_geometry(&self, chunk: ChunkId) -> Result<OwnedChunkGeometry, StoreError> {
         let bytes = self.chunk_segment(chunk)?;
+        self.decode(chunk, &bytes)
+    }
+
+    /// Decodes the segment of `chunk`.
+    fn decode(&self, chunk: ChunkId, bytes: &[u8]) -> Result<OwnedChunkGeometry, StoreError> {
         let c = self.skeleton.chunk(chunk);
         geometry::decode(
-            &bytes,
+            bytes,
+            self.layout.version,
             c.vertices.end - c.vertices.start,
             c.triangle_count(),
             &c.bounds,
@@ -164,10 +177,23 @@ impl Store {
         })
     }
 
-    /// A chunk's encoded segment, verified (for copying into a new store).
-    pub(crate) fn chunk_segment(&self, chunk: ChunkId) -> Result<Vec<u8>, StoreError> {
+    /// A chunk's encoded segment, verified.
+    fn chunk_segment(&self, chunk: ChunkId) -> Result<Vec<u8>, StoreError> {
         let entry = &self.layout.chunks[chunk.index()];
         format::verified(&self.file, entry, || format!("chunk {chunk}"), &self.path)
+    }
+
+    /// A chunk's segment in this build's format, for copying into a new
+    /// store: verified, and as it is in the file when that holds levels; a
+    /// version-3 chunk is decoded (checked) and gets its levels computed and
+    /// added after its bytes.
+    pub(crate) fn chunk_segment_with_levels(&self, chunk: ChunkId) -> Result<Vec<u8>, StoreError> {
+        let mut bytes = self.chunk_segment(chunk)?;
+        if !self.stores_levels() {
+            let g = self.decode(chunk, &bytes)?;
+            geometry::add_levels(&mut bytes, &dmu_scene::lod_levels(&g.geometry()));
+        }
+        Ok(bytes)
     }
 
     /// The skeleton segment as it is in the file, verified (for copying into a

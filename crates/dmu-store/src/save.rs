@@ -4,12 +4,13 @@
 use std::path::Path;
 
 use dmu_scene::{ChunkId, Scene, Structure};
+use rayon::prelude::*;
 
 use crate::error::StoreError;
 use crate::format::BlobSet;
 use crate::read::Store;
 use crate::skeleton::structure_difference;
-use crate::write::{PendingStore, StoreSummary, StoreWriter, WriteOptions};
+use crate::write::{PendingStore, StoreSummary, StoreWriter, WriteOptions, batches};
 
 /// Saves `scene`'s transforms and part visibility into the store it was opened
 /// from, replacing the file by rename (a crash leaves the previous file).
@@ -20,6 +21,8 @@ use crate::write::{PendingStore, StoreSummary, StoreWriter, WriteOptions};
 /// made far-field cells stale is the caller's to decide: see
 /// [`write_far_fields`]). Cost: the whole file is read and written once
 /// (sequential I/O, no decoding), e.g. about a second per gigabyte on an SSD.
+/// A version-3 store is the exception: its chunks are decoded and given their
+/// levels (format version 4), as an import would (seconds per 10M triangles).
 /// The open `store` keeps reading the file it opened; open the path again to
 /// see the saved one.
 pub fn save_edits(store: &Store, scene: &Scene) -> Result<StoreSummary, StoreError> {
@@ -143,17 +146,25 @@ impl<'a> BlobWriter<'a> {
 }
 
 /// A writer for a new file at `store`'s path holding `store`'s chunk
-/// segments and its blob sets but `replaced`, copied verified byte for byte:
-/// what every rewrite of a store starts with.
+/// segments and its blob sets but `replaced`, copied verified byte for byte
+/// (a version-3 store's chunks with their levels added, computed in
+/// parallel): what every rewrite of a store starts with.
 fn with_geometry_of(store: &Store, replaced: Option<BlobSet>) -> Result<StoreWriter, StoreError> {
     let mut writer = StoreWriter::create(store.path(), WriteOptions::default())?;
-    for (c, chunk) in store.skeleton().chunks().iter().enumerate() {
-        let id = ChunkId::from_index(c);
-        writer.chunk_segment(
-            &store.chunk_segment(id)?,
-            chunk.vertices.end - chunk.vertices.start,
-            chunk.triangle_count(),
-        )?;
+    let chunks = store.skeleton().chunks();
+    for batch in batches(chunks.iter().map(|c| c.triangle_count() as usize)) {
+        let segments: Vec<Vec<u8>> = batch
+            .clone()
+            .into_par_iter()
+            .map(|c| store.chunk_segment_with_levels(ChunkId::from_index(c)))
+            .collect::<Result<_, _>>()?;
+        for (chunk, bytes) in chunks[batch].iter().zip(segments) {
+            writer.chunk_segment(
+                &bytes,
+                chunk.vertices.end - chunk.vertices.start,
+                chunk.triangle_count(),
+            )?;
+        }
     }
     for set in BlobSet::ALL.into_iter().filter(|&s| Some(s) != replaced) {
         if let Some(index) = store.blob_index(set)? {

@@ -4,16 +4,41 @@
 
 use std::fs::File;
 use std::io::{BufWriter, Seek as _, SeekFrom, Write as _};
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use dmu_geom::Aabb3f;
 use dmu_scene::{AtomicFile, ChunkGeometry, ChunkedMesh, Scene, Structure};
+use rayon::prelude::*;
 use xxhash_rust::xxh3::Xxh3;
 
 use crate::error::StoreError;
 use crate::format::{ALIGN, BlobSet, HEADER_LEN, Header, KIND_CHUNK, KIND_SKELETON, TocEntry};
 use crate::geometry::{self, resident_bytes};
 use crate::skeleton;
+
+/// Triangles of the chunks encoded together, in parallel (simplifying their
+/// levels is most of the cost): about 128 default chunks, work for every
+/// core, and about 10 MB of geometry held for it.
+const BATCH_TRIANGLES: usize = 1 << 18;
+
+/// Consecutive ranges of items (chunks) of the given triangle counts, each
+/// holding [`BATCH_TRIANGLES`] or more but the last: what is encoded at once.
+pub(crate) fn batches(triangles: impl IntoIterator<Item = usize>) -> Vec<Range<usize>> {
+    let mut out = Vec::new();
+    let (mut start, mut end, mut held) = (0, 0, 0);
+    for t in triangles {
+        (end, held) = (end + 1, held + t);
+        if held >= BATCH_TRIANGLES {
+            out.push(start..end);
+            (start, held) = (end, 0);
+        }
+    }
+    if start < end {
+        out.push(start..end);
+    }
+    out
+}
 
 /// How geometry is written.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -55,6 +80,11 @@ pub struct StoreWriter {
     /// Per [`BlobSet`]: whether its index is written, and its blobs written
     /// (the next blob's number).
     blob_sets: [(bool, u32); 2],
+    /// Meshes given to [`StoreWriter::add_mesh`] whose chunks are not
+    /// written yet, and their triangles: encoded together once these reach
+    /// [`BATCH_TRIANGLES`].
+    pending: Vec<ChunkedMesh>,
+    pending_triangles: usize,
     options: WriteOptions,
     summary: StoreSummary,
 }
@@ -87,6 +117,8 @@ impl StoreWriter {
             toc: Vec::new(),
             shapes: Vec::new(),
             blob_sets: [(false, 0); 2],
+            pending: Vec::new(),
+            pending_triangles: 0,
             options,
             summary: StoreSummary::default(),
         })
@@ -129,16 +161,22 @@ impl StoreWriter {
         Ok(entry)
     }
 
-    /// Appends the geometry of the next chunk (chunk ids follow the write order).
-    fn chunk(&mut self, g: ChunkGeometry<'_>, bounds: &Aabb3f) -> Result<(), StoreError> {
-        let bytes = geometry::encode(
-            g.positions,
-            g.normals,
-            g.indices,
-            bounds,
-            self.options.quantize,
-        );
-        self.chunk_segment(&bytes, g.positions.len() as u32, g.triangle_count() as u32)
+    /// Appends the geometry of the next chunks (chunk ids follow the write
+    /// order), each with its box and its levels: those it lends, else
+    /// computed. Encoded in parallel.
+    fn chunks(&mut self, chunks: &[(ChunkGeometry<'_>, &Aabb3f)]) -> Result<(), StoreError> {
+        let quantize = self.options.quantize;
+        let encoded: Vec<Vec<u8>> = chunks
+            .par_iter()
+            .map(|(g, bounds)| match g.levels {
+                Some(levels) => geometry::encode(g, levels, bounds, quantize),
+                None => geometry::encode(g, &dmu_scene::lod_levels(g), bounds, quantize),
+            })
+            .collect();
+        for ((g, _), bytes) in chunks.iter().zip(encoded) {
+            self.chunk_segment(&bytes, g.positions.len() as u32, g.triangle_count() as u32)?;
+        }
+        Ok(())
     }
 
     /// Appends an encoded chunk segment of the given shape.
@@ -154,24 +192,43 @@ impl StoreWriter {
         self.summary.chunks += 1;
         self.summary.geometry_file_bytes += entry.padded_len();
         self.summary.geometry_resident_bytes +=
-            resident_bytes(u64::from(vertices), u64::from(triangles));
+            resident_bytes(u64::from(vertices), u64::from(triangles), true);
         Ok(())
     }
 
     /// Appends a mesh's chunks; they get the next chunk ids, which must be the
-    /// ids they have in the skeleton given to [`StoreWriter::finish`].
-    pub fn add_mesh(&mut self, mesh: &ChunkedMesh) -> Result<(), StoreError> {
-        for c in &mesh.chunks {
-            let g = ChunkGeometry::slice(
-                &mesh.positions,
-                &mesh.normals,
-                &mesh.indices,
-                &c.vertices,
-                &c.triangles,
-            );
-            self.chunk(g, &c.bounds)?;
+    /// ids they have in the skeleton given to [`StoreWriter::finish`]. Held
+    /// until the meshes given reach [`BATCH_TRIANGLES`], so their levels are
+    /// computed in parallel even when each mesh is a chunk or two.
+    pub fn add_mesh(&mut self, mesh: ChunkedMesh) -> Result<(), StoreError> {
+        self.pending_triangles += mesh.indices.len() / 3;
+        self.pending.push(mesh);
+        if self.pending_triangles >= BATCH_TRIANGLES {
+            self.write_pending()?;
         }
         Ok(())
+    }
+
+    /// Writes the chunks of the meshes held by [`StoreWriter::add_mesh`].
+    fn write_pending(&mut self) -> Result<(), StoreError> {
+        let meshes = std::mem::take(&mut self.pending);
+        self.pending_triangles = 0;
+        let chunks: Vec<_> = meshes
+            .iter()
+            .flat_map(|mesh| {
+                mesh.chunks.iter().map(|c| {
+                    let g = ChunkGeometry::slice(
+                        &mesh.positions,
+                        &mesh.normals,
+                        &mesh.indices,
+                        &c.vertices,
+                        &c.triangles,
+                    );
+                    (g, &c.bounds)
+                })
+            })
+            .collect();
+        self.chunks(&chunks)
     }
 
     /// Appends the index of blob set `set` (opaque bytes), before or after
@@ -201,9 +258,9 @@ impl StoreWriter {
         Ok(number)
     }
 
-    /// Chunks written so far.
+    /// Chunks given so far (written, or held to be encoded with the next).
     pub fn chunks_written(&self) -> usize {
-        self.shapes.len()
+        self.shapes.len() + self.pending.iter().map(|m| m.chunks.len()).sum::<usize>()
     }
 
     /// Writes the skeleton (`structure`: the scene's nodes, transforms, parts
@@ -212,7 +269,8 @@ impl StoreWriter {
     ///
     /// # Panics
     /// When the chunks written are not those of the structure's chunk table.
-    pub fn finish(self, structure: &Structure) -> Result<PendingStore, StoreError> {
+    pub fn finish(mut self, structure: &Structure) -> Result<PendingStore, StoreError> {
+        self.write_pending()?;
         let written = self.shapes.len() == structure.chunks.len()
             && self
                 .shapes
@@ -305,12 +363,16 @@ pub fn write_scene(
         "write_scene needs the geometry loaded"
     );
     let mut writer = StoreWriter::create(path, options)?;
-    for mesh in scene.meshes() {
-        for c in mesh.chunk_ids() {
-            let chunk = scene.chunk(c);
-            let g = mesh.chunk_geometry(chunk).expect("asserted loaded above");
-            writer.chunk(g, &chunk.bounds)?;
-        }
+    let chunks = scene.chunks();
+    for batch in batches(chunks.iter().map(|c| c.triangle_count() as usize)) {
+        let batch: Vec<_> = chunks[batch]
+            .iter()
+            .map(|c| {
+                let g = scene.mesh(c.mesh).chunk_geometry(c);
+                (g.expect("asserted loaded above"), &c.bounds)
+            })
+            .collect();
+        writer.chunks(&batch)?;
     }
     writer.finish(&Structure::of(scene))?.commit()
 }

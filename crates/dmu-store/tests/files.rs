@@ -6,7 +6,9 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
-use dmu_store::{FORMAT_VERSION, Store, StoreError, WriteOptions, save_edits};
+use dmu_store::{
+    FORMAT_VERSION, OLDEST_READABLE_VERSION, Store, StoreError, WriteOptions, save_edits,
+};
 use glam::{DAffine3, DVec3};
 
 use crate::support::{KIND_SKELETON, entry, small_plant, small_store, stored, with_toc};
@@ -144,9 +146,9 @@ fn a_version_1_store_asks_to_be_reimported() {
 #[test]
 fn other_versions_and_other_files_are_named() {
     let (dir, path, bytes) = small_store();
-    // The version before (version 2: no solid flag in the mesh records)
-    // and the next, with a correct header checksum: refused by version.
-    for version in [FORMAT_VERSION - 1, FORMAT_VERSION + 1] {
+    // The version before the oldest read (version 2: no solid flag in the
+    // mesh records) and the next: refused by version.
+    for version in [OLDEST_READABLE_VERSION - 1, FORMAT_VERSION + 1] {
         let mut other = bytes.clone();
         other[8..12].copy_from_slice(&version.to_le_bytes());
         std::fs::write(&path, &other).unwrap();

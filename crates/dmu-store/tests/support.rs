@@ -57,6 +57,8 @@ pub fn assert_same_scene(a: &Scene, b: &Scene) {
 
 /// Segment kinds as the table of contents names them (`format.rs`).
 pub const KIND_SKELETON: u32 = 1;
+/// A chunk's geometry segment.
+pub const KIND_CHUNK: u32 = 2;
 /// A far-field index segment.
 pub const KIND_FAR_INDEX: u32 = 3;
 /// A far-field cell segment.

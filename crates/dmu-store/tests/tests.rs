@@ -5,6 +5,7 @@ mod fuzz_replay;
 #[path = "../../../fuzz/bodies/store_open.rs"]
 mod fuzz_store_open;
 mod import;
+mod levels;
 mod residency;
 mod round_trip;
 mod support;
