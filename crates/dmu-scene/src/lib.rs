@@ -56,7 +56,9 @@ pub use gltf_import::{
 };
 pub use gltf_import::{StreamOptions, Streamed, import_gltf_streaming};
 pub use ids::{ChunkId, MaterialId, MeshId, NodeId, PartId};
-pub use lod::{LodLevel, MAX_LOD_LEVELS, MIN_LOD_TRIANGLES, lod_levels, simplify_to_error};
+pub use lod::{
+    LodLevel, MAX_LOD_LEVELS, MIN_LOD_TRIANGLES, lod_levels, simplified_error, simplify_to_error,
+};
 pub use scene::{
     AssemblyNode, Children, Chunk, ChunkGeometry, DEFAULT_CHUNK_TRIANGLES, MAX_WORLD_COORDINATE,
     Material, Mesh, Part, Scene, SceneBuilder, limits,

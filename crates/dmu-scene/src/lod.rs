@@ -97,9 +97,9 @@ pub fn lod_levels(geometry: &ChunkGeometry<'_>) -> Vec<LodLevel> {
 /// Simplifies a mesh (any triangles, several pieces welded or not) until its
 /// error would pass `target_error` (in the positions' units), pruning pieces
 /// smaller than that: the kept triangles' indices into `positions` and
-/// meshoptimizer's error estimate for them (not a bound: claim a margin over
-/// it, as [`lod_levels`] does). For merged stand-ins of many chunks, whose
-/// borders need not be kept.
+/// meshoptimizer's error estimate for them (not a bound: measure it with
+/// [`simplified_error`], as [`lod_levels`] does its own). For merged
+/// stand-ins of many chunks, whose borders need not be kept.
 pub fn simplify_to_error(
     positions: &[[f32; 3]],
     indices: &[u32],
@@ -126,6 +126,76 @@ pub fn simplify_to_error(
             target_error
         },
     )
+}
+
+/// The error [`simplify_to_error`]'s `kept` triangles claim for `indices`
+/// (into `positions`) simplified to `target_error`, measured as
+/// [`lod_levels`]' is: the farthest any input vertex lies from the kept
+/// surface, or `floor` if that is more. A vertex of a piece the simplifier
+/// may prune (connected through shared vertices, its box's diagonal under
+/// the target) counts that diagonal instead: a piece that vanishes shows at
+/// most its size.
+pub fn simplified_error(
+    positions: &[[f32; 3]],
+    indices: &[u32],
+    kept: &[u32],
+    target_error: f32,
+    floor: f32,
+) -> f32 {
+    let points: Vec<Vec3> = positions.iter().map(|&p| Vec3::from(p)).collect();
+    let (large, small) = pieces_by_size(&points, indices, target_error);
+    match kept.is_empty() {
+        // Everything pruned: every piece was under the target.
+        true => floor.max(small),
+        false => farthest_from_surface(&large, &points, kept, floor.max(small)),
+    }
+}
+
+/// The vertices of `indices`' pieces (connected through shared vertices)
+/// whose box's diagonal is at least `size`, and the largest diagonal of the
+/// smaller pieces.
+fn pieces_by_size(positions: &[Vec3], indices: &[u32], size: f32) -> (Vec<Vec3>, f32) {
+    let mut parent: Vec<u32> = (0..positions.len() as u32).collect();
+    fn root(parent: &mut [u32], mut v: u32) -> u32 {
+        while parent[v as usize] != v {
+            let up = parent[parent[v as usize] as usize];
+            parent[v as usize] = up;
+            v = up;
+        }
+        v
+    }
+    for t in indices.chunks_exact(3) {
+        let a = root(&mut parent, t[0]);
+        for &v in &t[1..] {
+            let b = root(&mut parent, v);
+            parent[b as usize] = a;
+        }
+    }
+    let mut boxes: std::collections::HashMap<u32, (Vec3, Vec3)> = std::collections::HashMap::new();
+    let used: Vec<u32> = {
+        let mut used: Vec<u32> = indices.to_vec();
+        used.sort_unstable();
+        used.dedup();
+        used
+    };
+    for &v in &used {
+        let r = root(&mut parent, v);
+        let p = positions[v as usize];
+        let b = boxes.entry(r).or_insert((p, p));
+        *b = (b.0.min(p), b.1.max(p));
+    }
+    let mut large = Vec::new();
+    let mut small = 0.0f32;
+    for &v in &used {
+        let (lo, hi) = boxes[&root(&mut parent, v)];
+        let diagonal = (hi - lo).length();
+        if diagonal < size {
+            small = small.max(diagonal);
+        } else {
+            large.push(positions[v as usize]);
+        }
+    }
+    (large, small)
 }
 
 #[cfg(test)]
