@@ -171,6 +171,8 @@ pub struct App {
     /// Milliseconds from the start of the process to the end of the first
     /// frame of the model.
     first_frame_ms: Option<f64>,
+    /// When the first frame with no hole and no stand-in was done.
+    first_complete_frame_ms: Option<f64>,
     /// Every frame's time, ms.
     frame_times: Vec<f64>,
 }
@@ -236,6 +238,7 @@ impl App {
             export: None,
             streaming: None,
             first_frame_ms: None,
+            first_complete_frame_ms: None,
             frame_times: Vec::new(),
         }
     }
@@ -552,6 +555,14 @@ impl App {
             self.frame_times.push(frame_ms);
             if self.first_frame_ms.is_none() {
                 self.first_frame_ms = Some(ms_since(self.options.started));
+            }
+            // Complete: nothing missing and nothing stood in for.
+            let complete = self
+                .streaming
+                .as_ref()
+                .is_none_or(|s| s.last_misses() == (0, 0));
+            if complete && self.first_complete_frame_ms.is_none() {
+                self.first_complete_frame_ms = Some(ms_since(self.options.started));
             }
             self.frame_ms.push_back(frame_ms);
             if self.frame_ms.len() > 30 {

@@ -64,6 +64,8 @@ pub struct Streaming {
     frames_with_standin: u64,
     holes: u64,
     stand_ins_drawn: u64,
+    /// The last frame's holes and stand-ins.
+    last: (u64, u64),
     /// Where the renderer draws stored proxies: no chunk below is wanted.
     cut: Option<Arc<LodCut>>,
 }
@@ -101,6 +103,7 @@ impl Streaming {
             frames_with_standin: 0,
             holes: 0,
             stand_ins_drawn: 0,
+            last: (0, 0),
         }
     }
 
@@ -226,12 +229,19 @@ impl Streaming {
             .frames
             .end(stood_in, drawn.iter().flatten().map(chunk), not_resident);
         self.frames_drawn += 1;
+        self.last = (misses.holes, misses.stand_ins);
         self.holes += misses.holes;
         self.stand_ins_drawn += misses.stand_ins;
         self.frames_with_hole += u64::from(misses.holes > 0);
         self.frames_with_standin += u64::from(misses.stand_ins > 0);
         let visible: Vec<ChunkId> = drawn.first().into_iter().flatten().map(chunk).collect();
         self.streamer.drawn(&visible);
+    }
+
+    /// The last frame's holes (chunk instances drawn without geometry) and
+    /// stand-ins (drawn as their boxes).
+    pub fn last_misses(&self) -> (u64, u64) {
+        self.last
     }
 
     /// The top bar's line: the budget and the geometry loaded within it.

@@ -346,6 +346,7 @@ impl Renderer {
         let h = &self.hierarchy;
         let mut walk = Walk::new(h, model.scene, model.tree, cull, stats);
         walk.proxy_fit = fit;
+        walk.proxies = self.proxies.as_ref().map(|p| &p.cpu);
         let mut nodes = Vec::new();
         if !h.is_empty() {
             let proxies = self.proxies.as_ref().map(|p| &p.cpu);
@@ -515,12 +516,6 @@ fn refine(
             return true;
         }
     }
-    if let Some(p) = proxies
-        && loaded.is_none()
-        && p.is_stored_current(n)
-    {
-        p.request(n, walk.cull.coverage.size_px(walk.h.bounds(walk.tree, n)));
-    }
     let (draws, drawn) = (walk.draws.len(), nodes.len());
     let mut complete = true;
     for &c in walk.h.children(n) {
@@ -552,6 +547,10 @@ pub(crate) struct Walk<'a> {
     pub proxy_fit: &'a [bool],
     /// Proxies (mirror nodes) the next round draws.
     pub proxy_draws: Vec<u32>,
+    /// The renderer's proxies, whose stored ones the walk asks for as it
+    /// reaches their nodes (frustum and `hzb` walks; CHC's draws those
+    /// loaded).
+    pub proxies: Option<&'a Proxies>,
 }
 
 impl<'a> Walk<'a> {
@@ -573,6 +572,7 @@ impl<'a> Walk<'a> {
             in_frustum_entries: 0,
             proxy_fit: &[],
             proxy_draws: Vec::new(),
+            proxies: None,
         }
     }
 
@@ -620,6 +620,12 @@ impl<'a> Walk<'a> {
             }
             self.in_frustum_entries += 1;
             self.stats.triangles_in_frustum += u64::from(entry.triangles);
+        } else if let Some(p) = self.proxies
+            && p.current(n).is_none()
+            && p.is_stored_current(n)
+        {
+            // Coarse first: the loads go by screen size per byte.
+            p.request(n, self.cull.coverage.size_px(bounds));
         }
         Some(kind)
     }

@@ -51,6 +51,10 @@ impl Summary {
     fn median(&self) -> Option<f64> {
         self.spread.map(|s| s.median)
     }
+
+    fn p95(&self) -> Option<f64> {
+        self.spread.map(|s| s.p95)
+    }
 }
 
 /// A clash in a report: part ids, kind, distance.
@@ -232,6 +236,8 @@ struct FrameRecord<'a> {
     chunks_drawn: u64,
     proxies_drawn: u64,
     proxies_stale: u64,
+    /// Chunk instances drawn as their boxes (under a memory budget).
+    standins_drawn: u64,
     culled_section: u64,
     draw_calls: u64,
     lod_error_px: f64,
@@ -393,7 +399,18 @@ impl App {
         report["peak_rss_bytes"] = to_value(dmu_app::progress::peak_rss_bytes());
         let frames = parsed(&self.runner.frames);
         report["first_frame_ms"] = to_value(self.first_frame_ms);
-        report["median_frame_ms"] = to_value(Summary::of(&self.frame_times).median());
+        report["first_complete_frame_ms"] = to_value(self.first_complete_frame_ms);
+        let times = Summary::of(&self.frame_times);
+        report["median_frame_ms"] = to_value(times.median());
+        report["p95_frame_ms"] = to_value(times.p95());
+        // Proxies (merged subtrees, a store's level-of-detail nodes) drawn
+        // over the scripted frames.
+        report["lod_nodes_drawn"] = to_value(
+            frames
+                .iter()
+                .filter_map(|f| f["proxies_drawn"].as_u64())
+                .sum::<u64>(),
+        );
         if let Some(s) = &self.streaming {
             let facts = s.json();
             report["frames_with_hole"] = facts["frames_with_hole"].clone();
@@ -463,6 +480,7 @@ impl App {
             chunks_drawn: main.chunks_drawn,
             proxies_drawn: main.proxies_drawn,
             proxies_stale: main.proxies_stale,
+            standins_drawn: self.streaming.as_ref().map_or(0, |s| s.last_misses().1),
             culled_section: main.culled_section,
             draw_calls: main.draw_calls,
             lod_error_px: main.lod_error_px,
