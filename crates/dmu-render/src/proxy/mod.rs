@@ -955,10 +955,8 @@ mod tests {
             piece[v]
         }
         let mut same: std::collections::HashMap<[u32; 3], usize> = Default::default();
-        for v in 0..n {
-            let first = *same
-                .entry(positions[v].to_array().map(f32::to_bits))
-                .or_insert(v);
+        for (v, p) in positions.iter().enumerate() {
+            let first = *same.entry(p.to_array().map(f32::to_bits)).or_insert(v);
             let (a, b) = (find(&mut piece, first), find(&mut piece, v));
             piece[a] = b;
         }
@@ -972,10 +970,10 @@ mod tests {
             }
         }
         let mut boxes: std::collections::HashMap<usize, (DVec3, DVec3)> = Default::default();
-        for v in 0..n {
+        for (v, &p) in points.iter().enumerate() {
             let r = find(&mut piece, v);
-            let b = boxes.entry(r).or_insert((points[v], points[v]));
-            *b = (b.0.min(points[v]), b.1.max(points[v]));
+            let b = boxes.entry(r).or_insert((p, p));
+            *b = (b.0.min(p), b.1.max(p));
         }
         (0..n)
             .map(|v| {
