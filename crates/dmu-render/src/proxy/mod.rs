@@ -272,17 +272,7 @@ impl Proxies {
         progress: &mut dyn FnMut(usize, usize),
     ) -> Self {
         let start = Instant::now();
-        let mut h = Hierarchy::default();
-        h.sync(tree);
-        let mut proxies = Self {
-            options,
-            ..Self::default()
-        };
-        proxies.sync(&h, scene, tree);
-        let order: Vec<u32> = post_order(&h)
-            .into_iter()
-            .filter(|&n| proxies.is_level(n))
-            .collect();
+        let (h, mut proxies, order) = Self::to_make(scene, tree, options);
         let total = order.len();
         let mut made = 0;
         for (i, &n) in order.iter().enumerate() {
@@ -300,6 +290,24 @@ impl Proxies {
             ..proxies.stats()
         };
         proxies
+    }
+
+    /// A mirror of `tree`, no proxies yet with their signatures summed, and
+    /// the nodes that get one, children before parents: what a build starts
+    /// from.
+    fn to_make(scene: &Scene, tree: &Tree, options: ProxyOptions) -> (Hierarchy, Self, Vec<u32>) {
+        let mut h = Hierarchy::default();
+        h.sync(tree);
+        let mut proxies = Self {
+            options,
+            ..Self::default()
+        };
+        proxies.sync(&h, scene, tree);
+        let order = post_order(&h)
+            .into_iter()
+            .filter(|&n| proxies.is_level(n))
+            .collect();
+        (h, proxies, order)
     }
 
     /// What is current now, and what the last build or refresh did.

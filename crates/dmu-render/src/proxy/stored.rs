@@ -30,9 +30,7 @@ use dmu_tree::Tree;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use super::{
-    Cluster, MAX_CLUSTERS, Proxies, Proxy, ProxyOptions, ProxyStats, ProxyVertex, post_order,
-};
+use super::{Cluster, MAX_CLUSTERS, Proxies, Proxy, ProxyOptions, ProxyStats, ProxyVertex};
 use crate::geometry::GeometrySource;
 use crate::hierarchy::{Hierarchy, NodeKind};
 
@@ -265,17 +263,7 @@ pub fn build_stored(
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<StoredBuild, String> {
     let start = Instant::now();
-    let mut h = Hierarchy::default();
-    h.sync(tree);
-    let mut proxies = Proxies {
-        options,
-        ..Proxies::default()
-    };
-    proxies.sync(&h, scene, tree);
-    let order: Vec<u32> = post_order(&h)
-        .into_iter()
-        .filter(|&n| proxies.is_level(n))
-        .collect();
+    let (h, mut proxies, order) = Proxies::to_make(scene, tree, options);
     let mut out = Emitter {
         h: &h,
         sink,
