@@ -350,7 +350,14 @@ impl Renderer {
         let mut nodes = Vec::new();
         if !h.is_empty() {
             let proxies = self.proxies.as_ref().map(|p| &p.cpu);
-            refine(&mut walk, proxies, model.geometry, h.root, &mut nodes);
+            refine(
+                &mut walk,
+                proxies,
+                model.geometry,
+                h.root,
+                false,
+                &mut nodes,
+            );
         }
         (walk.draws, nodes)
     }
@@ -489,12 +496,16 @@ impl Renderer {
 
 /// Draws what node `n` stands for into `walk` and `nodes` (see
 /// `Renderer::proxy_draws`); whether all of it is there: every chunk drawn
-/// with its own geometry, every proxy loaded.
+/// with its own geometry, every proxy loaded. `covered`: a loaded proxy
+/// above stands in for whatever is not, so a node whose stored proxy would
+/// fit but is not loaded yet ends the descent (its subtree's chunks are not
+/// what this view needs); without one the walk goes on down to chunks.
 fn refine(
     walk: &mut Walk<'_>,
     proxies: Option<&Proxies>,
     geometry: &dyn GeometrySource,
     n: u32,
+    covered: bool,
     nodes: &mut Vec<u32>,
 ) -> bool {
     let Some(kind) = walk.admit(n) else {
@@ -516,10 +527,26 @@ fn refine(
             return true;
         }
     }
+    let bounds = walk.h.bounds(walk.tree, n);
+    let wanted = proxies.and_then(|p| p.stored_error(n)).is_some_and(|e| {
+        walk.cull
+            .coverage
+            .error_fits(bounds, e, walk.cull.lod_error_px)
+    });
+    if covered && loaded.is_none() && wanted {
+        return false;
+    }
     let (draws, drawn) = (walk.draws.len(), nodes.len());
     let mut complete = true;
     for &c in walk.h.children(n) {
-        complete &= refine(walk, proxies, geometry, c, nodes);
+        complete &= refine(
+            walk,
+            proxies,
+            geometry,
+            c,
+            covered || loaded.is_some(),
+            nodes,
+        );
     }
     if !complete && loaded.is_some() {
         walk.draws.truncate(draws);

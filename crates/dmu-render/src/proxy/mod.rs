@@ -49,6 +49,12 @@ pub use stored::{ChunkLoader, ProxyBlobs, StoredBuild, build_stored};
 /// `proxies_draw_far_subtrees_in_few_calls_within_the_pixel_bound`).
 const ERROR_MARGIN: f64 = 4.0;
 
+/// A simplification whose measured error is over this multiple of its aim
+/// is tried again aiming this many times lower ...
+const RETRY_OVER: f32 = 4.0;
+/// ... at most this many times.
+const RETRIES: usize = 1;
+
 /// Levels between proxies: a proxy is made of the proxies this many levels
 /// below (about twice smaller across in a binary tree of boxes), so the
 /// errors that add up the tree stay near twice a level's own, and memory
@@ -403,7 +409,10 @@ impl Proxies {
 
     /// Remakes stale proxies whose nodes have been calm for [`CALM_TICKS`],
     /// children first, until the time budget is spent (at least one when any
-    /// is due); true when any was made.
+    /// is due); true when any was made. Stored proxies are not remade: a
+    /// store's model is larger than memory, the proxies below a stale one
+    /// are mostly not loaded, and looking for what could be made would cost
+    /// every frame the model's size; frames refine past a stale one.
     pub(crate) fn refresh(
         &mut self,
         h: &Hierarchy,
@@ -411,7 +420,9 @@ impl Proxies {
         tree: &Tree,
         source: &dyn GeometrySource,
     ) -> bool {
-        // A current stored proxy is loaded on demand, not remade.
+        if self.stored.is_some() {
+            return false;
+        }
         let due = |p: &Self, n: u32| {
             let i = n as usize;
             p.level[i]
@@ -419,7 +430,6 @@ impl Proxies {
                     .as_ref()
                     .is_none_or(|x| x.signature != p.signature[i])
                 && p.tick >= p.changed[i] + CALM_TICKS
-                && !p.is_stored_current(n)
         };
         if !(0..self.nodes.len() as u32).any(|n| due(self, n)) {
             return false;
@@ -679,15 +689,30 @@ fn simplify(
         fill[c as usize] += 1;
     }
     let welded: Vec<u32> = indices.iter().map(|&i| weld[i as usize]).collect();
-    let (simplified, estimate) =
-        dmu_scene::simplify_to_error(&positions, &welded, target_error as f32);
-    let error = dmu_scene::simplified_error(
-        &positions,
-        &welded,
-        &simplified,
-        target_error as f32,
-        ERROR_MARGIN as f32 * estimate,
-    );
+    // The simplifier's estimate can be far short of what it did (a vertex
+    // metres from a proxy aimed at centimetres, on merged CAD pieces): where
+    // the measured error is over RETRY_OVER times the aim, it runs again
+    // aiming lower, and the measured better of its tries is kept.
+    let mut aim = target_error as f32;
+    let mut best: Option<(Vec<u32>, f32)> = None;
+    for _ in 0..=RETRIES {
+        let (kept, estimate) = dmu_scene::simplify_to_error(&positions, &welded, aim);
+        let error = dmu_scene::simplified_error(
+            &positions,
+            &welded,
+            &kept,
+            aim,
+            ERROR_MARGIN as f32 * estimate,
+        );
+        if best.as_ref().is_none_or(|b| error < b.1) {
+            best = Some((kept, error));
+        }
+        if error <= RETRY_OVER * target_error as f32 {
+            break;
+        }
+        aim /= RETRY_OVER;
+    }
+    let (simplified, error) = best.expect("one try at least");
     // Back to real vertices, keeping only those used, in first-use order.
     let mut out = Vec::with_capacity(simplified.len());
     for t in simplified.chunks_exact(3) {

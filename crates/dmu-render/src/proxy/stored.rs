@@ -539,6 +539,12 @@ impl Proxies {
         self.stored.as_ref()?.nodes.get(signature)
     }
 
+    /// The error node `n`'s stored proxy claims, when it has a current one
+    /// (loaded or not).
+    pub(crate) fn stored_error(&self, n: u32) -> Option<f64> {
+        self.stored_entry(n).map(|e| e.error)
+    }
+
     /// Whether node `n` has a current stored proxy (loaded or not).
     pub(crate) fn is_stored_current(&self, n: u32) -> bool {
         self.stored_entry(n).is_some()
