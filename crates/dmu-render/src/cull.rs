@@ -508,6 +508,7 @@ fn refine(
     covered: bool,
     nodes: &mut Vec<u32>,
 ) -> bool {
+    walk.covered = covered;
     let Some(kind) = walk.admit(n) else {
         return true;
     };
@@ -578,6 +579,9 @@ pub(crate) struct Walk<'a> {
     /// reaches their nodes (frustum and `hzb` walks; CHC's draws those
     /// loaded).
     pub proxies: Option<&'a Proxies>,
+    /// Whether a loaded proxy above the node being admitted stands in for
+    /// what is missing below it.
+    pub covered: bool,
 }
 
 impl<'a> Walk<'a> {
@@ -600,6 +604,7 @@ impl<'a> Walk<'a> {
             proxy_fit: &[],
             proxy_draws: Vec::new(),
             proxies: None,
+            covered: false,
         }
     }
 
@@ -651,8 +656,9 @@ impl<'a> Walk<'a> {
             && p.current(n).is_none()
             && p.is_stored_current(n)
         {
-            // Coarse first: the loads go by screen size per byte.
-            p.request(n, self.cull.coverage.size_px(bounds));
+            // Coarse first: the loads go by screen size per byte, and
+            // what nothing loaded stands in for before all of it.
+            p.request(n, self.cull.coverage.size_px(bounds), !self.covered);
         }
         Some(kind)
     }

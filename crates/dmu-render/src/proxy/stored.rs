@@ -550,13 +550,18 @@ impl Proxies {
         self.stored_entry(n).is_some()
     }
 
-    /// A frame wants node `n`'s proxy, which is not loaded; `priority`: the
-    /// larger, the sooner.
-    pub(crate) fn request(&self, n: u32, size_px: f64) {
+    /// A frame wants node `n`'s proxy, which is not loaded and covers
+    /// `size_px` on screen: asked for by that size per byte, or, when
+    /// `first` (no loaded proxy above stands in for it), ahead of all of
+    /// those, the larger on screen first (the root before its children).
+    pub(crate) fn request(&self, n: u32, size_px: f64, first: bool) {
         if let Some(s) = &self.stored
             && let Some(e) = self.stored_entry(n)
         {
-            let priority = size_px / (e.bytes.max(1) as f64);
+            let priority = match first {
+                true => 1e12 + size_px.min(1e11),
+                false => size_px / (e.bytes.max(1) as f64),
+            };
             s.requested
                 .lock()
                 .unwrap_or_else(std::sync::PoisonError::into_inner)
