@@ -59,7 +59,18 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         },
         progress: Some(&progress),
     };
-    let result = dmu_store::import_gltf(&args.input, &args.output, &options).with_context(|| {
+    // With the hierarchy the store is written twice (geometry, then the
+    // hierarchy's rewrite): both go to a staging name beside it, renamed
+    // over it once whole, so a kill at any moment leaves the previous store.
+    let staged = match args.no_lod {
+        true => args.output.clone(),
+        false => {
+            let mut name = args.output.clone().into_os_string();
+            name.push(".importing");
+            PathBuf::from(name)
+        }
+    };
+    let result = dmu_store::import_gltf(&args.input, &staged, &options).with_context(|| {
         format!(
             "importing {} into {}",
             args.input.display(),
@@ -71,15 +82,29 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let geometry_ms = start.elapsed().as_secs_f64() * 1e3;
     let lod = (!args.no_lod)
         .then(|| {
-            crate::cmd_lod::build_into(
-                &args.output,
+            let built = crate::cmd_lod::build_into(
+                &staged,
                 args.memory_budget / 4,
                 dmu_render::ProxyOptions::default().error_fraction,
                 args.json,
             )
+            .and_then(|built| {
+                replace(&staged, &args.output)?;
+                Ok(built)
+            });
+            if built.is_err() {
+                // Nothing of it is kept; the previous store stays.
+                let _ = std::fs::remove_file(&staged);
+            }
+            built
         })
         .transpose()?;
     let import_ms = start.elapsed().as_secs_f64() * 1e3;
+    let mut summary = summary;
+    summary.store.path = args.output.clone();
+    summary.store.file_bytes = std::fs::metadata(&args.output)
+        .with_context(|| format!("{}: reading its size", args.output.display()))?
+        .len();
     let peak_rss = peak_rss_bytes();
     if summary.fixed_bytes > args.memory_budget {
         eprintln!(
@@ -126,4 +151,18 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// Renames `staged` over `target` (atomic on one file system) and syncs
+/// their folder, so the rename survives a power cut.
+fn replace(staged: &std::path::Path, target: &std::path::Path) -> anyhow::Result<()> {
+    std::fs::rename(staged, target)
+        .with_context(|| format!("{}: putting the import in place", target.display()))?;
+    let folder = match target.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => std::path::Path::new("."),
+    };
+    std::fs::File::open(folder)
+        .and_then(|d| d.sync_all())
+        .with_context(|| format!("{}: syncing its folder", target.display()))
 }
