@@ -116,7 +116,7 @@ pub enum StoreError {
         path: PathBuf,
     },
     /// A blob asked for (a far-field cell or a level-of-detail node: read,
-    /// or kept by [`write_blobs`](crate::write_blobs)) that the store does
+    /// or kept by a [`BlobWriter`](crate::BlobWriter)) that the store does
     /// not have.
     #[error("{} has no {what} #{blob}: it has {blobs}", path.display())]
     NoSuchBlob {

@@ -80,7 +80,7 @@ impl OwnedChunkGeometry {
     }
 
     /// Bytes this geometry holds in memory: at most what the residency
-    /// budget counts for it ([`resident_bytes`]).
+    /// budget counts for it (`resident_bytes`).
     pub fn resident_bytes(&self) -> u64 {
         let level_indices = self.levels.iter().flatten().map(|l| l.indices.len());
         let indices = self.indices.len() + level_indices.sum::<usize>();

@@ -198,7 +198,7 @@ impl StoreWriter {
 
     /// Appends a mesh's chunks; they get the next chunk ids, which must be the
     /// ids they have in the skeleton given to [`StoreWriter::finish`]. Held
-    /// until the meshes given reach [`BATCH_TRIANGLES`], so their levels are
+    /// until the meshes given reach `BATCH_TRIANGLES`, so their levels are
     /// computed in parallel even when each mesh is a chunk or two.
     pub fn add_mesh(&mut self, mesh: ChunkedMesh) -> Result<(), StoreError> {
         self.pending_triangles += mesh.indices.len() / 3;
