@@ -285,10 +285,16 @@ impl Renderer {
                         ),
                     )
                 });
-            match made {
+            // Freed at once: dropping a buffer leaves its memory to wgpu's
+            // next cleanup, while a store's proxies come and go every frame.
+            let old = match made {
                 Some(buffers) => gpu.buffers.insert(n, buffers),
                 None => gpu.buffers.remove(&n),
             };
+            if let Some((vertices, indices)) = old {
+                vertices.destroy();
+                indices.destroy();
+            }
         }
     }
 
