@@ -262,12 +262,13 @@ impl App {
             },
         );
         if let Some(proxies) = self.proxies.take() {
-            renderer.set_proxies(proxies);
-            let slots = renderer.stored_proxy_slots(&self.review.scene, &self.review.tree);
-            self.lod_cut = (!slots.is_empty()).then(|| {
-                let px = self.panes[0].view.options.lod_error_px;
-                Arc::new(dmu_store::LodCut::new(slots, px))
-            });
+            self.lod_cut = dmu_app::lod::use_proxies(
+                &mut renderer,
+                proxies,
+                &self.review.scene,
+                &self.review.tree,
+                self.panes[0].view.options.lod_error_px,
+            );
         }
         if let Some(set) = self.far_field_set.take() {
             // The model as loaded, before any edit: what the far fields show.

@@ -595,11 +595,13 @@ pub fn run_resident(
         && how.culling_options.may_draw_lods()
         && let Some(proxies) = dmu_app::lod::stored_proxies(store, how.proxy_bytes)?
     {
-        renderer.set_proxies(proxies);
-        options.lod_cut = Some(Arc::new(dmu_store::LodCut::new(
-            renderer.stored_proxy_slots(scene, tree),
+        options.lod_cut = dmu_app::lod::use_proxies(
+            &mut renderer,
+            proxies,
+            scene,
+            tree,
             how.culling_options.lod_error_px,
-        )));
+        );
     }
     let options = &options;
     let capture = Capture::new(&device, size);

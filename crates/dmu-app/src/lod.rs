@@ -166,6 +166,21 @@ pub fn proxy_budget(memory_budget: u64) -> u64 {
 /// Time a frame may spend loading stored proxies (at least one is loaded).
 pub const LOAD_BUDGET: Duration = Duration::from_millis(8);
 
+/// Hands `proxies` to `renderer` and, where they are a store's, gives the
+/// cut its loader's wanted set stops at for views drawn at `lod_error_px`
+/// (the nodes whose stored proxies fit: the chunks below are not drawn).
+pub fn use_proxies(
+    renderer: &mut dmu_render::Renderer,
+    proxies: dmu_render::Proxies,
+    scene: &dmu_scene::Scene,
+    tree: &Tree,
+    lod_error_px: f64,
+) -> Option<Arc<dmu_store::LodCut>> {
+    renderer.set_proxies(proxies);
+    let slots = renderer.stored_proxy_slots(scene, tree);
+    (!slots.is_empty()).then(|| Arc::new(dmu_store::LodCut::new(slots, lod_error_px)))
+}
+
 /// The store's stored proxies, read on demand within `budget` bytes
 /// (`None` when it has no hierarchy: a one-line hint says how to add one).
 pub fn stored_proxies(

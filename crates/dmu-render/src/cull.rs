@@ -349,15 +349,7 @@ impl Renderer {
         walk.proxies = self.proxies.as_ref().map(|p| &p.cpu);
         let mut nodes = Vec::new();
         if !h.is_empty() {
-            let proxies = self.proxies.as_ref().map(|p| &p.cpu);
-            refine(
-                &mut walk,
-                proxies,
-                model.geometry,
-                h.root,
-                false,
-                &mut nodes,
-            );
+            refine(&mut walk, model.geometry, h.root, false, &mut nodes);
         }
         (walk.draws, nodes)
     }
@@ -502,12 +494,12 @@ impl Renderer {
 /// what this view needs); without one the walk goes on down to chunks.
 fn refine(
     walk: &mut Walk<'_>,
-    proxies: Option<&Proxies>,
     geometry: &dyn GeometrySource,
     n: u32,
     covered: bool,
     nodes: &mut Vec<u32>,
 ) -> bool {
+    let proxies = walk.proxies;
     walk.covered = covered;
     let Some(kind) = walk.admit(n) else {
         return true;
@@ -540,14 +532,7 @@ fn refine(
     let (draws, drawn) = (walk.draws.len(), nodes.len());
     let mut complete = true;
     for &c in walk.h.children(n) {
-        complete &= refine(
-            walk,
-            proxies,
-            geometry,
-            c,
-            covered || loaded.is_some(),
-            nodes,
-        );
+        complete &= refine(walk, geometry, c, covered || loaded.is_some(), nodes);
     }
     if !complete && loaded.is_some() {
         walk.draws.truncate(draws);

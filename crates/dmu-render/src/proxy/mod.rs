@@ -70,10 +70,11 @@ pub const CALM_TICKS: u64 = 2;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ProxyOptions {
     /// The simplification error each proxy aims at, as a fraction of its
-    /// node's box diagonal (it claims 4 times what the simplifier reports,
-    /// plus the error of the proxies it is made of). With the default 1/512
-    /// a proxy is drawn at 1 px of LOD error once its node covers under
-    /// about 64 px.
+    /// node's box diagonal (it claims the error measured for what it was
+    /// made of, at least 4 times what the simplifier reports, plus the error
+    /// of the proxies it is made of: [`ERROR_MARGIN`]). With the default
+    /// 1/512 a proxy claiming 4 times its aim and its children's as much is
+    /// drawn at 1 px of LOD error once its node covers under about 64 px.
     pub error_fraction: f64,
     /// Time a frame may spend remaking stale proxies (at least one is made
     /// when any is due).
@@ -778,7 +779,7 @@ mod tests {
     }
 
     /// A plant of 250,000 triangles and its tree.
-    fn plant_250k() -> (Scene, Tree) {
+    pub(super) fn plant_250k() -> (Scene, Tree) {
         let scene = plant(&PlantOptions {
             triangles: 250_000,
             ..Default::default()

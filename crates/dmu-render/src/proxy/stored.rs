@@ -295,7 +295,8 @@ pub fn build_stored(
         mirror_nodes: h.len() as u64,
         error_fraction: options.error_fraction,
         nodes: out.index.len() as u64,
-        root: proxies.signature[h.root as usize],
+        // 0 (no content) for an empty tree, which has no root to keep.
+        root: proxies.signature.get(h.root as usize).copied().unwrap_or(0),
     };
     let mut build = out.build;
     build.index = bytemuck::bytes_of(&header).to_vec();
@@ -660,8 +661,8 @@ impl Proxies {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use dmu_samples::{PlantOptions, Rng, plant};
-    use dmu_tree::TreeOptions;
+    use crate::proxy::tests::plant_250k;
+    use dmu_samples::Rng;
 
     /// The whole scene as a loader.
     struct InMemory<'a>(&'a Scene);
@@ -674,15 +675,6 @@ mod tests {
         fn source(&self) -> &(dyn GeometrySource + Sync) {
             self.0
         }
-    }
-
-    fn plant_250k() -> (Scene, Tree) {
-        let scene = plant(&PlantOptions {
-            triangles: 250_000,
-            ..Default::default()
-        });
-        let tree = Tree::build(&scene, TreeOptions::default());
-        (scene, tree)
     }
 
     fn stored(scene: &Scene, tree: &Tree, batch: usize) -> (StoredBuild, Vec<Vec<u8>>) {
