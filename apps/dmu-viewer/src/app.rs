@@ -173,6 +173,10 @@ pub struct App {
     first_frame_ms: Option<f64>,
     /// When the first frame with no hole and no stand-in was done.
     first_complete_frame_ms: Option<f64>,
+    /// When the first frame complete and as fine as the LOD bound asks (no
+    /// node drawn coarser while its stored proxy loads) was drawn, ms since
+    /// start.
+    first_faithful_frame_ms: Option<f64>,
     /// Every frame's time, ms.
     frame_times: Vec<f64>,
 }
@@ -239,6 +243,7 @@ impl App {
             streaming: None,
             first_frame_ms: None,
             first_complete_frame_ms: None,
+            first_faithful_frame_ms: None,
             frame_times: Vec::new(),
         }
     }
@@ -564,6 +569,10 @@ impl App {
                 .is_none_or(|s| s.last_misses() == (0, 0));
             if complete && self.first_complete_frame_ms.is_none() {
                 self.first_complete_frame_ms = Some(ms_since(self.options.started));
+            }
+            let faithful = complete && stats.iter().all(|s| s.lod_coarse == 0);
+            if faithful && self.first_faithful_frame_ms.is_none() {
+                self.first_faithful_frame_ms = Some(ms_since(self.options.started));
             }
             self.frame_ms.push_back(frame_ms);
             if self.frame_ms.len() > 30 {

@@ -80,6 +80,14 @@ fn a_budgeted_run_picks_like_a_loaded_one_and_counts_stand_ins_under_xvfb() {
             assert!(r["tool_geometry"]["mesh_loads"].as_u64().unwrap() > 0);
             assert!(r["peak_rss_bytes"].as_u64().unwrap() > 0);
             assert!(r["first_frame_ms"].as_f64().unwrap() > 0.0);
+            // A faithful frame (nothing drawn coarser than the LOD bound
+            // asks) is a complete one.
+            if let Some(faithful) = r["first_faithful_frame_ms"].as_f64() {
+                assert!(faithful >= r["first_complete_frame_ms"].as_f64().unwrap());
+            }
+            assert!(
+                r["frames_lod_coarse"].as_u64().unwrap() <= r["frames_drawn"].as_u64().unwrap()
+            );
         }
         // The first frame has nothing resident: boxes stand in, or holes show.
         assert_eq!(boxes["frames_with_hole"], 0, "{}", boxes["memory"]);

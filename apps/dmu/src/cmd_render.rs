@@ -241,6 +241,7 @@ fn stats_json(s: &FrameStats) -> serde_json::Value {
         "proxies_drawn": s.proxies_drawn,
         "culled_clusters": s.culled_clusters,
         "proxies_stale": s.proxies_stale,
+        "lod_coarse": s.lod_coarse,
         "draw_calls": s.draw_calls,
         "upload_ms": s.upload_ms,
         "triangles_drawn": s.triangles_drawn,

@@ -40,6 +40,9 @@ struct ModeFrame {
     chunks_drawn: u64,
     /// Proxies drawn (merged subtrees).
     proxies_drawn: u64,
+    /// Nodes drawn coarser than the LOD bound asks while their stored
+    /// proxies load.
+    lod_coarse: u64,
     draw_calls: u64,
     queries: u64,
     rounds: u32,
@@ -152,6 +155,7 @@ fn mode_frame(stats: &FrameStats, differing: Option<Differing>) -> ModeFrame {
         triangles_drawn: stats.triangles_drawn,
         chunks_drawn: stats.chunks_drawn,
         proxies_drawn: stats.proxies_drawn,
+        lod_coarse: stats.lod_coarse,
         draw_calls: stats.draw_calls,
         queries: stats.queries,
         lod_error_px: stats.lod_error_px,

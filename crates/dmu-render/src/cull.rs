@@ -527,6 +527,7 @@ fn refine(
             .error_fits(bounds, e, walk.cull.lod_error_px)
     });
     if covered && loaded.is_none() && wanted {
+        walk.stats.lod_coarse += 1;
         return false;
     }
     let (draws, drawn) = (walk.draws.len(), nodes.len());
@@ -535,6 +536,7 @@ fn refine(
         complete &= refine(walk, geometry, c, covered || loaded.is_some(), nodes);
     }
     if !complete && loaded.is_some() {
+        walk.stats.lod_coarse += 1;
         walk.draws.truncate(draws);
         nodes.truncate(drawn);
         nodes.push(n);

@@ -59,6 +59,10 @@ pub struct FrameStats {
     /// Proxies stale after this frame (their subtree changed; they are
     /// remade once it is calm and meanwhile not drawn).
     pub proxies_stale: u64,
+    /// Nodes drawn coarser than the LOD bound asks: the stored proxy a view
+    /// wants there is still loading, and a loaded one above stands in for it
+    /// (0: the image is as faithful as the bound says).
+    pub lod_coarse: u64,
     /// The LOD error bound the frame drew with, pixels (chosen by the budget
     /// under [`crate::CullingOptions::target_ms`]).
     pub lod_error_px: f64,

@@ -215,7 +215,12 @@ fn stored_proxies_never_leave_a_hole_over_random_views_and_budgets() {
     dmu_testkit::with_gpu(|gpu| {
         let (scene, tree) = small_plant();
         let size = (320, 180);
-        let (_, all) = crate::support::stored_proxies(&scene, &tree, u64::MAX);
+        let (_, all) = crate::support::stored_proxies(
+            &scene,
+            &tree,
+            u64::MAX,
+            std::time::Duration::from_secs(1),
+        );
         let mut rng = dmu_samples::Rng::new(42);
         let b = tree.bounds();
         let (c, d) = (b.center(), b.extent().length());
@@ -273,6 +278,59 @@ fn stored_proxies_never_leave_a_hole_over_random_views_and_budgets() {
         // The first frame, before any proxy is loaded, shows what the
         // refinement covers.
         assert!(holes_without > 0, "some first frame lacked chunks");
+    });
+}
+
+/// A frame counts the nodes it draws coarser than the LOD bound asks (a
+/// loaded proxy above standing in for one still loading). Loading one
+/// stored proxy a frame, the root's first, the frames in between say they
+/// are coarse, and draw fewer proxies than the bound asks; once loading is
+/// done none is coarse and the stored proxies draw what those made in
+/// memory draw, pixel for pixel.
+#[test]
+fn a_frame_counts_the_nodes_it_draws_coarser_than_asked() {
+    dmu_testkit::with_gpu(|gpu| {
+        let (scene, tree) = small_plant();
+        let size = (320, 180);
+        let mut memory = Rig::with_proxies(gpu, &scene, &tree, size);
+        let mut cams = viewpoints();
+        cams.push(overview(&tree));
+        for (i, &cam) in cams.iter().enumerate() {
+            let view = || {
+                let mut view = View::new(cam, size, Culling::Frustum);
+                view.options.lod_error_px = 1.0;
+                view
+            };
+            let reference = memory.frame(&mut view(), &scene, &tree);
+            let reference_image = memory.image();
+            let one_a_frame = std::time::Duration::ZERO;
+            let mut stored =
+                Rig::with_stored_proxies_loading(gpu, &scene, &tree, size, u64::MAX, one_a_frame);
+            let mut v = view();
+            let frames: Vec<_> = (0..200)
+                .map(|_| stored.frame(&mut v, &scene, &tree))
+                .collect();
+            let coarse: Vec<_> = frames.iter().filter(|s| s.lod_coarse > 0).collect();
+            println!(
+                "view {i}: {} proxies asked for, {} frames coarse",
+                reference.proxies_drawn,
+                coarse.len()
+            );
+            if reference.proxies_drawn > 1 {
+                assert!(!coarse.is_empty(), "view {i}: loading, yet never coarse");
+            }
+            for s in coarse {
+                assert!(s.proxies_drawn < reference.proxies_drawn, "view {i}");
+            }
+            let last = frames.last().expect("frames");
+            assert_eq!(last.lod_coarse, 0, "view {i}: loaded, yet coarse");
+            assert_eq!(last.proxies_drawn, reference.proxies_drawn, "view {i}");
+            assert_eq!(
+                count_differing(reference_image.as_raw(), stored.image().as_raw()),
+                (0, 0),
+                "view {i}: not coarse, yet not what the proxies in memory draw"
+            );
+        }
     });
 }
 

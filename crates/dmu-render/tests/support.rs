@@ -1,6 +1,8 @@
 //! Shared test helpers: rigs on the binary's device (`dmu_testkit`), cameras,
 //! image output.
 
+use std::time::Duration;
+
 use dmu_geom::glam::DVec3;
 use dmu_render::{
     Camera, Capture, Culling, FrameStats, Proxies, ProxyOptions, Renderer, RendererOptions, View,
@@ -50,7 +52,7 @@ impl Rig {
     }
 
     /// A rig drawing stored proxies ([`stored_proxies`]) loaded within
-    /// `budget` bytes.
+    /// `budget` bytes, as fast as a frame asks for them.
     pub fn with_stored_proxies(
         gpu: &Gpu,
         scene: &Scene,
@@ -58,9 +60,22 @@ impl Rig {
         size: (u32, u32),
         budget: u64,
     ) -> Rig {
+        Self::with_stored_proxies_loading(gpu, scene, tree, size, budget, Duration::from_secs(1))
+    }
+
+    /// A rig drawing stored proxies loaded within `budget` bytes and `load`
+    /// of loading a frame.
+    pub fn with_stored_proxies_loading(
+        gpu: &Gpu,
+        scene: &Scene,
+        tree: &Tree,
+        size: (u32, u32),
+        budget: u64,
+        load: Duration,
+    ) -> Rig {
         let mut rig = Self::with_lods(gpu, scene, tree, size);
         rig.renderer
-            .set_proxies(stored_proxies(scene, tree, budget).0);
+            .set_proxies(stored_proxies(scene, tree, budget, load).0);
         rig
     }
 
@@ -154,10 +169,10 @@ impl dmu_render::ChunkLoader for Loaded<'_> {
 }
 
 /// The scene's proxies built as a store keeps them, read back on demand
-/// within `budget` bytes (at most 1 s of loading a frame, so a test's frames
-/// load everything they ask for), and the bytes they take loaded (CPU and
-/// GPU copies).
-pub fn stored_proxies(scene: &Scene, tree: &Tree, budget: u64) -> (Proxies, u64) {
+/// within `budget` bytes and `load` of loading a frame (at least one is
+/// loaded; 1 s: a test's frames load everything they ask for), and the
+/// bytes they take loaded (CPU and GPU copies).
+pub fn stored_proxies(scene: &Scene, tree: &Tree, budget: u64, load: Duration) -> (Proxies, u64) {
     let mut blobs = Vec::new();
     let mut sink = |b: &[u8]| {
         blobs.push(b.to_vec());
@@ -174,13 +189,8 @@ pub fn stored_proxies(scene: &Scene, tree: &Tree, budget: u64) -> (Proxies, u64)
     )
     .expect("a scene in memory has every chunk");
     let loaded = 2 * built.stats.bytes;
-    let proxies = Proxies::stored(
-        &built.index,
-        Box::new(Blobs(blobs)),
-        budget,
-        std::time::Duration::from_secs(1),
-    )
-    .expect("the index just built");
+    let proxies = Proxies::stored(&built.index, Box::new(Blobs(blobs)), budget, load)
+        .expect("the index just built");
     (proxies, loaded)
 }
 

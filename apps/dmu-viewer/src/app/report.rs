@@ -236,6 +236,9 @@ struct FrameRecord<'a> {
     chunks_drawn: u64,
     proxies_drawn: u64,
     proxies_stale: u64,
+    /// Nodes drawn coarser than the LOD bound asks while their stored
+    /// proxies load.
+    lod_coarse: u64,
     /// Chunk instances drawn as their boxes (under a memory budget).
     standins_drawn: u64,
     culled_section: u64,
@@ -400,6 +403,7 @@ impl App {
         let frames = parsed(&self.runner.frames);
         report["first_frame_ms"] = to_value(self.first_frame_ms);
         report["first_complete_frame_ms"] = to_value(self.first_complete_frame_ms);
+        report["first_faithful_frame_ms"] = to_value(self.first_faithful_frame_ms);
         let times = Summary::of(&self.frame_times);
         report["median_frame_ms"] = to_value(times.median());
         report["p95_frame_ms"] = to_value(times.p95());
@@ -410,6 +414,13 @@ impl App {
                 .iter()
                 .filter_map(|f| f["proxies_drawn"].as_u64())
                 .sum::<u64>(),
+        );
+        // Frames that drew some node coarser than the LOD bound asks.
+        report["frames_lod_coarse"] = to_value(
+            frames
+                .iter()
+                .filter(|f| f["lod_coarse"].as_u64().is_some_and(|n| n > 0))
+                .count(),
         );
         if let Some(s) = &self.streaming {
             let facts = s.json();
@@ -480,6 +491,7 @@ impl App {
             chunks_drawn: main.chunks_drawn,
             proxies_drawn: main.proxies_drawn,
             proxies_stale: main.proxies_stale,
+            lod_coarse: main.lod_coarse,
             standins_drawn: self.streaming.as_ref().map_or(0, |s| s.last_misses().1),
             culled_section: main.culled_section,
             draw_calls: main.draw_calls,
