@@ -9,10 +9,10 @@
 //! disconnected pieces (bolts, nuts) may vanish from a coarse level; their loss
 //! is inside the reported error.
 
-use glam::Vec3;
+use glam::{DMat3, DVec3, Vec3};
 
 use crate::ChunkGeometry;
-use crate::nearest::farthest_from_surface;
+use crate::nearest::{Grid, farthest_from_surface};
 
 /// At most this many levels after the full chunk.
 pub const MAX_LOD_LEVELS: usize = 7;
@@ -131,10 +131,14 @@ pub fn simplify_to_error(
 /// The error [`simplify_to_error`]'s `kept` triangles claim for `indices`
 /// (into `positions`) simplified to `target_error`, measured as
 /// [`lod_levels`]' is: the farthest any input vertex lies from the kept
-/// surface, or `floor` if that is more. A vertex of a piece the simplifier
-/// may prune (connected through shared vertices, its box's diagonal under
-/// the target) counts that diagonal instead: a piece that vanishes shows at
-/// most its size.
+/// surface, or `floor` if that is more. Two kinds of piece (connected
+/// through shared vertices) count otherwise, as what they show on screen:
+/// - one the simplifier may prune (within the target of its vertices'
+///   average) counts its box's diagonal: it shows at most its size;
+/// - one that vanished (no kept triangle touches it, as a rod collapsed to
+///   its axis does) counts the farthest its vertices lie from its principal
+///   axis: the strip of pixels it leaves is that wide (a rod's radius; a
+///   plate's half width), not as far as the next surface kept happens to be.
 pub fn simplified_error(
     positions: &[[f32; 3]],
     indices: &[u32],
@@ -143,59 +147,227 @@ pub fn simplified_error(
     floor: f32,
 ) -> f32 {
     let points: Vec<Vec3> = positions.iter().map(|&p| Vec3::from(p)).collect();
-    let (large, small) = pieces_by_size(&points, indices, target_error);
+    let pieces = Pieces::of(&points, indices);
+    let mut touched = vec![false; pieces.count];
+    for &v in kept {
+        touched[pieces.of[v as usize] as usize] = true;
+    }
+    let mut large = Vec::new();
+    let mut error = floor;
+    for (p, members) in pieces
+        .members
+        .chunk_by(|a, b| pieces.of[*a as usize] == pieces.of[*b as usize])
+        .enumerate()
+    {
+        let shape = Shape::of(&points, members);
+        if shape.radius <= target_error {
+            error = error.max(shape.diagonal);
+        } else if !touched[p] {
+            error = error.max(shape.off_axis);
+        } else {
+            large.extend(members.iter().map(|&v| points[v as usize]));
+        }
+    }
     match kept.is_empty() {
-        // Everything pruned: every piece was under the target.
-        true => floor.max(small),
-        false => farthest_from_surface(&large, &points, kept, floor.max(small)),
+        true => error,
+        false => farthest_from_surface(&large, &points, kept, error),
     }
 }
 
-/// The vertices of `indices`' pieces (connected through shared vertices)
-/// whose box's diagonal is at least `size`, and the largest diagonal of the
-/// smaller pieces.
-fn pieces_by_size(positions: &[Vec3], indices: &[u32], size: f32) -> (Vec<Vec3>, f32) {
-    let mut parent: Vec<u32> = (0..positions.len() as u32).collect();
-    fn root(parent: &mut [u32], mut v: u32) -> u32 {
-        while parent[v as usize] != v {
-            let up = parent[parent[v as usize] as usize];
-            parent[v as usize] = up;
-            v = up;
+/// Mends the pieces a simplification of `indices` to `target_error` mangled
+/// in `kept`: a piece (connected through shared vertices; not one
+/// [`simplified_error`] counts by its size) with a vertex farther than
+/// `limit` from the kept surface, as a thin plate whose two faces the
+/// simplifier folds onto each other and then wears away, loses its kept
+/// triangles and is simplified again on its own, aiming at `aim`, or kept
+/// whole where that mangles it too. So one bad piece costs its own
+/// triangles, not a finer simplification of everything. Returns the
+/// pieces mended.
+pub fn mend_pieces(
+    positions: &[[f32; 3]],
+    indices: &[u32],
+    kept: &mut Vec<u32>,
+    target_error: f32,
+    limit: f32,
+    aim: f32,
+) -> usize {
+    if kept.is_empty() {
+        return 0;
+    }
+    let points: Vec<Vec3> = positions.iter().map(|&p| Vec3::from(p)).collect();
+    let pieces = Pieces::of(&points, indices);
+    let mut touched = vec![false; pieces.count];
+    for &v in kept.iter() {
+        touched[pieces.of[v as usize] as usize] = true;
+    }
+    let grid = Grid::new(&points, kept);
+    let limit = f64::from(limit);
+    let mut bad = vec![false; pieces.count];
+    for (p, members) in pieces
+        .members
+        .chunk_by(|a, b| pieces.of[*a as usize] == pieces.of[*b as usize])
+        .enumerate()
+    {
+        let shape = Shape::of(&points, members);
+        bad[p] = shape.radius > target_error
+            && (if touched[p] {
+                members
+                    .iter()
+                    .any(|&v| grid.distance_beyond(points[v as usize].as_dvec3(), limit) > limit)
+            } else {
+                f64::from(shape.off_axis) > limit
+            });
+    }
+    let mended = bad.iter().filter(|&&b| b).count();
+    if mended == 0 {
+        return 0;
+    }
+    let of = |t: &[u32]| pieces.of[t[0] as usize] as usize;
+    let mut out: Vec<u32> = kept
+        .chunks_exact(3)
+        .filter(|t| !bad[of(t)])
+        .flatten()
+        .copied()
+        .collect();
+    // Each bad piece's triangles, compacted, simplified on their own.
+    let mut by_piece: Vec<Vec<u32>> = vec![Vec::new(); pieces.count];
+    for t in indices.chunks_exact(3).filter(|t| bad[of(t)]) {
+        by_piece[of(t)].extend_from_slice(t);
+    }
+    for triangles in by_piece.into_iter().filter(|t| !t.is_empty()) {
+        let mut local: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+        let mut sub: Vec<[f32; 3]> = Vec::new();
+        let remapped: Vec<u32> = triangles
+            .iter()
+            .map(|&v| {
+                *local.entry(v).or_insert_with(|| {
+                    sub.push(positions[v as usize]);
+                    sub.len() as u32 - 1
+                })
+            })
+            .collect();
+        let (alone, _) = simplify_to_error(&sub, &remapped, aim);
+        let error = simplified_error(&sub, &remapped, &alone, aim, 0.0);
+        let global: Vec<u32> = local.iter().fold(vec![0; sub.len()], |mut g, (&v, &l)| {
+            g[l as usize] = v;
+            g
+        });
+        match f64::from(error) <= limit {
+            true => out.extend(alone.iter().map(|&l| global[l as usize])),
+            false => out.extend_from_slice(&triangles),
         }
-        v
     }
-    for t in indices.chunks_exact(3) {
-        let a = root(&mut parent, t[0]);
-        for &v in &t[1..] {
-            let b = root(&mut parent, v);
-            parent[b as usize] = a;
+    *kept = out;
+    mended
+}
+
+/// The pieces of a mesh: triangles connected through shared vertices.
+struct Pieces {
+    /// Per vertex, its piece (numbered in order of their first vertex;
+    /// unused vertices `u32::MAX`).
+    of: Vec<u32>,
+    /// The used vertices, piece by piece.
+    members: Vec<u32>,
+    count: usize,
+}
+
+impl Pieces {
+    fn of(positions: &[Vec3], indices: &[u32]) -> Self {
+        let mut parent: Vec<u32> = (0..positions.len() as u32).collect();
+        fn root(parent: &mut [u32], mut v: u32) -> u32 {
+            while parent[v as usize] != v {
+                let up = parent[parent[v as usize] as usize];
+                parent[v as usize] = up;
+                v = up;
+            }
+            v
+        }
+        for t in indices.chunks_exact(3) {
+            let a = root(&mut parent, t[0]);
+            for &v in &t[1..] {
+                let b = root(&mut parent, v);
+                parent[b as usize] = a;
+            }
+        }
+        let mut used = vec![false; positions.len()];
+        for &v in indices {
+            used[v as usize] = true;
+        }
+        let mut number = vec![u32::MAX; positions.len()];
+        let mut of = vec![u32::MAX; positions.len()];
+        let mut count = 0;
+        for v in 0..positions.len() as u32 {
+            if used[v as usize] {
+                let r = root(&mut parent, v) as usize;
+                if number[r] == u32::MAX {
+                    number[r] = count;
+                    count += 1;
+                }
+                of[v as usize] = number[r];
+            }
+        }
+        let mut members: Vec<u32> = (0..positions.len() as u32)
+            .filter(|&v| used[v as usize])
+            .collect();
+        members.sort_by_key(|&v| of[v as usize]);
+        Pieces {
+            of,
+            members,
+            count: count as usize,
         }
     }
-    let mut boxes: std::collections::HashMap<u32, (Vec3, Vec3)> = std::collections::HashMap::new();
-    let used: Vec<u32> = {
-        let mut used: Vec<u32> = indices.to_vec();
-        used.sort_unstable();
-        used.dedup();
-        used
-    };
-    for &v in &used {
-        let r = root(&mut parent, v);
-        let p = positions[v as usize];
-        let b = boxes.entry(r).or_insert((p, p));
-        *b = (b.0.min(p), b.1.max(p));
-    }
-    let mut large = Vec::new();
-    let mut small = 0.0f32;
-    for &v in &used {
-        let (lo, hi) = boxes[&root(&mut parent, v)];
-        let diagonal = (hi - lo).length();
-        if diagonal < size {
-            small = small.max(diagonal);
-        } else {
-            large.push(positions[v as usize]);
+}
+
+/// A piece's extents, as [`simplified_error`] counts them.
+struct Shape {
+    /// The farthest its vertices lie from their average (meshoptimizer
+    /// prunes a piece whose radius so measured is under its error).
+    radius: f32,
+    /// Its box's diagonal.
+    diagonal: f32,
+    /// The farthest its vertices lie from the line through their average
+    /// along their principal direction (rounded up).
+    off_axis: f32,
+}
+
+impl Shape {
+    fn of(points: &[Vec3], members: &[u32]) -> Self {
+        let at = |v: &u32| points[*v as usize].as_dvec3();
+        let centre = members.iter().map(at).sum::<DVec3>() / members.len() as f64;
+        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        let mut covariance = DMat3::ZERO;
+        for p in members.iter().map(at) {
+            (lo, hi) = (lo.min(p), hi.max(p));
+            let d = p - centre;
+            covariance += DMat3::from_cols(d * d.x, d * d.y, d * d.z);
+        }
+        // The principal direction by power iteration, from the box's
+        // longest side.
+        let extent = hi - lo;
+        let mut axis = DVec3::AXES[extent.max_position()];
+        for _ in 0..32 {
+            let next = covariance * axis;
+            if next.length_squared() <= f64::MIN_POSITIVE {
+                break;
+            }
+            axis = next.normalize();
+        }
+        let (mut radius, mut off_axis) = (0.0f64, 0.0f64);
+        for p in members.iter().map(at) {
+            let d = p - centre;
+            radius = radius.max(d.length());
+            off_axis = off_axis.max((d - axis * d.dot(axis)).length());
+        }
+        let up = |x: f64| {
+            let r = x as f32;
+            if f64::from(r) < x { r.next_up() } else { r }
+        };
+        Shape {
+            radius: radius as f32,
+            diagonal: up(extent.length()),
+            off_axis: up(off_axis),
         }
     }
-    (large, small)
 }
 
 #[cfg(test)]
@@ -242,6 +414,194 @@ mod tests {
                 radius - nearest.length() as f32
             })
             .fold(0.0, f32::max)
+    }
+
+    /// A closed box from `lo` to `hi` whose faces are grids of `n` x `n`
+    /// quads, its vertices welded (appended to `positions` and `indices`).
+    fn tessellated_box(
+        lo: Vec3,
+        hi: Vec3,
+        n: u32,
+        positions: &mut Vec<[f32; 3]>,
+        indices: &mut Vec<u32>,
+    ) {
+        let mut welded: std::collections::HashMap<[u32; 3], u32> = Default::default();
+        let mut vertex = |p: Vec3, positions: &mut Vec<[f32; 3]>| {
+            *welded
+                .entry(p.to_array().map(f32::to_bits))
+                .or_insert_with(|| {
+                    positions.push(p.to_array());
+                    positions.len() as u32 - 1
+                })
+        };
+        let size = hi - lo;
+        for axis in 0..3 {
+            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+            for side in [0.0f32, 1.0] {
+                let at = |i: u32, j: u32| {
+                    let mut p = lo;
+                    p[axis] += side * size[axis];
+                    p[u] += size[u] * i as f32 / n as f32;
+                    p[v] += size[v] * j as f32 / n as f32;
+                    p
+                };
+                for i in 0..n {
+                    for j in 0..n {
+                        let q = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]
+                            .map(|p| vertex(p, positions));
+                        let quad = match side == 0.0 {
+                            true => [q[0], q[2], q[1], q[0], q[3], q[2]],
+                            false => [q[0], q[1], q[2], q[0], q[2], q[3]],
+                        };
+                        indices.extend(quad);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The farthest any vertex of `indices` lies from the surface of `kept`
+    /// (brute force, f64).
+    fn farthest_brute(positions: &[[f32; 3]], vertices: &[u32], kept: &[u32]) -> f64 {
+        let p = |i: u32| Vec3::from(positions[i as usize]).as_dvec3();
+        vertices
+            .iter()
+            .map(|&v| {
+                kept.chunks_exact(3)
+                    .map(|t| {
+                        let c = [p(t[0]), p(t[1]), p(t[2])];
+                        p(v).distance(dmu_geom::closest_point_on_triangle(p(v), c))
+                    })
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .fold(0.0, f64::max)
+    }
+
+    #[test]
+    fn a_vanished_rod_counts_its_radius_and_a_vanished_plate_its_width() {
+        let (mut positions, mut indices) = (Vec::new(), Vec::new());
+        // A large box kept, a rod and a plate metres away from it.
+        tessellated_box(
+            Vec3::ZERO,
+            Vec3::splat(1000.0),
+            1,
+            &mut positions,
+            &mut indices,
+        );
+        let kept = indices.clone();
+        let mut with_rod = indices.clone();
+        let rod = Vec3::new(5000.0, 0.0, 0.0);
+        tessellated_box(
+            rod,
+            rod + Vec3::new(10.0, 10.0, 4200.0),
+            1,
+            &mut positions,
+            &mut with_rod,
+        );
+        let mut with_plate = indices.clone();
+        let plate = Vec3::new(0.0, 5000.0, 0.0);
+        tessellated_box(
+            plate,
+            plate + Vec3::new(700.0, 700.0, 14.0),
+            4,
+            &mut positions,
+            &mut with_plate,
+        );
+        // The rod's strip is as wide as its cross-section: its vertices lie
+        // 5 * sqrt(2) from its axis (analytic).
+        let rod_error = simplified_error(&positions, &with_rod, &kept, 1.0, 0.0);
+        assert!((rod_error - 50f32.sqrt()).abs() < 1e-3, "{rod_error}");
+        // A plate gone leaves a hole as wide as itself, at least half its
+        // width from any line through it.
+        let plate_error = simplified_error(&positions, &with_plate, &kept, 1.0, 0.0);
+        assert!(plate_error >= 350.0, "{plate_error}");
+        // Kept, both count their distance to what is kept: none.
+        assert_eq!(
+            simplified_error(&positions, &with_rod, &with_rod, 1.0, 0.0),
+            0.0
+        );
+    }
+
+    /// A flange: a closed ring `thickness` thick along x, between radii
+    /// `inner` and `outer` about `centre`, of `segments` (welded vertices;
+    /// appended to `positions` and `indices`).
+    fn flange(
+        centre: Vec3,
+        (inner, outer, thickness): (f32, f32, f32),
+        segments: u32,
+        positions: &mut Vec<[f32; 3]>,
+        indices: &mut Vec<u32>,
+    ) {
+        let base = positions.len() as u32;
+        for s in 0..segments {
+            let phi = std::f32::consts::TAU * s as f32 / segments as f32;
+            for (x, r) in [
+                (0.0, inner),
+                (0.0, outer),
+                (thickness, outer),
+                (thickness, inner),
+            ] {
+                positions.push((centre + Vec3::new(x, r * phi.cos(), r * phi.sin())).to_array());
+            }
+        }
+        let at = |s: u32, k: u32| base + 4 * (s % segments) + k;
+        for s in 0..segments {
+            // The ring's four faces: back, outer, front, inner.
+            for k in 0..4 {
+                let (a, b) = (k, (k + 1) % 4);
+                indices.extend([at(s, a), at(s + 1, a), at(s + 1, b)]);
+                indices.extend([at(s, a), at(s + 1, b), at(s, b)]);
+            }
+        }
+    }
+
+    #[test]
+    fn mended_pieces_lie_within_their_limit_of_what_is_kept() {
+        let (mut positions, mut indices) = (Vec::new(), Vec::new());
+        // Pipe flanges, rings 12 mm wide and 10 mm thick, beside a block, as
+        // the plant's: the simplifier wears a ring away to nothing, whose
+        // vertices then lie as far as the block from what is kept.
+        tessellated_box(
+            Vec3::ZERO,
+            Vec3::splat(800.0),
+            6,
+            &mut positions,
+            &mut indices,
+        );
+        let mut pieces = Vec::new();
+        for k in 0..8 {
+            let start = indices.len();
+            let centre = Vec3::new(1000.0 + 40.0 * k as f32, 300.0, 300.0);
+            flange(
+                centre,
+                (138.0, 150.0, 10.0),
+                69,
+                &mut positions,
+                &mut indices,
+            );
+            pieces.push(indices[start..].to_vec());
+        }
+        let aim = 25.0;
+        let limit = 4.0 * aim;
+        let (mut kept, _) = simplify_to_error(&positions, &indices, aim);
+        let worst = |kept: &[u32]| {
+            pieces
+                .iter()
+                .map(|p| farthest_brute(&positions, p, kept))
+                .fold(0.0, f64::max)
+        };
+        let before = worst(&kept);
+        let mended = mend_pieces(&positions, &indices, &mut kept, aim, limit, aim / 4.0);
+        let after = worst(&kept);
+        println!("{mended} pieces mended: the farthest vertex {before:.1} -> {after:.1}");
+        assert!(
+            before > f64::from(limit),
+            "the simplifier mangled none: {before}"
+        );
+        assert!(mended > 0);
+        assert!(after <= f64::from(limit), "{after}");
+        // What simplified_error claims bounds it.
+        assert!(f64::from(simplified_error(&positions, &indices, &kept, aim, 0.0)) >= after);
     }
 
     #[test]

@@ -35,7 +35,7 @@ pub(crate) fn farthest_from_surface(
 }
 
 /// Triangles binned by the cells their boxes overlap (compressed rows).
-struct Grid {
+pub(crate) struct Grid {
     triangles: Vec<[DVec3; 3]>,
     min: DVec3,
     cell: DVec3,
@@ -46,7 +46,7 @@ struct Grid {
 }
 
 impl Grid {
-    fn new(positions: &[Vec3], indices: &[u32]) -> Self {
+    pub(crate) fn new(positions: &[Vec3], indices: &[u32]) -> Self {
         let triangles: Vec<[DVec3; 3]> = indices
             .chunks_exact(3)
             .map(|t| [0, 1, 2].map(|k| positions[t[k] as usize].as_dvec3()))
@@ -119,7 +119,7 @@ impl Grid {
     /// growing blocks around `p`'s, until nothing outside the block can be
     /// nearer than the nearest found (a triangle outside lies wholly in cells
     /// beyond one of the block's faces that is not the grid's).
-    fn distance_beyond(&self, p: DVec3, floor: f64) -> f64 {
+    pub(crate) fn distance_beyond(&self, p: DVec3, floor: f64) -> f64 {
         let centre = self.cell_of(p);
         let floor = floor * floor;
         let mut best = f64::INFINITY;
