@@ -207,9 +207,10 @@ fn edited_part_leaves_its_proxies(
 /// Stored proxies are loaded on demand, within a byte budget, and a frame
 /// never leaves a hole while they load (3D Tiles' replace refinement): over
 /// random views, random sets of resident chunks and budgets from all of
-/// them down to a sixth, once the first frame has asked for the root's
+/// them down to a fiftieth, once the first frame has asked for the root's
 /// proxy, every chunk instance a frame would draw without its geometry is
-/// drawn as a loaded proxy above it instead.
+/// drawn as a loaded proxy above it instead, and the proxies loaded never
+/// take more than the budget (or the root's alone).
 #[test]
 fn stored_proxies_never_leave_a_hole_over_random_views_and_budgets() {
     dmu_testkit::with_gpu(|gpu| {
@@ -224,9 +225,22 @@ fn stored_proxies_never_leave_a_hole_over_random_views_and_budgets() {
         let mut rng = dmu_samples::Rng::new(42);
         let b = tree.bounds();
         let (c, d) = (b.center(), b.extent().length());
+        // What the root's proxy takes loaded: seen from far enough for it to
+        // fit, with no budget, nothing else loads.
+        let root = {
+            let mut rig = Rig::with_stored_proxies(gpu, &scene, &tree, size, 0);
+            let far = camera(c + DVec3::new(-0.55, -0.75, 0.45) * d * 50.0, c, d * 1e-3);
+            let mut view = View::new(far, size, Culling::Frustum);
+            view.options.lod_error_px = 1.0;
+            for _ in 0..2 {
+                rig.frame(&mut view, &scene, &tree);
+            }
+            2 * rig.renderer.proxy_stats().expect("proxies").bytes
+        };
+        assert!(root > 0);
         let mut holes_without = 0;
         for round in 0..8 {
-            let budget = [u64::MAX, all / 2, all / 6][round % 3];
+            let budget = [u64::MAX, all / 2, all / 6, all / 50][round % 4];
             let mut rig = Rig::with_stored_proxies(gpu, &scene, &tree, size, budget);
             // A share of the chunks resident: all, or from none to all.
             let share = match round % 2 {
@@ -273,6 +287,13 @@ fn stored_proxies_never_leave_a_hole_over_random_views_and_budgets() {
                     stats.not_resident
                 );
                 assert_eq!(stats.not_resident, 0, "round {round} view {k}: a hole");
+                // Loaded proxies (their geometry on the CPU and the GPU)
+                // keep within the budget; the root's loads whatever it takes.
+                let loaded = 2 * rig.renderer.proxy_stats().expect("proxies").bytes;
+                assert!(
+                    loaded <= budget.max(root),
+                    "round {round} view {k}: {loaded} bytes of proxies loaded, budget {budget}"
+                );
             }
         }
         // The first frame, before any proxy is loaded, shows what the

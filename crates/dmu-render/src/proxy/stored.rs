@@ -468,6 +468,9 @@ pub(crate) struct Stored {
     pub loads: u64,
     pub evictions: u64,
     pub failures: u64,
+    /// Loads refused (and loading stopped for the frame): what the last
+    /// frame drew filled the budget.
+    pub refused: u64,
 }
 
 impl Proxies {
@@ -516,6 +519,7 @@ impl Proxies {
                 loads: 0,
                 evictions: 0,
                 failures: 0,
+                refused: 0,
             }),
             ..Self::default()
         })
@@ -581,10 +585,12 @@ impl Proxies {
     }
 
     /// Loads the proxies frames asked for, the highest priority first, within
-    /// the time budget (at least one), then evicts the least recently drawn
-    /// past the byte budget (never one drawn since the last load, nor the
-    /// root's, the last fallback of every frame). The nodes
-    /// loaded or evicted go to `dirty`.
+    /// the time budget (at least one) and the byte budget: room is made by
+    /// evicting the least recently drawn (never one drawn since the last
+    /// load, nor the root's, the last fallback of every frame), and loading
+    /// stops where what the last frame drew fills the budget (those nodes
+    /// stay drawn coarser, `FrameStats::lod_coarse`). The root's loads
+    /// whatever it takes. The nodes loaded or evicted go to `dirty`.
     pub(crate) fn load_requested(&mut self) {
         let Some(s) = self.stored.as_mut() else {
             return;
@@ -612,48 +618,78 @@ impl Proxies {
             if self.nodes.get(slot).is_none_or(Option::is_some) {
                 continue;
             }
-            match s.blobs.blob(entry.blob).and_then(|b| decode(&b)) {
-                Ok(p) => {
-                    s.resident += resident_bytes(&p);
-                    s.last_used.insert(n, tick);
-                    self.nodes[slot] = Some(Box::new(p));
-                    self.dirty.push(n);
-                    s.loads += 1;
-                }
+            let p = match s.blobs.blob(entry.blob).and_then(|b| decode(&b)) {
+                Ok(p) => p,
                 Err(e) => {
                     // Never asked for again: the node refines past it.
                     eprintln!("warning: level-of-detail node #{}: {e}", entry.blob);
                     s.nodes.remove(&entry.signature);
                     s.failures += 1;
+                    made += 1;
+                    continue;
+                }
+            };
+            // Room is made by evicting what the last frame did not draw; where
+            // that is not enough, what it drew fills the budget and loading
+            // stops (the root's loads whatever it takes).
+            let need = resident_bytes(&p);
+            if entry.signature != s.root {
+                evict(
+                    s,
+                    &mut self.nodes,
+                    &mut self.dirty,
+                    tick,
+                    s.budget.saturating_sub(need),
+                );
+                if s.resident + need > s.budget {
+                    s.refused += 1;
+                    break;
                 }
             }
+            s.resident += need;
+            s.last_used.insert(n, tick);
+            self.nodes[slot] = Some(Box::new(p));
+            self.dirty.push(n);
+            s.loads += 1;
             made += 1;
         }
-        if s.resident <= s.budget {
-            return;
+        evict(s, &mut self.nodes, &mut self.dirty, tick, s.budget);
+    }
+}
+
+/// Evicts loaded proxies, least recently drawn first, until those loaded
+/// take at most `target` bytes or none is left that frames before load
+/// tick `tick` alone drew (the root's never).
+fn evict(
+    s: &mut Stored,
+    nodes: &mut [Option<Box<Proxy>>],
+    dirty: &mut Vec<u32>,
+    tick: u64,
+    target: u64,
+) {
+    if s.resident <= target {
+        return;
+    }
+    let is_root = |n: u32| {
+        nodes
+            .get(n as usize)
+            .and_then(Option::as_ref)
+            .is_some_and(|p| p.signature == s.root)
+    };
+    let mut loaded: Vec<(u64, u32)> = (s.last_used.iter())
+        .filter(|&(&n, &at)| at < tick && !is_root(n))
+        .map(|(&n, &at)| (at, n))
+        .collect();
+    loaded.sort_unstable();
+    for (_, n) in loaded {
+        if s.resident <= target {
+            break;
         }
-        let nodes = &self.nodes;
-        let is_root = |n: u32| {
-            nodes
-                .get(n as usize)
-                .and_then(Option::as_ref)
-                .is_some_and(|p| p.signature == s.root)
-        };
-        let mut loaded: Vec<(u64, u32)> = (s.last_used.iter())
-            .filter(|&(&n, &at)| at < tick && !is_root(n))
-            .map(|(&n, &at)| (at, n))
-            .collect();
-        loaded.sort_unstable();
-        for (_, n) in loaded {
-            if s.resident <= s.budget {
-                break;
-            }
-            s.last_used.remove(&n);
-            if let Some(p) = self.nodes.get_mut(n as usize).and_then(Option::take) {
-                s.resident -= resident_bytes(&p);
-                self.dirty.push(n);
-                s.evictions += 1;
-            }
+        s.last_used.remove(&n);
+        if let Some(p) = nodes.get_mut(n as usize).and_then(Option::take) {
+            s.resident -= resident_bytes(&p);
+            dirty.push(n);
+            s.evictions += 1;
         }
     }
 }
@@ -744,6 +780,62 @@ mod tests {
                 }
             }
             assert_eq!(seen, truth.stats().proxies);
+        }
+    }
+
+    /// Loaded stored proxies never take more than their budget, whatever
+    /// frames ask for and draw (the root's excepted, which loads whatever
+    /// it takes): loads past it first evict what the last frame did not
+    /// draw, and are refused where that is not enough.
+    #[test]
+    fn loaded_proxies_keep_within_their_budget() {
+        let (scene, tree) = plant_250k();
+        let (built, blobs) = stored(&scene, &tree, 64);
+        let mut h = Hierarchy::default();
+        h.sync(&tree);
+        let total: u64 = 2 * built.stats.bytes;
+        let mut rng = Rng::new(7);
+        for budget in [total / 3, total / 10, total / 40] {
+            let mut p = Proxies::stored(
+                &built.index,
+                Box::new(VecBlobs(blobs.clone())),
+                budget,
+                Duration::from_secs(1),
+            )
+            .unwrap();
+            p.sync(&h, &scene, &tree);
+            let stored_nodes: Vec<u32> = (0..h.len() as u32)
+                .filter(|&n| p.is_stored_current(n))
+                .collect();
+            let root = p.stored_entry(h.root).map_or(0, |e| 2 * e.bytes);
+            for frame in 0..30 {
+                // A frame asks for a random half of the nodes and draws a
+                // random half of those loaded.
+                for &n in &stored_nodes {
+                    if rng.range(0.0, 1.0) < 0.5 {
+                        p.request(n, rng.range(1.0, 500.0), rng.range(0.0, 1.0) < 0.2);
+                    }
+                    if p.current(n).is_some() && rng.range(0.0, 1.0) < 0.5 {
+                        p.used(n);
+                    }
+                }
+                p.load_requested();
+                let s = p.stored.as_ref().unwrap();
+                let loaded: u64 = p.nodes.iter().flatten().map(|q| resident_bytes(q)).sum();
+                assert_eq!(loaded, s.resident, "frame {frame}");
+                assert!(
+                    s.resident <= budget.max(root),
+                    "budget {budget}, frame {frame}: {} loaded",
+                    s.resident
+                );
+            }
+            let s = p.stored.as_ref().unwrap();
+            println!(
+                "budget {budget}: {} loads, {} refused, {} evicted",
+                s.loads, s.refused, s.evictions
+            );
+            // The budget was reached: loads were refused.
+            assert!(s.refused > 0, "budget {budget}");
         }
     }
 
