@@ -96,6 +96,7 @@ fn tradeoffs_quick_writes_plots_and_every_reference_setting_is_exact() {
             "rendering: coverage threshold",
             "rendering: occlusion re-check interval",
             "rendering: occlusion rounds",
+            "rendering: proxy aim",
             "rendering: far field",
             "rendering: far field resolution",
             "rendering: far field mesh error",

@@ -11,7 +11,8 @@ use std::collections::BTreeSet;
 
 use anyhow::Context as _;
 use dmu_render::{
-    Camera, Capture, Culling, CullingOptions, Renderer, RendererOptions, View, headless_device,
+    Camera, Capture, Culling, CullingOptions, Proxies, ProxyOptions, Renderer, RendererOptions,
+    View, headless_device,
 };
 use dmu_scene::Scene;
 use dmu_tree::{EntryId, Tree, TreeOptions};
@@ -200,6 +201,16 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<(Vec<Knob>, String)> {
                 .visible_entries(),
         );
     }
+    let mut path = PathRun {
+        cameras: &cameras,
+        reference: &reference,
+        exact: &exact,
+        capture: &capture,
+        device: &device,
+        queue: &queue,
+        scene,
+        tree: &tree,
+    };
     let mut knobs = Vec::new();
     for k in KNOBS {
         let settings = if bench.scale.quick { k.quick } else { k.full };
@@ -211,42 +222,7 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<(Vec<Knob>, String)> {
             } else {
                 &mut renderer
             };
-            let mut view = View::new(cameras[0], size, culling);
-            view.options = options;
-            let mut ms = Vec::new();
-            let (mut pixels, mut surface) = (0u64, 0u64);
-            let mut late = 0u64;
-            let mut missing_before = BTreeSet::new();
-            for (i, &camera) in cameras.iter().enumerate() {
-                view.camera = camera;
-                let stats =
-                    renderer.render(&mut view, scene, &tree, scene, capture.frame_target())?;
-                ms.push(stats.cpu_ms);
-                let (any, other_surface) = dmu_render::count_differing(
-                    &reference[i],
-                    capture.read_color(&device, &queue)?.as_raw(),
-                );
-                pixels += any;
-                surface += other_surface;
-                let drawn: BTreeSet<EntryId> = view.drawn_entries().collect();
-                let missing: BTreeSet<EntryId> = exact[i].difference(&drawn).copied().collect();
-                late += missing.intersection(&missing_before).count() as u64;
-                missing_before = missing;
-            }
-            let frames = cameras.len() as f64;
-            points.push(
-                Point::new(
-                    setting,
-                    dmu_geom::median(ms),
-                    pixels as f64 / frames,
-                    "differing pixels a frame",
-                )
-                .extra("late chunks", late as f64)
-                .extra(
-                    "pixels showing another surface a frame",
-                    surface as f64 / frames,
-                ),
-            );
+            points.push(path.run(renderer, setting, culling, options)?);
             bench.progress.inc(1);
         }
         knobs.push(Knob {
@@ -263,6 +239,43 @@ pub fn run(bench: &Bench<'_>) -> anyhow::Result<(Vec<Knob>, String)> {
             points,
         });
     }
+    // The proxies' aim: how finely each is simplified, against the size of
+    // its subtree. Each setting builds them anew.
+    let mut points = Vec::new();
+    for &setting in aim_settings(bench.scale.quick) {
+        let options = ProxyOptions {
+            error_fraction: setting / 1000.0,
+            ..ProxyOptions::default()
+        };
+        let proxies = Proxies::build(scene, &tree, scene, options, &mut |_, _| {});
+        let stats = proxies.stats();
+        proxied.set_proxies(proxies);
+        let (culling, options) = lod_error(1.0);
+        let point = path.run(&mut proxied, setting, culling, options)?;
+        points.push(
+            point
+                .extra("proxies' triangles", stats.triangles as f64)
+                .extra("ms to make them", stats.ms),
+        );
+        bench.progress.inc(1);
+    }
+    knobs.push(Knob {
+        section: "rendering",
+        name: "proxy aim".to_owned(),
+        unit: "‰ of its subtree's diagonal".to_owned(),
+        note: "LOD error with proxies at 1 px; each proxy is simplified aiming at an error of the \
+               setting times its subtree's box diagonal (the default, 1/512, is about 2 ‰), and \
+               claims what it measures: finer proxies hold more triangles and are drawn from \
+               nearer"
+            .to_owned(),
+        reference: "culling none, every chunk drawn".to_owned(),
+        time: "median frame time".to_owned(),
+        error_unit: "differing pixels a frame".to_owned(),
+        exact_setting: None,
+        log_x: true,
+        log_error: false,
+        points,
+    });
     knobs.push(super::stereo::knob(
         bench,
         &mut renderer,
@@ -280,5 +293,77 @@ pub fn steps(quick: bool) -> u64 {
         .iter()
         .map(|k| if quick { k.quick.len() } else { k.full.len() } as u64)
         .sum::<u64>()
+        + aim_settings(quick).len() as u64
         + super::stereo::steps()
+}
+
+/// The proxy aim's settings, per mille of a proxy's subtree's box diagonal.
+fn aim_settings(quick: bool) -> &'static [f64] {
+    match quick {
+        true => &[8.0, 2.0],
+        false => &[8.0, 4.0, 2.0, 1.0, 0.5],
+    }
+}
+
+/// A camera path with its reference images and exactly visible chunks, to
+/// draw again at each setting of a knob.
+struct PathRun<'a> {
+    cameras: &'a [Camera],
+    reference: &'a [Vec<u8>],
+    exact: &'a [BTreeSet<EntryId>],
+    capture: &'a Capture,
+    device: &'a dmu_render::wgpu::Device,
+    queue: &'a dmu_render::wgpu::Queue,
+    scene: &'a Scene,
+    tree: &'a Tree,
+}
+
+impl PathRun<'_> {
+    /// The path drawn by `renderer` with `culling` and `options`: the median
+    /// frame time, the differing pixels a frame, the chunks late more than a
+    /// frame, and the pixels showing another surface a frame.
+    fn run(
+        &mut self,
+        renderer: &mut Renderer,
+        setting: f64,
+        culling: Culling,
+        options: CullingOptions,
+    ) -> anyhow::Result<Point> {
+        let (scene, tree) = (self.scene, self.tree);
+        let size = self.capture.size();
+        let mut view = View::new(self.cameras[0], size, culling);
+        view.options = options;
+        let mut ms = Vec::new();
+        let (mut pixels, mut surface) = (0u64, 0u64);
+        let mut late = 0u64;
+        let mut missing_before = BTreeSet::new();
+        for (i, &camera) in self.cameras.iter().enumerate() {
+            view.camera = camera;
+            let stats =
+                renderer.render(&mut view, scene, tree, scene, self.capture.frame_target())?;
+            ms.push(stats.cpu_ms);
+            let (any, other_surface) = dmu_render::count_differing(
+                &self.reference[i],
+                self.capture.read_color(self.device, self.queue)?.as_raw(),
+            );
+            pixels += any;
+            surface += other_surface;
+            let drawn: BTreeSet<EntryId> = view.drawn_entries().collect();
+            let missing: BTreeSet<EntryId> = self.exact[i].difference(&drawn).copied().collect();
+            late += missing.intersection(&missing_before).count() as u64;
+            missing_before = missing;
+        }
+        let frames = self.cameras.len() as f64;
+        Ok(Point::new(
+            setting,
+            dmu_geom::median(ms),
+            pixels as f64 / frames,
+            "differing pixels a frame",
+        )
+        .extra("late chunks", late as f64)
+        .extra(
+            "pixels showing another surface a frame",
+            surface as f64 / frames,
+        ))
+    }
 }
