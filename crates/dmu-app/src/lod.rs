@@ -156,9 +156,10 @@ impl ProxyBlobs for StoreBlobs {
 }
 
 /// The share of a memory budget loaded stored proxies may take: a
-/// thirty-second (32 MiB of 1 GiB, CPU and GPU copies counted: about 300
-/// of the 500M plant's proxies, which average 1,000 triangles; its overview
-/// draws 1 to 10).
+/// thirty-second (32 MiB of 1 GiB, their geometry on the GPU: about 800 of
+/// the mended 500M plant's proxies, which average 1,300 triangles; its
+/// overview at 1 px asks for more, and draws coarser where they do not
+/// fit: `FrameStats::lod_coarse`).
 pub fn proxy_budget(memory_budget: u64) -> u64 {
     memory_budget / 32
 }

@@ -286,7 +286,7 @@ impl Renderer {
                 CandidateKind::Entry(_) => (0, 0),
                 CandidateKind::Proxy(k) => (
                     0,
-                    proxy_of(proxy_nodes[k as usize]).map_or(0, |p| p.indices.len() as u32),
+                    proxy_of(proxy_nodes[k as usize]).map_or(0, |p| p.index_count),
                 ),
                 CandidateKind::ProxyCluster(k, cl) => {
                     proxy_of(proxy_nodes[k as usize]).map_or((0, 0), |p| {

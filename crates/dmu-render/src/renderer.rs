@@ -285,6 +285,15 @@ impl Renderer {
                         ),
                     )
                 });
+            // A stored proxy's CPU copy goes once uploaded: nothing is made
+            // from it, and its budget counts the GPU's.
+            if made.is_some()
+                && gpu.cpu.is_stored()
+                && let Some(p) = gpu.cpu.nodes[n as usize].as_mut()
+            {
+                p.vertices = Vec::new();
+                p.indices = Vec::new();
+            }
             // Freed at once: dropping a buffer leaves its memory to wgpu's
             // next cleanup, while a store's proxies come and go every frame.
             let old = match made {

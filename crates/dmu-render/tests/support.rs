@@ -171,7 +171,7 @@ impl dmu_render::ChunkLoader for Loaded<'_> {
 /// The scene's proxies built as a store keeps them, read back on demand
 /// within `budget` bytes and `load` of loading a frame (at least one is
 /// loaded; 1 s: a test's frames load everything they ask for), and the
-/// bytes they take loaded (CPU and GPU copies).
+/// bytes they take loaded (their geometry on the GPU).
 pub fn stored_proxies(scene: &Scene, tree: &Tree, budget: u64, load: Duration) -> (Proxies, u64) {
     let mut blobs = Vec::new();
     let mut sink = |b: &[u8]| {
@@ -188,7 +188,7 @@ pub fn stored_proxies(scene: &Scene, tree: &Tree, budget: u64, load: Duration) -
         &mut |_, _| {},
     )
     .expect("a scene in memory has every chunk");
-    let loaded = 2 * built.stats.bytes;
+    let loaded = built.stats.bytes;
     let proxies = Proxies::stored(&built.index, Box::new(Blobs(blobs)), budget, load)
         .expect("the index just built");
     (proxies, loaded)

@@ -110,8 +110,12 @@ const _: () = assert!(size_of::<ProxyVertex>() == 32);
 pub(crate) struct Proxy {
     /// World point the vertices are relative to (the node box's centre).
     pub origin: DVec3,
+    /// Its geometry on the CPU; a stored proxy's is dropped once uploaded
+    /// (its parents are never made from it), the counts below stay.
     pub vertices: Vec<ProxyVertex>,
     pub indices: Vec<u32>,
+    pub vertex_count: u32,
+    pub index_count: u32,
     /// How far the proxy may lie from the subtree's surface, world units.
     pub error: f64,
     /// The content it shows ([`Proxies`]'s signature of its node then).
@@ -208,8 +212,43 @@ pub(crate) fn cluster_ranges(clusters: &[Cluster], mask: u64) -> Vec<std::ops::R
 }
 
 impl Proxy {
+    /// A proxy of `vertices` and `indices` (counted).
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "every field but the counts, which follow"
+    )]
+    pub(crate) fn new(
+        origin: DVec3,
+        vertices: Vec<ProxyVertex>,
+        indices: Vec<u32>,
+        error: f64,
+        signature: u64,
+        source_triangles: u64,
+        solid: bool,
+        clusters: Vec<Cluster>,
+    ) -> Self {
+        Proxy {
+            origin,
+            vertex_count: vertices.len() as u32,
+            index_count: indices.len() as u32,
+            vertices,
+            indices,
+            error,
+            signature,
+            source_triangles,
+            solid,
+            clusters,
+        }
+    }
+
     pub(crate) fn triangles(&self) -> u64 {
-        self.indices.len() as u64 / 3
+        u64::from(self.index_count) / 3
+    }
+
+    /// Bytes of its geometry (as uploaded to the GPU).
+    pub(crate) fn geometry_bytes(&self) -> u64 {
+        u64::from(self.vertex_count) * size_of::<ProxyVertex>() as u64
+            + u64::from(self.index_count) * 4
     }
 }
 
@@ -224,7 +263,8 @@ pub struct ProxyStats {
     pub solid: u64,
     /// Triangles in all current proxies.
     pub triangles: u64,
-    /// Bytes of proxy geometry (kept once on the CPU and once on the GPU).
+    /// Bytes of proxy geometry (on the GPU; proxies made in memory keep a
+    /// CPU copy too, a store's do not).
     pub bytes: u64,
     /// Proxies made by the last build or refresh.
     pub made: u64,
@@ -332,8 +372,7 @@ impl Proxies {
                     s.proxies += 1;
                     s.solid += u64::from(p.solid);
                     s.triangles += p.triangles();
-                    s.bytes +=
-                        (p.vertices.len() * size_of::<ProxyVertex>() + p.indices.len() * 4) as u64;
+                    s.bytes += p.geometry_bytes();
                 }
                 _ if self.level[n] => s.stale += 1,
                 _ => {}
@@ -516,16 +555,16 @@ impl Proxies {
         let positions: Vec<Vec3> = vertices.iter().map(|v| Vec3::from(v.position)).collect();
         let solid = dmu_scene::is_solid(&positions, &indices);
         let (vertices, indices, clusters) = cluster(&vertices, &indices);
-        Some(Proxy {
-            solid,
-            origin: merged.origin,
+        Some(Proxy::new(
+            merged.origin,
             vertices,
             indices,
-            error: merged.error + error,
-            signature: self.signature[n as usize],
-            source_triangles: merged.source_triangles,
+            merged.error + error,
+            self.signature[n as usize],
+            merged.source_triangles,
+            solid,
             clusters,
-        })
+        ))
     }
 
     /// Adds what stands below node `c` to `merged`: its proxy at a level,

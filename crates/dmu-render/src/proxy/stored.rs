@@ -93,7 +93,9 @@ pub(crate) struct StoredNode {
     pub error: f64,
     /// The content it shows.
     pub signature: u64,
-    /// Bytes it takes in memory once loaded (CPU and GPU copies).
+    /// Bytes it takes in memory once loaded (its geometry on the GPU;
+    /// earlier builds counted its CPU copy too). The loader's priorities
+    /// read it; its budget counts the proxy loaded.
     pub bytes: u64,
 }
 const _: () = assert!(size_of::<StoredNode>() == 32);
@@ -209,21 +211,22 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<Proxy, String> {
     if !clusters.is_empty() && next as usize != indices.len() {
         return Err("its clusters do not cover its indices".into());
     }
-    Ok(Proxy {
+    Ok(Proxy::new(
         origin,
         vertices,
         indices,
-        error: header.error,
-        signature: header.signature,
-        source_triangles: header.source_triangles,
-        solid: header.solid != 0,
+        header.error,
+        header.signature,
+        header.source_triangles,
+        header.solid != 0,
         clusters,
-    })
+    ))
 }
 
-/// Bytes a proxy takes in memory (kept on the CPU and on the GPU).
+/// Bytes a loaded stored proxy takes: its geometry on the GPU (the CPU
+/// copy is dropped once uploaded, within the frame that loads it).
 fn resident_bytes(p: &Proxy) -> u64 {
-    2 * (size_of_val(p.vertices.as_slice()) + size_of_val(p.indices.as_slice())) as u64
+    p.geometry_bytes()
 }
 
 /// Brings in the chunk geometry a stored build needs, a batch at a time.
@@ -550,6 +553,11 @@ impl Proxies {
         self.stored_entry(n).map(|e| e.error)
     }
 
+    /// Whether these are a store's proxies, loaded on demand.
+    pub(crate) fn is_stored(&self) -> bool {
+        self.stored.is_some()
+    }
+
     /// Whether node `n` has a current stored proxy (loaded or not).
     pub(crate) fn is_stored_current(&self, n: u32) -> bool {
         self.stored_entry(n).is_some()
@@ -793,7 +801,7 @@ mod tests {
         let (built, blobs) = stored(&scene, &tree, 64);
         let mut h = Hierarchy::default();
         h.sync(&tree);
-        let total: u64 = 2 * built.stats.bytes;
+        let total: u64 = built.stats.bytes;
         let mut rng = Rng::new(7);
         for budget in [total / 3, total / 10, total / 40] {
             let mut p = Proxies::stored(
@@ -807,7 +815,7 @@ mod tests {
             let stored_nodes: Vec<u32> = (0..h.len() as u32)
                 .filter(|&n| p.is_stored_current(n))
                 .collect();
-            let root = p.stored_entry(h.root).map_or(0, |e| 2 * e.bytes);
+            let root = p.stored_entry(h.root).map_or(0, |e| e.bytes);
             for frame in 0..30 {
                 // A frame asks for a random half of the nodes and draws a
                 // random half of those loaded.
