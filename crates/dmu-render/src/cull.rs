@@ -641,11 +641,19 @@ impl<'a> Walk<'a> {
             self.stats.triangles_in_frustum += u64::from(entry.triangles);
         } else if let Some(p) = self.proxies
             && p.current(n).is_none()
-            && p.is_stored_current(n)
+            && let Some(error) = p.stored_error(n)
         {
-            // Coarse first: the loads go by screen size per byte, and
-            // what nothing loaded stands in for before all of it.
-            p.request(n, self.cull.coverage.size_px(bounds), !self.covered);
+            // Coarse first: what nothing loaded stands in for before all of
+            // it; under a loaded proxy only the nodes whose own fit (the
+            // others are walked through, not drawn), by screen size per
+            // byte.
+            let fits = self
+                .cull
+                .coverage
+                .error_fits(bounds, error, self.cull.lod_error_px);
+            if !self.covered || fits {
+                p.request(n, self.cull.coverage.size_px(bounds), !self.covered);
+            }
         }
         Some(kind)
     }

@@ -558,11 +558,6 @@ impl Proxies {
         self.stored.is_some()
     }
 
-    /// Whether node `n` has a current stored proxy (loaded or not).
-    pub(crate) fn is_stored_current(&self, n: u32) -> bool {
-        self.stored_entry(n).is_some()
-    }
-
     /// A frame wants node `n`'s proxy, which is not loaded and covers
     /// `size_px` on screen: asked for by that size per byte, or, when
     /// `first` (no loaded proxy above stands in for it), ahead of all of
@@ -813,7 +808,7 @@ mod tests {
             .unwrap();
             p.sync(&h, &scene, &tree);
             let stored_nodes: Vec<u32> = (0..h.len() as u32)
-                .filter(|&n| p.is_stored_current(n))
+                .filter(|&n| p.stored_error(n).is_some())
                 .collect();
             let root = p.stored_entry(h.root).map_or(0, |e| e.bytes);
             for frame in 0..30 {
