@@ -373,8 +373,15 @@ fn load_review(
     let mut stored_proxies = None;
     if let (Some(budget), Some(store)) = (memory_budget, store) {
         if proxies {
+            // Read on a thread of their own: the viewer's frames are not
+            // replayed, and loading is then not bound by their time.
             stored_proxies =
-                dmu_app::lod::stored_proxies(&store, dmu_app::lod::proxy_budget(budget))?;
+                dmu_app::lod::stored_proxies(&store, dmu_app::lod::proxy_budget(budget))?.map(
+                    |mut p| {
+                        p.load_in_background();
+                        p
+                    },
+                );
         }
         let start = Instant::now();
         review.prepare_checks();

@@ -210,7 +210,7 @@ fn edited_part_leaves_its_proxies(
 /// them down to a fiftieth, once the first frame has asked for the root's
 /// proxy, every chunk instance a frame would draw without its geometry is
 /// drawn as a loaded proxy above it instead, and the proxies loaded never
-/// take more than the budget (or the root's alone).
+/// take more than the budget and the root's.
 #[test]
 fn stored_proxies_never_leave_a_hole_over_random_views_and_budgets() {
     dmu_testkit::with_gpu(|gpu| {
@@ -288,10 +288,10 @@ fn stored_proxies_never_leave_a_hole_over_random_views_and_budgets() {
                 );
                 assert_eq!(stats.not_resident, 0, "round {round} view {k}: a hole");
                 // Loaded proxies (their geometry on the GPU) keep within the
-                // budget; the root's loads whatever it takes.
+                // budget, and the root's on top (it loads whatever it takes).
                 let loaded = rig.renderer.proxy_stats().expect("proxies").bytes;
                 assert!(
-                    loaded <= budget.max(root),
+                    loaded <= budget.saturating_add(root),
                     "round {round} view {k}: {loaded} bytes of proxies loaded, budget {budget}"
                 );
             }

@@ -19,8 +19,8 @@
 //! node (a part moved since it was made) is stale like any other: never
 //! drawn, the frame refines past it.
 
-use std::collections::HashMap;
-use std::sync::Mutex;
+use std::collections::{HashMap, HashSet};
+use std::sync::{Arc, Mutex, mpsc};
 use std::time::{Duration, Instant};
 
 use bytemuck::{Pod, Zeroable};
@@ -449,7 +449,11 @@ pub(crate) struct Stored {
     /// nodes differently from run to run; a node whose content was stored
     /// finds its proxy whatever its number.
     pub nodes: HashMap<u64, StoredNode>,
-    blobs: Box<dyn ProxyBlobs>,
+    blobs: Arc<dyn ProxyBlobs>,
+    /// A thread reading and decoding proxies ahead of the frames that
+    /// apply them ([`Proxies::load_in_background`]); without it frames
+    /// read and decode them themselves.
+    background: Option<Background>,
     /// Bytes loaded proxies may take.
     budget: u64,
     /// The root's content signature: its proxy is never evicted.
@@ -476,7 +480,56 @@ pub(crate) struct Stored {
     pub refused: u64,
 }
 
+/// Proxies read on another thread: jobs out, results back.
+#[derive(Debug)]
+struct Background {
+    jobs: mpsc::Sender<(u32, StoredNode)>,
+    done: Mutex<mpsc::Receiver<Fetched>>,
+    /// Nodes sent and not yet back.
+    in_flight: HashSet<u32>,
+}
+
+/// A proxy read for node `.0` from its entry `.1`, or why not.
+type Fetched = (u32, StoredNode, Result<Proxy, String>);
+
+/// Proxies the loading thread is asked for ahead of the frames.
+const IN_FLIGHT: usize = 32;
+
 impl Proxies {
+    /// Stored proxies are read and decoded on a thread of their own from
+    /// now on, as many as [`IN_FLIGHT`] ahead, and a frame applies (makes
+    /// room for, uploads) what came back within its load time; so loading
+    /// is not bound by the frame's time. Without this (or if the thread
+    /// cannot start) frames read them themselves, which is deterministic.
+    pub fn load_in_background(&mut self) {
+        let Some(s) = self.stored.as_mut() else {
+            return;
+        };
+        if s.background.is_some() {
+            return;
+        }
+        let (jobs, job_queue) = mpsc::channel::<(u32, StoredNode)>();
+        let (results, done) = mpsc::channel();
+        let blobs = Arc::clone(&s.blobs);
+        let started = std::thread::Builder::new()
+            .name("dmu proxy loader".into())
+            .spawn(move || {
+                for (n, entry) in job_queue {
+                    let read = blobs.blob(entry.blob).and_then(|b| decode(&b));
+                    if results.send((n, entry, read)).is_err() {
+                        break;
+                    }
+                }
+            });
+        if started.is_ok() {
+            s.background = Some(Background {
+                jobs,
+                done: Mutex::new(done),
+                in_flight: HashSet::new(),
+            });
+        }
+    }
+
     /// Proxies read on demand from a store: `index` as [`build_stored`]
     /// made it, `blobs` its blobs; loaded ones take at most `budget` bytes,
     /// loading at most `load_budget` a frame. An index that does not decode
@@ -511,7 +564,8 @@ impl Proxies {
             stored: Some(Stored {
                 last_used: HashMap::new(),
                 nodes,
-                blobs,
+                blobs: Arc::from(blobs),
+                background: None,
                 budget,
                 root: header.root,
                 resident: 0,
@@ -593,7 +647,9 @@ impl Proxies {
     /// load, nor the root's, the last fallback of every frame), and loading
     /// stops where what the last frame drew fills the budget (those nodes
     /// stay drawn coarser, `FrameStats::lod_coarse`). The root's loads
-    /// whatever it takes. The nodes loaded or evicted go to `dirty`.
+    /// whatever it takes, on top of the budget. With [`Proxies::load_in_background`] the proxies
+    /// applied are those the thread read since, and the most wanted are
+    /// sent to it. The nodes loaded or evicted go to `dirty`.
     pub(crate) fn load_requested(&mut self) {
         let Some(s) = self.stored.as_mut() else {
             return;
@@ -609,32 +665,72 @@ impl Proxies {
         requested.sort_unstable_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
         requested.dedup_by_key(|r| r.0);
         let start = Instant::now();
-        let mut made = 0;
-        for (n, _) in requested {
-            if made > 0 && start.elapsed() >= s.load_budget {
-                break;
+        let wanted = requested.iter().filter_map(|&(n, _)| {
+            let entry = *self
+                .signature
+                .get(n as usize)
+                .and_then(|sig| s.nodes.get(sig))?;
+            self.nodes
+                .get(n as usize)
+                .is_some_and(Option::is_none)
+                .then_some((n, entry))
+        });
+        let fetched: Vec<Fetched> = match s.background.as_mut() {
+            Some(b) => {
+                for (n, entry) in wanted {
+                    if b.in_flight.len() >= IN_FLIGHT {
+                        break;
+                    }
+                    if b.in_flight.insert(n) && b.jobs.send((n, entry)).is_err() {
+                        b.in_flight.remove(&n);
+                    }
+                }
+                let done = b.done.get_mut().unwrap_or_else(|e| e.into_inner());
+                let mut fetched = Vec::new();
+                while fetched.is_empty() || start.elapsed() < s.load_budget {
+                    let Ok(f) = done.try_recv() else {
+                        break;
+                    };
+                    b.in_flight.remove(&f.0);
+                    fetched.push(f);
+                }
+                fetched
             }
+            None => {
+                let mut fetched = Vec::new();
+                for (n, entry) in wanted {
+                    if !fetched.is_empty() && start.elapsed() >= s.load_budget {
+                        break;
+                    }
+                    let read = s.blobs.blob(entry.blob).and_then(|b| decode(&b));
+                    fetched.push((n, entry, read));
+                }
+                fetched
+            }
+        };
+        for (n, entry, read) in fetched {
             let slot = n as usize;
-            let Some(&entry) = self.signature.get(slot).and_then(|sig| s.nodes.get(sig)) else {
-                continue;
-            };
-            if self.nodes.get(slot).is_none_or(Option::is_some) {
+            // Back from the thread for a node that changed, or loaded
+            // meanwhile: not applied.
+            if self.signature.get(slot) != Some(&entry.signature)
+                || self.nodes.get(slot).is_none_or(Option::is_some)
+            {
                 continue;
             }
-            let p = match s.blobs.blob(entry.blob).and_then(|b| decode(&b)) {
+            let p = match read {
                 Ok(p) => p,
                 Err(e) => {
                     // Never asked for again: the node refines past it.
                     eprintln!("warning: level-of-detail node #{}: {e}", entry.blob);
                     s.nodes.remove(&entry.signature);
                     s.failures += 1;
-                    made += 1;
                     continue;
                 }
             };
             // Room is made by evicting what the last frame did not draw; where
             // that is not enough, what it drew fills the budget and loading
-            // stops (the root's loads whatever it takes).
+            // stops (the root's loads whatever it takes, on top of the
+            // budget).
             let need = resident_bytes(&p);
             if entry.signature != s.root {
                 evict(
@@ -654,7 +750,6 @@ impl Proxies {
             self.nodes[slot] = Some(Box::new(p));
             self.dirty.push(n);
             s.loads += 1;
-            made += 1;
         }
         evict(s, &mut self.nodes, &mut self.dirty, tick, s.budget);
     }
@@ -787,9 +882,10 @@ mod tests {
     }
 
     /// Loaded stored proxies never take more than their budget, whatever
-    /// frames ask for and draw (the root's excepted, which loads whatever
-    /// it takes): loads past it first evict what the last frame did not
-    /// draw, and are refused where that is not enough.
+    /// frames ask for and draw, read by the frames or on the loading thread
+    /// (the root's comes on top: it loads whatever it takes): loads past it
+    /// first evict what the last frame did not draw, and are refused where
+    /// that is not enough.
     #[test]
     fn loaded_proxies_keep_within_their_budget() {
         let (scene, tree) = plant_250k();
@@ -798,7 +894,12 @@ mod tests {
         h.sync(&tree);
         let total: u64 = built.stats.bytes;
         let mut rng = Rng::new(7);
-        for budget in [total / 3, total / 10, total / 40] {
+        for (budget, background) in [
+            (total / 3, false),
+            (total / 10, false),
+            (total / 40, false),
+            (total / 10, true),
+        ] {
             let mut p = Proxies::stored(
                 &built.index,
                 Box::new(VecBlobs(blobs.clone())),
@@ -806,6 +907,9 @@ mod tests {
                 Duration::from_secs(1),
             )
             .unwrap();
+            if background {
+                p.load_in_background();
+            }
             p.sync(&h, &scene, &tree);
             let stored_nodes: Vec<u32> = (0..h.len() as u32)
                 .filter(|&n| p.stored_error(n).is_some())
@@ -822,12 +926,16 @@ mod tests {
                         p.used(n);
                     }
                 }
+                if background {
+                    // Give the thread time to read some.
+                    std::thread::sleep(Duration::from_millis(5));
+                }
                 p.load_requested();
                 let s = p.stored.as_ref().unwrap();
                 let loaded: u64 = p.nodes.iter().flatten().map(|q| resident_bytes(q)).sum();
                 assert_eq!(loaded, s.resident, "frame {frame}");
                 assert!(
-                    s.resident <= budget.max(root),
+                    s.resident <= budget.saturating_add(root),
                     "budget {budget}, frame {frame}: {} loaded",
                     s.resident
                 );
@@ -840,6 +948,45 @@ mod tests {
             // The budget was reached: loads were refused.
             assert!(s.refused > 0, "budget {budget}");
         }
+    }
+
+    /// Proxies read on the loading thread land on the nodes that asked for
+    /// them, each what its blob holds, until every one asked for is loaded.
+    #[test]
+    fn proxies_read_in_the_background_are_those_asked_for() {
+        let (scene, tree) = plant_250k();
+        let (built, blobs) = stored(&scene, &tree, 64);
+        let mut h = Hierarchy::default();
+        h.sync(&tree);
+        let mut p = Proxies::stored(
+            &built.index,
+            Box::new(VecBlobs(blobs.clone())),
+            u64::MAX,
+            Duration::ZERO,
+        )
+        .unwrap();
+        p.load_in_background();
+        assert!(p.stored.as_ref().unwrap().background.is_some());
+        p.sync(&h, &scene, &tree);
+        let wanted: Vec<u32> = (0..h.len() as u32)
+            .filter(|&n| p.stored_error(n).is_some())
+            .collect();
+        let mut frames = 0;
+        while wanted.iter().any(|&n| p.current(n).is_none()) {
+            for &n in &wanted {
+                p.request(n, 100.0, false);
+            }
+            p.load_requested();
+            frames += 1;
+            assert!(frames < 10_000, "never all loaded");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        for &n in &wanted {
+            let entry = p.stored_entry(n).unwrap();
+            let want = decode(&blobs[entry.blob as usize]).unwrap();
+            assert_eq!(encode(p.current(n).unwrap()), encode(&want), "node {n}");
+        }
+        println!("{} proxies loaded in {frames} frames", wanted.len());
     }
 
     #[derive(Debug)]
