@@ -74,7 +74,7 @@ pub struct ProxyOptions {
     /// The simplification error each proxy aims at, as a fraction of its
     /// node's box diagonal (it claims the error measured for what it was
     /// made of, at least 4 times what the simplifier reports, plus the error
-    /// of the proxies it is made of: [`ERROR_MARGIN`]). With the default
+    /// of the proxies it is made of: `ERROR_MARGIN`). With the default
     /// 1/512 a proxy claiming 4 times its aim and its children's as much is
     /// drawn at 1 px of LOD error once its node covers under about 64 px.
     pub error_fraction: f64,

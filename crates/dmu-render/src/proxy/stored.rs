@@ -497,7 +497,7 @@ const IN_FLIGHT: usize = 32;
 
 impl Proxies {
     /// Stored proxies are read and decoded on a thread of their own from
-    /// now on, as many as [`IN_FLIGHT`] ahead, and a frame applies (makes
+    /// now on, as many as 32 (`IN_FLIGHT`) ahead, and a frame applies (makes
     /// room for, uploads) what came back within its load time; so loading
     /// is not bound by the frame's time. Without this (or if the thread
     /// cannot start) frames read them themselves, which is deterministic.
