@@ -103,7 +103,7 @@ impl Renderer {
         }
         let uploaded = self.pool.upload_time - uploaded_before;
         stats.upload_ms = (uploaded + proxy_time).as_secs_f64() * 1e3;
-        stats.proxies_stale = self.proxies.as_ref().map_or(0, |p| p.cpu.stats().stale);
+        stats.proxies_stale = self.proxies.as_ref().map_or(0, |p| p.cpu.stale());
         stats.cpu_ms = start.elapsed().as_secs_f64() * 1e3;
         view.state.knobs = Some(knobs.next(&view.options, stats.cpu_ms - stats.upload_ms));
         strategy.after_frame(self, view, &mut stats);

@@ -56,8 +56,10 @@ pub struct FrameStats {
     /// Clusters of proxies drawn in part that `hzb` left out, their boxes
     /// hidden behind the first pass's depth ([`crate::Proxies`]).
     pub culled_clusters: u64,
-    /// Proxies stale after this frame (their subtree changed; they are
-    /// remade once it is calm and meanwhile not drawn).
+    /// Proxies stale after this frame (their subtree changed; proxies made
+    /// in memory are remade once it is calm, and meanwhile not drawn; a
+    /// store's are refined past). A stored proxy still loading is not
+    /// stale.
     pub proxies_stale: u64,
     /// Nodes drawn coarser than the LOD bound asks: the stored proxy a view
     /// wants there is still loading, and a loaded one above stands in for it

@@ -305,9 +305,9 @@ fn stored_proxies_never_leave_a_hole_over_random_views_and_budgets() {
 /// A frame counts the nodes it draws coarser than the LOD bound asks (a
 /// loaded proxy above standing in for one still loading). Loading one
 /// stored proxy a frame, the root's first, the frames in between say they
-/// are coarse, and draw fewer proxies than the bound asks; once loading is
-/// done none is coarse and the stored proxies draw what those made in
-/// memory draw, pixel for pixel.
+/// are coarse, and draw fewer proxies than the bound asks (and none is
+/// stale: nothing was edited); once loading is done none is coarse and the
+/// stored proxies draw what those made in memory draw, pixel for pixel.
 #[test]
 fn a_frame_counts_the_nodes_it_draws_coarser_than_asked() {
     dmu_testkit::with_gpu(|gpu| {
@@ -343,6 +343,8 @@ fn a_frame_counts_the_nodes_it_draws_coarser_than_asked() {
             for s in coarse {
                 assert!(s.proxies_drawn < reference.proxies_drawn, "view {i}");
             }
+            // Nothing was edited: a stored proxy still loading is not stale.
+            assert!(frames.iter().all(|s| s.proxies_stale == 0), "view {i}");
             let last = frames.last().expect("frames");
             assert_eq!(last.lod_coarse, 0, "view {i}: loaded, yet coarse");
             assert_eq!(last.proxies_drawn, reference.proxies_drawn, "view {i}");

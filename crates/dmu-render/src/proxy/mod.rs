@@ -296,6 +296,9 @@ pub struct Proxies {
     level: Vec<bool>,
     /// Nodes whose proxy changed since the renderer last uploaded them.
     pub(crate) dirty: Vec<u32>,
+    /// [`Proxies::stale`] since the signatures or proxies last changed
+    /// (`None`: to count again), so a frame does not walk every node.
+    stale: std::sync::Mutex<Option<u64>>,
     /// What the last build or refresh did.
     pub(crate) last: ProxyStats,
     /// The store the proxies are read from on demand, if they are stored.
@@ -374,11 +377,28 @@ impl Proxies {
                     s.triangles += p.triangles();
                     s.bytes += p.geometry_bytes();
                 }
-                _ if self.level[n] => s.stale += 1,
                 _ => {}
             }
         }
+        s.stale = self.stale();
         s
+    }
+
+    /// Nodes whose proxy is stale or missing: made in memory, a level node
+    /// without a current proxy (remade once calm); a store's, a level node
+    /// whose content has no stored proxy (an edit changed it; frames refine
+    /// past it). Counted once after each change, not every frame.
+    pub(crate) fn stale(&self) -> u64 {
+        let mut cached = self.stale.lock().unwrap_or_else(|e| e.into_inner());
+        *cached.get_or_insert_with(|| {
+            let level = (0..self.level.len()).filter(|&n| self.level[n]);
+            match &self.stored {
+                Some(s) => level
+                    .filter(|&n| !s.nodes.contains_key(&self.signature[n]))
+                    .count() as u64,
+                None => level.filter(|&n| self.current(n as u32).is_none()).count() as u64,
+            }
+        })
     }
 
     /// The node's proxy when it shows the node's current content.
@@ -443,6 +463,7 @@ impl Proxies {
             self.changed[n] = self.tick;
         }
         self.signature = signature;
+        *self.stale.get_mut().unwrap_or_else(|e| e.into_inner()) = None;
         self.seen = Some((
             tree.revision(),
             scene.parts().iter().map(|p| p.hidden).collect(),
@@ -519,6 +540,7 @@ impl Proxies {
         let made = self.make(h, scene, tree, source, n);
         let some = made.is_some();
         self.nodes[n as usize] = made.map(Box::new);
+        *self.stale.get_mut().unwrap_or_else(|e| e.into_inner()) = None;
         if some {
             self.dirty.push(n);
         }
