@@ -455,16 +455,16 @@ impl Renderer {
                         );
                     }
                     GroupKey::Proxy(k) => {
-                        let Some((v, i)) = self
+                        let Some(b) = self
                             .proxies
                             .as_ref()
                             .and_then(|p| p.buffers.get(&proxy_nodes[k as usize]))
                         else {
                             continue;
                         };
-                        pass.set_vertex_buffer(0, v.slice(..));
+                        pass.set_vertex_buffer(0, b.vertices.slice(..));
                         pass.set_vertex_buffer(1, gpu.boxes.slice(..));
-                        pass.set_index_buffer(i.slice(..), wgpu::IndexFormat::Uint32);
+                        pass.set_index_buffer(b.indices.slice(..), b.format);
                     }
                 }
                 let offset = u64::from(first_slot[g]) * ARGS_BYTES;

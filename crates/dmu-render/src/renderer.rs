@@ -12,7 +12,7 @@ use crate::geometry::{GeometryPool, GeometrySource, SlotDraw};
 use crate::gpu::{EntryGpu, InstanceGpu, PART_CLASHING, PART_HOVERED, PART_SELECTED, ViewUniform};
 use crate::hierarchy::Hierarchy;
 use crate::pipelines::{FarPipeline, HzbPipelines, Pipelines};
-use crate::proxy::{Proxies, ProxyGpu, ProxyStats};
+use crate::proxy::{Proxies, ProxyBuffers, ProxyGpu, ProxyStats};
 use crate::stereo::StereoMode;
 
 /// The most boxes of flagged parts' chunk instances each proxy is tested
@@ -272,18 +272,40 @@ impl Renderer {
                         self.queue.write_buffer(&b, 0, contents);
                         b
                     };
-                    (
-                        buffer(
+                    // 16-bit indices where the vertices allow: half their
+                    // bytes (padded to the 4 bytes a buffer write takes).
+                    let (indices, format) = if p.short_indices() {
+                        let mut short: Vec<u16> = p.indices.iter().map(|&i| i as u16).collect();
+                        if short.len() % 2 == 1 {
+                            short.push(0);
+                        }
+                        (
+                            buffer(
+                                "dmu proxy indices",
+                                bytemuck::cast_slice(&short),
+                                wgpu::BufferUsages::INDEX,
+                            ),
+                            wgpu::IndexFormat::Uint16,
+                        )
+                    } else {
+                        (
+                            buffer(
+                                "dmu proxy indices",
+                                bytemuck::cast_slice(&p.indices),
+                                wgpu::BufferUsages::INDEX,
+                            ),
+                            wgpu::IndexFormat::Uint32,
+                        )
+                    };
+                    ProxyBuffers {
+                        vertices: buffer(
                             "dmu proxy vertices",
                             bytemuck::cast_slice(&p.vertices),
                             wgpu::BufferUsages::VERTEX,
                         ),
-                        buffer(
-                            "dmu proxy indices",
-                            bytemuck::cast_slice(&p.indices),
-                            wgpu::BufferUsages::INDEX,
-                        ),
-                    )
+                        indices,
+                        format,
+                    }
                 });
             // A stored proxy's CPU copy goes once uploaded: nothing is made
             // from it, and its budget counts the GPU's.
@@ -300,9 +322,9 @@ impl Renderer {
                 Some(buffers) => gpu.buffers.insert(n, buffers),
                 None => gpu.buffers.remove(&n),
             };
-            if let Some((vertices, indices)) = old {
-                vertices.destroy();
-                indices.destroy();
+            if let Some(old) = old {
+                old.vertices.destroy();
+                old.indices.destroy();
             }
         }
     }

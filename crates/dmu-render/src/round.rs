@@ -15,6 +15,7 @@ use crate::device::map_read;
 use crate::geometry::{ChunkSlot, GeometrySource, SlotDraw};
 use crate::gpu::{InstanceGpu, QueryBox, ViewUniform};
 use crate::pipelines::{Faces, STEREO_VIEWS};
+use crate::proxy::ProxyBuffers;
 use crate::renderer::Renderer;
 use crate::target::{FrameTarget, RoundTarget};
 
@@ -635,12 +636,17 @@ impl Renderer {
         (proxies.nodes.iter().enumerate())
             .filter_map(|(k, &n)| {
                 let proxy = p.cpu.nodes[n as usize].as_ref()?;
-                let (vertices, indices) = p.buffers.get(&n)?;
+                let ProxyBuffers {
+                    vertices,
+                    indices,
+                    format,
+                } = p.buffers.get(&n)?;
                 let mask = proxies.clusters.get(k).copied().unwrap_or(u64::MAX);
                 Some(ProxyDraw {
                     place: k as u32,
                     vertices,
                     indices,
+                    format: *format,
                     ranges: crate::proxy::cluster_ranges(&proxy.clusters, mask),
                     pipeline: (proxies.tinted[k], self.faces(gpu, proxy.solid)),
                 })
@@ -757,7 +763,7 @@ impl Renderer {
                 bound_pipeline = Some(d.pipeline);
             }
             pass.set_vertex_buffer(0, d.vertices.slice(..));
-            pass.set_index_buffer(d.indices.slice(..), wgpu::IndexFormat::Uint32);
+            pass.set_index_buffer(d.indices.slice(..), d.format);
             let frame = first_frame + d.place;
             for range in &d.ranges {
                 pass.draw_indexed(range.clone(), 0, frame..frame + 1);
@@ -1041,6 +1047,7 @@ struct ProxyDraw<'a> {
     place: u32,
     vertices: &'a wgpu::Buffer,
     indices: &'a wgpu::Buffer,
+    format: wgpu::IndexFormat,
     ranges: Vec<std::ops::Range<u32>>,
     pipeline: (bool, Faces),
 }

@@ -245,10 +245,16 @@ impl Proxy {
         u64::from(self.index_count) / 3
     }
 
+    /// Whether its indices fit in 16 bits, as uploaded to the GPU.
+    pub(crate) fn short_indices(&self) -> bool {
+        self.vertex_count <= u32::from(u16::MAX) + 1
+    }
+
     /// Bytes of its geometry (as uploaded to the GPU).
     pub(crate) fn geometry_bytes(&self) -> u64 {
+        let index = if self.short_indices() { 2 } else { 4 };
         u64::from(self.vertex_count) * size_of::<ProxyVertex>() as u64
-            + u64::from(self.index_count) * 4
+            + u64::from(self.index_count) * index
     }
 }
 
@@ -836,7 +842,16 @@ fn first_use_order(vertices: &[ProxyVertex], indices: &mut [u32]) -> Vec<ProxyVe
 pub(crate) struct ProxyGpu {
     pub cpu: Proxies,
     /// By mirror node (a map: a store's proxies are loaded a few at a time).
-    pub buffers: std::collections::HashMap<u32, (wgpu::Buffer, wgpu::Buffer)>,
+    pub buffers: std::collections::HashMap<u32, ProxyBuffers>,
+}
+
+/// A proxy's buffers on the GPU.
+#[derive(Debug)]
+pub(crate) struct ProxyBuffers {
+    pub vertices: wgpu::Buffer,
+    pub indices: wgpu::Buffer,
+    /// 16-bit where its vertices allow ([`Proxy::short_indices`]).
+    pub format: wgpu::IndexFormat,
 }
 
 #[cfg(test)]
