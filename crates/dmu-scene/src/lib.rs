@@ -57,7 +57,7 @@ pub use gltf_import::{
 pub use gltf_import::{StreamOptions, Streamed, import_gltf_streaming};
 pub use ids::{ChunkId, MaterialId, MeshId, NodeId, PartId};
 pub use lod::{
-    LodLevel, MAX_LOD_LEVELS, MIN_LOD_TRIANGLES, lod_levels, mend_pieces, simplified_error,
+    LodLevel, MAX_LOD_LEVELS, MIN_LOD_TRIANGLES, lod_levels, simplified_error, simplify_mended,
     simplify_to_error,
 };
 pub use scene::{

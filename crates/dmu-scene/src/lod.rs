@@ -146,134 +146,49 @@ pub fn simplified_error(
     target_error: f32,
     floor: f32,
 ) -> f32 {
-    let points: Vec<Vec3> = positions.iter().map(|&p| Vec3::from(p)).collect();
-    let pieces = Pieces::of(&points, indices);
-    let mut touched = vec![false; pieces.count];
-    for &v in kept {
-        touched[pieces.of[v as usize] as usize] = true;
-    }
-    let mut large = Vec::new();
-    let mut error = floor;
-    for (p, members) in pieces
-        .members
-        .chunk_by(|a, b| pieces.of[*a as usize] == pieces.of[*b as usize])
-        .enumerate()
-    {
-        let shape = Shape::of(&points, members);
-        if shape.radius <= target_error {
-            error = error.max(shape.diagonal);
-        } else if !touched[p] {
-            error = error.max(shape.off_axis);
-        } else {
-            large.extend(members.iter().map(|&v| points[v as usize]));
-        }
-    }
-    match kept.is_empty() {
-        true => error,
-        false => farthest_from_surface(&large, &points, kept, error),
-    }
+    Pieces::of(positions, indices).error(kept, target_error, floor)
 }
 
-/// Mends the pieces a simplification of `indices` to `target_error` mangled
-/// in `kept`: a piece (connected through shared vertices; not one
-/// [`simplified_error`] counts by its size) with a vertex farther than
-/// `limit` from the kept surface, as a thin plate whose two faces the
-/// simplifier folds onto each other and then wears away, loses its kept
-/// triangles and is simplified again on its own, aiming at `aim`, or kept
-/// whole where that mangles it too. So one bad piece costs its own
-/// triangles, not a finer simplification of everything. Returns the
-/// pieces mended.
-pub fn mend_pieces(
+/// [`simplify_to_error`] aiming at `aim`, its mangled pieces mended (a piece
+/// with a vertex farther than `limit` from what is kept, as a thin plate
+/// whose two faces the simplifier folds onto each other and then wears
+/// away, is simplified again on its own aiming at `mend_aim`, or kept whole
+/// where that mangles it too: one bad piece costs its own triangles, not a
+/// finer simplification of everything), and the error the result claims
+/// ([`simplified_error`], at least `margin` times meshoptimizer's
+/// estimate). The pieces are found once for both.
+pub fn simplify_mended(
     positions: &[[f32; 3]],
     indices: &[u32],
-    kept: &mut Vec<u32>,
-    target_error: f32,
-    limit: f32,
     aim: f32,
-) -> usize {
-    if kept.is_empty() {
-        return 0;
-    }
-    let points: Vec<Vec3> = positions.iter().map(|&p| Vec3::from(p)).collect();
-    let pieces = Pieces::of(&points, indices);
-    let mut touched = vec![false; pieces.count];
-    for &v in kept.iter() {
-        touched[pieces.of[v as usize] as usize] = true;
-    }
-    let grid = Grid::new(&points, kept);
-    let limit = f64::from(limit);
-    let mut bad = vec![false; pieces.count];
-    for (p, members) in pieces
-        .members
-        .chunk_by(|a, b| pieces.of[*a as usize] == pieces.of[*b as usize])
-        .enumerate()
-    {
-        let shape = Shape::of(&points, members);
-        bad[p] = shape.radius > target_error
-            && (if touched[p] {
-                members
-                    .iter()
-                    .any(|&v| grid.distance_beyond(points[v as usize].as_dvec3(), limit) > limit)
-            } else {
-                f64::from(shape.off_axis) > limit
-            });
-    }
-    let mended = bad.iter().filter(|&&b| b).count();
-    if mended == 0 {
-        return 0;
-    }
-    let of = |t: &[u32]| pieces.of[t[0] as usize] as usize;
-    let mut out: Vec<u32> = kept
-        .chunks_exact(3)
-        .filter(|t| !bad[of(t)])
-        .flatten()
-        .copied()
-        .collect();
-    // Each bad piece's triangles, compacted, simplified on their own.
-    let mut by_piece: Vec<Vec<u32>> = vec![Vec::new(); pieces.count];
-    for t in indices.chunks_exact(3).filter(|t| bad[of(t)]) {
-        by_piece[of(t)].extend_from_slice(t);
-    }
-    for triangles in by_piece.into_iter().filter(|t| !t.is_empty()) {
-        let mut local: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
-        let mut sub: Vec<[f32; 3]> = Vec::new();
-        let remapped: Vec<u32> = triangles
-            .iter()
-            .map(|&v| {
-                *local.entry(v).or_insert_with(|| {
-                    sub.push(positions[v as usize]);
-                    sub.len() as u32 - 1
-                })
-            })
-            .collect();
-        let (alone, _) = simplify_to_error(&sub, &remapped, aim);
-        let error = simplified_error(&sub, &remapped, &alone, aim, 0.0);
-        let global: Vec<u32> = local.iter().fold(vec![0; sub.len()], |mut g, (&v, &l)| {
-            g[l as usize] = v;
-            g
-        });
-        match f64::from(error) <= limit {
-            true => out.extend(alone.iter().map(|&l| global[l as usize])),
-            false => out.extend_from_slice(&triangles),
-        }
-    }
-    *kept = out;
-    mended
+    limit: f32,
+    mend_aim: f32,
+    margin: f32,
+) -> (Vec<u32>, f32) {
+    let (mut kept, estimate) = simplify_to_error(positions, indices, aim);
+    let pieces = Pieces::of(positions, indices);
+    pieces.mend(positions, indices, &mut kept, aim, limit, mend_aim);
+    let error = pieces.error(&kept, aim, margin * estimate);
+    (kept, error)
 }
 
-/// The pieces of a mesh: triangles connected through shared vertices.
+/// The pieces of a mesh (triangles connected through shared vertices) and
+/// their shapes.
 struct Pieces {
+    points: Vec<Vec3>,
     /// Per vertex, its piece (numbered in order of their first vertex;
     /// unused vertices `u32::MAX`).
     of: Vec<u32>,
     /// The used vertices, piece by piece.
     members: Vec<u32>,
-    count: usize,
+    /// Per piece.
+    shapes: Vec<Shape>,
 }
 
 impl Pieces {
-    fn of(positions: &[Vec3], indices: &[u32]) -> Self {
-        let mut parent: Vec<u32> = (0..positions.len() as u32).collect();
+    fn of(positions: &[[f32; 3]], indices: &[u32]) -> Self {
+        let points: Vec<Vec3> = positions.iter().map(|&p| Vec3::from(p)).collect();
+        let mut parent: Vec<u32> = (0..points.len() as u32).collect();
         fn root(parent: &mut [u32], mut v: u32) -> u32 {
             while parent[v as usize] != v {
                 let up = parent[parent[v as usize] as usize];
@@ -289,14 +204,14 @@ impl Pieces {
                 parent[b as usize] = a;
             }
         }
-        let mut used = vec![false; positions.len()];
+        let mut used = vec![false; points.len()];
         for &v in indices {
             used[v as usize] = true;
         }
-        let mut number = vec![u32::MAX; positions.len()];
-        let mut of = vec![u32::MAX; positions.len()];
+        let mut number = vec![u32::MAX; points.len()];
+        let mut of = vec![u32::MAX; points.len()];
         let mut count = 0;
-        for v in 0..positions.len() as u32 {
+        for v in 0..points.len() as u32 {
             if used[v as usize] {
                 let r = root(&mut parent, v) as usize;
                 if number[r] == u32::MAX {
@@ -306,15 +221,130 @@ impl Pieces {
                 of[v as usize] = number[r];
             }
         }
-        let mut members: Vec<u32> = (0..positions.len() as u32)
+        let mut members: Vec<u32> = (0..points.len() as u32)
             .filter(|&v| used[v as usize])
             .collect();
         members.sort_by_key(|&v| of[v as usize]);
-        Pieces {
+        let mut pieces = Pieces {
+            points,
             of,
             members,
-            count: count as usize,
+            shapes: Vec::new(),
+        };
+        pieces.shapes = pieces
+            .each()
+            .map(|members| Shape::of(&pieces.points, members))
+            .collect();
+        pieces
+    }
+
+    /// Each piece's vertices, in piece order.
+    fn each(&self) -> impl Iterator<Item = &[u32]> {
+        self.members
+            .chunk_by(|a, b| self.of[*a as usize] == self.of[*b as usize])
+    }
+
+    /// Per piece, whether a triangle of `kept` touches it.
+    fn touched(&self, kept: &[u32]) -> Vec<bool> {
+        let mut touched = vec![false; self.shapes.len()];
+        for &v in kept {
+            touched[self.of[v as usize] as usize] = true;
         }
+        touched
+    }
+
+    /// [`simplified_error`] of `kept`.
+    fn error(&self, kept: &[u32], target_error: f32, floor: f32) -> f32 {
+        let touched = self.touched(kept);
+        let mut large = Vec::new();
+        let mut error = floor;
+        for ((members, shape), touched) in self.each().zip(&self.shapes).zip(touched) {
+            if shape.radius <= target_error {
+                error = error.max(shape.diagonal);
+            } else if !touched {
+                error = error.max(shape.off_axis);
+            } else {
+                large.extend(members.iter().map(|&v| self.points[v as usize]));
+            }
+        }
+        match kept.is_empty() {
+            true => error,
+            false => farthest_from_surface(&large, &self.points, kept, error),
+        }
+    }
+
+    /// Mends the pieces of `indices` (into `positions`, these pieces') that
+    /// a simplification to `target_error` mangled in `kept` (see
+    /// [`simplify_mended`]; not one [`simplified_error`] counts by its
+    /// size). Returns the pieces mended.
+    fn mend(
+        &self,
+        positions: &[[f32; 3]],
+        indices: &[u32],
+        kept: &mut Vec<u32>,
+        target_error: f32,
+        limit: f32,
+        aim: f32,
+    ) -> usize {
+        if kept.is_empty() {
+            return 0;
+        }
+        let touched = self.touched(kept);
+        let grid = Grid::new(&self.points, kept);
+        let limit = f64::from(limit);
+        let bad: Vec<bool> = (self.each().zip(&self.shapes).zip(touched))
+            .map(|((members, shape), touched)| {
+                shape.radius > target_error
+                    && (if touched {
+                        members.iter().any(|&v| {
+                            grid.distance_beyond(self.points[v as usize].as_dvec3(), limit) > limit
+                        })
+                    } else {
+                        f64::from(shape.off_axis) > limit
+                    })
+            })
+            .collect();
+        let mended = bad.iter().filter(|&&b| b).count();
+        if mended == 0 {
+            return 0;
+        }
+        let of = |t: &[u32]| self.of[t[0] as usize] as usize;
+        let mut out: Vec<u32> = kept
+            .chunks_exact(3)
+            .filter(|t| !bad[of(t)])
+            .flatten()
+            .copied()
+            .collect();
+        // Each bad piece's triangles, compacted, simplified on their own.
+        let mut by_piece: Vec<Vec<u32>> = vec![Vec::new(); self.shapes.len()];
+        for t in indices.chunks_exact(3).filter(|t| bad[of(t)]) {
+            by_piece[of(t)].extend_from_slice(t);
+        }
+        for triangles in by_piece.into_iter().filter(|t| !t.is_empty()) {
+            let mut local: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+            let mut sub: Vec<[f32; 3]> = Vec::new();
+            let remapped: Vec<u32> = triangles
+                .iter()
+                .map(|&v| {
+                    *local.entry(v).or_insert_with(|| {
+                        sub.push(positions[v as usize]);
+                        sub.len() as u32 - 1
+                    })
+                })
+                .collect();
+            let (alone, _) = simplify_to_error(&sub, &remapped, aim);
+            let error = simplified_error(&sub, &remapped, &alone, aim, 0.0);
+            let global: Vec<u32> = local.iter().fold(vec![0; sub.len()], |mut g, (&v, &l)| {
+                g[l as usize] = v;
+                g
+            });
+            match f64::from(error) <= limit {
+                true => out.extend(alone.iter().map(|&l| global[l as usize])),
+                false => out.extend_from_slice(&triangles),
+            }
+        }
+        *kept = out;
+        mended
     }
 }
 
@@ -591,7 +621,14 @@ mod tests {
                 .fold(0.0, f64::max)
         };
         let before = worst(&kept);
-        let mended = mend_pieces(&positions, &indices, &mut kept, aim, limit, aim / 4.0);
+        let mended = Pieces::of(&positions, &indices).mend(
+            &positions,
+            &indices,
+            &mut kept,
+            aim,
+            limit,
+            aim / 4.0,
+        );
         let after = worst(&kept);
         println!("{mended} pieces mended: the farthest vertex {before:.1} -> {after:.1}");
         assert!(

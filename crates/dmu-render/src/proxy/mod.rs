@@ -769,21 +769,13 @@ fn simplify(
     let mut aim = target_error as f32;
     let mut best: Option<(Vec<u32>, f32)> = None;
     for _ in 0..=RETRIES {
-        let (mut kept, estimate) = dmu_scene::simplify_to_error(&positions, &welded, aim);
-        dmu_scene::mend_pieces(
+        let (kept, error) = dmu_scene::simplify_mended(
             &positions,
             &welded,
-            &mut kept,
             aim,
             RETRY_OVER * aim,
             aim / RETRY_OVER,
-        );
-        let error = dmu_scene::simplified_error(
-            &positions,
-            &welded,
-            &kept,
-            aim,
-            ERROR_MARGIN as f32 * estimate,
+            ERROR_MARGIN as f32,
         );
         if best.as_ref().is_none_or(|b| error < b.1) {
             best = Some((kept, error));
