@@ -274,28 +274,15 @@ impl Renderer {
                     };
                     // 16-bit indices where the vertices allow: half their
                     // bytes (padded to the 4 bytes a buffer write takes).
+                    let mut short: Vec<u16> = Vec::new();
                     let (indices, format) = if p.short_indices() {
-                        let mut short: Vec<u16> = p.indices.iter().map(|&i| i as u16).collect();
+                        short.extend(p.indices.iter().map(|&i| i as u16));
                         if short.len() % 2 == 1 {
                             short.push(0);
                         }
-                        (
-                            buffer(
-                                "dmu proxy indices",
-                                bytemuck::cast_slice(&short),
-                                wgpu::BufferUsages::INDEX,
-                            ),
-                            wgpu::IndexFormat::Uint16,
-                        )
+                        (bytemuck::cast_slice(&short), wgpu::IndexFormat::Uint16)
                     } else {
-                        (
-                            buffer(
-                                "dmu proxy indices",
-                                bytemuck::cast_slice(&p.indices),
-                                wgpu::BufferUsages::INDEX,
-                            ),
-                            wgpu::IndexFormat::Uint32,
-                        )
+                        (bytemuck::cast_slice(&p.indices), wgpu::IndexFormat::Uint32)
                     };
                     ProxyBuffers {
                         vertices: buffer(
@@ -303,7 +290,7 @@ impl Renderer {
                             bytemuck::cast_slice(&p.vertices),
                             wgpu::BufferUsages::VERTEX,
                         ),
-                        indices,
+                        indices: buffer("dmu proxy indices", indices, wgpu::BufferUsages::INDEX),
                         format,
                     }
                 });

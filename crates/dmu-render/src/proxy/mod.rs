@@ -407,6 +407,11 @@ impl Proxies {
         })
     }
 
+    /// Forgets the stale count: signatures or proxies changed.
+    fn count_stale_again(&mut self) {
+        *self.stale.get_mut().unwrap_or_else(|e| e.into_inner()) = None;
+    }
+
     /// The node's proxy when it shows the node's current content.
     pub(crate) fn current(&self, node: u32) -> Option<&Proxy> {
         let p = self.nodes.get(node as usize)?.as_ref()?;
@@ -469,7 +474,7 @@ impl Proxies {
             self.changed[n] = self.tick;
         }
         self.signature = signature;
-        *self.stale.get_mut().unwrap_or_else(|e| e.into_inner()) = None;
+        self.count_stale_again();
         self.seen = Some((
             tree.revision(),
             scene.parts().iter().map(|p| p.hidden).collect(),
@@ -546,7 +551,7 @@ impl Proxies {
         let made = self.make(h, scene, tree, source, n);
         let some = made.is_some();
         self.nodes[n as usize] = made.map(Box::new);
-        *self.stale.get_mut().unwrap_or_else(|e| e.into_inner()) = None;
+        self.count_stale_again();
         if some {
             self.dirty.push(n);
         }

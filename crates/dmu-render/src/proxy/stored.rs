@@ -900,20 +900,13 @@ mod tests {
             (total / 40, false),
             (total / 10, true),
         ] {
-            let mut p = Proxies::stored(
-                &built.index,
-                Box::new(VecBlobs(blobs.clone())),
+            let (mut p, stored_nodes) = synced(
+                (&scene, &tree, &h),
+                (&built, &blobs),
                 budget,
                 Duration::from_secs(1),
-            )
-            .unwrap();
-            if background {
-                p.load_in_background();
-            }
-            p.sync(&h, &scene, &tree);
-            let stored_nodes: Vec<u32> = (0..h.len() as u32)
-                .filter(|&n| p.stored_error(n).is_some())
-                .collect();
+                background,
+            );
             let root = p.stored_entry(h.root).map_or(0, |e| e.bytes);
             for frame in 0..30 {
                 // A frame asks for a random half of the nodes and draws a
@@ -958,19 +951,14 @@ mod tests {
         let (built, blobs) = stored(&scene, &tree, 64);
         let mut h = Hierarchy::default();
         h.sync(&tree);
-        let mut p = Proxies::stored(
-            &built.index,
-            Box::new(VecBlobs(blobs.clone())),
+        let (mut p, wanted) = synced(
+            (&scene, &tree, &h),
+            (&built, &blobs),
             u64::MAX,
             Duration::ZERO,
-        )
-        .unwrap();
-        p.load_in_background();
+            true,
+        );
         assert!(p.stored.as_ref().unwrap().background.is_some());
-        p.sync(&h, &scene, &tree);
-        let wanted: Vec<u32> = (0..h.len() as u32)
-            .filter(|&n| p.stored_error(n).is_some())
-            .collect();
         let mut frames = 0;
         while wanted.iter().any(|&n| p.current(n).is_none()) {
             for &n in &wanted {
@@ -987,6 +975,33 @@ mod tests {
             assert_eq!(encode(p.current(n).unwrap()), encode(&want), "node {n}");
         }
         println!("{} proxies loaded in {frames} frames", wanted.len());
+    }
+
+    /// `built`'s proxies read from `blobs` within `budget` bytes and `load`
+    /// a frame (on the loading thread where `background`), synced with the
+    /// model, and the mirror nodes that have one.
+    fn synced(
+        (scene, tree, h): (&Scene, &Tree, &Hierarchy),
+        (built, blobs): (&StoredBuild, &[Vec<u8>]),
+        budget: u64,
+        load: Duration,
+        background: bool,
+    ) -> (Proxies, Vec<u32>) {
+        let mut p = Proxies::stored(
+            &built.index,
+            Box::new(VecBlobs(blobs.to_vec())),
+            budget,
+            load,
+        )
+        .unwrap();
+        if background {
+            p.load_in_background();
+        }
+        p.sync(h, scene, tree);
+        let nodes = (0..h.len() as u32)
+            .filter(|&n| p.stored_error(n).is_some())
+            .collect();
+        (p, nodes)
     }
 
     #[derive(Debug)]
