@@ -5,15 +5,16 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use dmu_collide::{Checker, Report, Settings};
-use dmu_geom::{Ray3d, median, percentile};
+use dmu_geom::{median, percentile};
 use dmu_render::Hierarchy;
 use dmu_samples::Rng;
 use dmu_scene::{PartId, Scene};
 use dmu_tree::{Tree, TreeOptions};
-use glam::{DAffine3, DVec3};
+use glam::DAffine3;
 use serde_json::json;
 
 use crate::bench_collide::{drag_path, dragged_part};
+use crate::bench_pick::{in_ball, random_rays};
 use crate::load::{ModelArgs, load};
 use crate::units::{
     MAX_CHUNK_TRIANGLES, MAX_LENGTH, MAX_STEPS, MAX_TRIANGLES, MIN_PLANT_TRIANGLES, count_in,
@@ -33,6 +34,9 @@ enum What {
     Tree(TreeArgs),
     /// Collision checks per second for a part dragged through the model, with and without the tree.
     Collide(crate::bench_collide::CollideArgs),
+    /// Exact picks a second per core: random and camera rays, cold and warm,
+    /// a sample checked against a brute force.
+    Pick(crate::bench_pick::PickArgs),
 }
 
 #[derive(Debug, clap::Args)]
@@ -85,6 +89,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     match &args.what {
         What::Tree(t) => bench_tree(t),
         What::Collide(c) => crate::bench_collide::bench_collide(c),
+        What::Pick(p) => crate::bench_pick::bench_pick(p),
     }
 }
 
@@ -92,20 +97,6 @@ fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
     let start = Instant::now();
     let out = f();
     (out, start.elapsed().as_secs_f64())
-}
-
-/// A point in the unit ball, uniformly.
-fn in_ball(rng: &mut Rng) -> DVec3 {
-    loop {
-        let v = DVec3::new(
-            rng.range(-1.0, 1.0),
-            rng.range(-1.0, 1.0),
-            rng.range(-1.0, 1.0),
-        );
-        if v.length_squared() <= 1.0 {
-            return v;
-        }
-    }
 }
 
 fn bench_tree(args: &TreeArgs) -> anyhow::Result<()> {
@@ -126,21 +117,8 @@ fn bench_tree(args: &TreeArgs) -> anyhow::Result<()> {
     let (mut tree, build_s) = time(|| Tree::build(scene, options));
 
     // Rays aimed at random triangles from a few metres away: each hits something.
-    let entries = tree.entries();
-    let rays: Vec<Ray3d> = (0..args.rays)
-        .map(|_| {
-            let e = &entries[rng.below(entries.len() as u64) as usize];
-            let c = scene.chunk(e.chunk);
-            let t = c.triangles.start + rng.below(u64::from(c.triangle_count())) as u32;
-            let tri = scene.triangle_local(c.mesh, e.chunk, t);
-            let target = scene
-                .part_world(e.part)
-                .transform_point3(((tri[0] + tri[1] + tri[2]) / 3.0).as_dvec3());
-            let eye = target
-                + in_ball(&mut rng).normalize_or(DVec3::Z) * rng.range(0.5, 20.0) * args.move_reach;
-            Ray3d::new(eye, (target - eye).normalize())
-        })
-        .collect();
+    let reach = (0.5 * args.move_reach, 20.0 * args.move_reach);
+    let rays = random_rays(scene, tree.entries(), &mut rng, args.rays, reach);
     let mut pick_cold = Vec::with_capacity(rays.len());
     let mut pick_warm = Vec::with_capacity(rays.len());
     let mut hits = 0usize;

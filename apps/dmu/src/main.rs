@@ -1,6 +1,7 @@
 //! `dmu`: the command line of the dmu digital-mockup viewer.
 
 mod bench_collide;
+mod bench_pick;
 mod cmd_bcf;
 mod cmd_bench;
 mod cmd_collide;

@@ -250,3 +250,34 @@ fn bad_ray_lines_are_named() {
     let out = dmu(&["pick", &grid]);
     assert_eq!(out.status.code(), Some(2), "a ray or rays are required");
 }
+
+/// `dmu bench pick` checks a sample of its picks against a brute force over
+/// every triangle (and fails when one differs): on the built-in plant, every
+/// random ray (aimed at a triangle) hits, and no checked pick differs.
+#[test]
+fn bench_pick_agrees_with_a_brute_force() {
+    let out = dmu(&[
+        "bench",
+        "pick",
+        "--triangles",
+        "100k",
+        "--rays",
+        "400",
+        "--sample",
+        "40",
+        "--threads",
+        "2",
+        "--json",
+    ]);
+    let report = json(&out);
+    for kind in ["random", "camera"] {
+        let r = &report[kind];
+        assert_eq!(r["wrong"], serde_json::json!([]), "{kind}: {r}");
+        assert_eq!(r["checked_by_brute_force"], 40, "{kind}");
+        assert!(r["warm_us_per_ray_per_core"].as_f64().unwrap() > 0.0);
+        assert!(r["chunk_bvhs_built"].as_u64().unwrap() > 0, "{kind}");
+    }
+    assert_eq!(report["random"]["hits"], report["random"]["rays"]);
+    let camera_hits = report["camera"]["hits"].as_u64().unwrap();
+    assert!(camera_hits > 0 && camera_hits < 400, "{camera_hits} of 400");
+}

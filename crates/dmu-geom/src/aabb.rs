@@ -137,6 +137,7 @@ aabb_impl!(Aabb3d, DVec3, f64);
 
 impl Aabb3f {
     /// This box widened to f64 (exact).
+    #[inline]
     pub fn as_dvec(&self) -> Aabb3d {
         Aabb3d {
             min: self.min.as_dvec3(),

@@ -33,6 +33,7 @@ macro_rules! ray_box_impl {
             };
 
             /// Prepares `ray` for slab tests.
+            #[inline]
             pub fn new(ray: &$ray) -> Self {
                 Self {
                     origin: ray.origin,
@@ -45,6 +46,7 @@ macro_rules! ray_box_impl {
             /// as inside: touching a face, an edge or a zero-extent box is a hit, with
             /// `t_enter == t_exit` possible. An origin inside the box gives
             /// `t_enter = 0`. The `EMPTY` box is never hit.
+            #[inline]
             pub fn hit(&self, aabb: &$aabb, t_max: $scalar) -> Option<($scalar, $scalar)> {
                 let mut t_enter: $scalar = 0.0;
                 let mut t_exit = t_max;

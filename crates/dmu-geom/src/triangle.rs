@@ -38,6 +38,7 @@ macro_rules! ray_tri_impl {
 
         impl $name {
             /// Prepares `ray`. A zero direction is allowed and hits nothing.
+            #[inline]
             pub fn new(ray: &$ray) -> Self {
                 let kz = ray.dir.abs().max_position();
                 let mut kx = (kz + 1) % 3;
@@ -58,6 +59,7 @@ macro_rules! ray_tri_impl {
             /// a mesh there hits at least one of them. Degenerate (zero-area)
             /// triangles, rays in the triangle's plane that meet no area, and
             /// non-finite results give `None`; no NaN is ever returned.
+            #[inline]
             pub fn hit(
                 &self,
                 v0: $vec,

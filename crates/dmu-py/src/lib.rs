@@ -52,12 +52,11 @@ use dmu_scene::limits::{MAX_CHUNK_TRIANGLES, MAX_LENGTH, MAX_TRIANGLES, MIN_PLAN
 use dmu_scene::{ImportOptions, PartId, Scene};
 use dmu_tree::{HitReport, Tree, TreeOptions};
 use glam::{DAffine3, DMat3, DVec3};
-use numpy::{AllowTypeChange, IntoPyArray as _, PyArray1, PyArray2, PyArrayLike2};
+use numpy::{AllowTypeChange, IntoPyArray as _, PyArray1, PyArray2, PyArray3, PyArrayLike2};
 use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyByteArray, PyBytes, PyDict, PyList, PyString};
-use rayon::prelude::*;
 
 create_exception!(
     dmu,
@@ -153,7 +152,7 @@ impl Model {
 }
 
 /// Reads a ray, scaling its direction safely (as `dmu pick --ray` does).
-fn ray(what: &str, origin: [f64; 3], direction: [f64; 3]) -> PyResult<Ray3d> {
+fn ray(what: impl std::fmt::Display, origin: [f64; 3], direction: [f64; 3]) -> PyResult<Ray3d> {
     Ray3d::with_safe_dir(DVec3::from(origin), DVec3::from(direction)).ok_or_else(|| {
         DmuError::new_err(format!(
             "{what}: origin and direction must be finite and the direction non-zero"
@@ -267,22 +266,18 @@ impl Model {
             .iter()
             .zip(&directions)
             .enumerate()
-            .map(|(i, (&o, &d))| ray(&format!("ray {i}"), o, d))
+            .map(|(i, (&o, &d))| ray(format_args!("ray {i}"), o, d))
             .collect::<PyResult<Vec<_>>>()?;
-        let hits: Vec<_> = self.reading(py, |st| {
-            rays.par_iter()
-                .map(|ray| st.tree.pick(&st.scene, ray).map(|h| (h, ray.dir.length())))
-                .collect()
-        });
+        let hits = self.reading(py, |st| st.tree.pick_many(&st.scene, &rays));
         let n = hits.len();
         let mut ids = Vec::with_capacity(n);
         let mut distances = Vec::with_capacity(n);
         let mut points = Vec::with_capacity(3 * n);
-        for hit in &hits {
+        for (hit, ray) in hits.iter().zip(&rays) {
             match hit {
-                Some((h, length)) => {
+                Some(h) => {
                     ids.push(i64::from(h.part.0));
-                    distances.push(h.t * length);
+                    distances.push(h.t * ray.dir.length());
                     points.extend_from_slice(&h.point.to_array());
                 }
                 None => {
@@ -450,6 +445,37 @@ impl Model {
         self.reading(py, |st| dmu_store::save_scene(&st.scene, source, &path))
             .map(|_| ())
             .map_err(dmu_error)
+    }
+
+    /// Every triangle of the visible parts in world coordinates, for other
+    /// tools (a reference ray tracer, a mesh library): `(triangles, part_ids)`,
+    /// float64 `(N, 3, 3)` (triangle, corner, coordinate) and int64 `(N,)`.
+    /// Instances are expanded, so N is `triangles` less the hidden parts'.
+    fn world_triangles<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> (Bound<'py, PyArray3<f64>>, Bound<'py, PyArray1<i64>>) {
+        let (corners, ids) = self.reading(py, |st| {
+            let scene = &st.scene;
+            let mut corners = Vec::new();
+            let mut ids = Vec::new();
+            for part in scene.part_ids().filter(|&p| !scene.part(p).hidden) {
+                let world = scene.part_world(part);
+                let mesh = scene.part(part).mesh;
+                for chunk in scene.mesh(mesh).chunk_ids() {
+                    for t in scene.chunk(chunk).triangles.clone() {
+                        for v in scene.triangle_local(mesh, chunk, t) {
+                            corners.extend(world.transform_point3(v.as_dvec3()).to_array());
+                        }
+                        ids.push(i64::from(part.0));
+                    }
+                }
+            }
+            (corners, ids)
+        });
+        let corners = numpy::ndarray::Array3::from_shape_vec((ids.len(), 3, 3), corners)
+            .expect("nine coordinates per triangle");
+        (corners.into_pyarray(py), ids.into_pyarray(py))
     }
 
     /// Triangles, instances counted.

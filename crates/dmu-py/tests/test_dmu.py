@@ -248,3 +248,20 @@ def test_issue_48_collide_refuses_bytes(grid_glb):
             m.collide(bad)
     with pytest.raises(dmu.DmuError, match="not one dict"):
         m.collide({"t": 0, "part": "box_0_0_0", "translation": [0, 0, 0], "rotation": [0, 0, 0, 1]})
+
+
+def test_world_triangles_are_the_parts_in_place(grid_glb):
+    m = dmu.open(grid_glb)
+    tris, ids = m.world_triangles()
+    assert tris.shape == (64 * 12, 3, 3) and tris.dtype == np.float64
+    assert ids.shape == (64 * 12,) and ids.dtype == np.int64
+    for p in m.parts():
+        # Each grid box is 4 wide, centred on its part's translation.
+        corners = tris[ids == p["id"]].reshape(-1, 3)
+        centre = m.world(p["id"])[:3, 3]
+        assert len(corners) == 36
+        assert np.array_equal(np.unique(np.abs(corners - centre)), [2.0])
+    # A pick lands on one of the triangles of the part it names.
+    hit = m.pick((-5.0, 10.3, 20.4), (1.0, 0.0, 0.0))
+    mine = tris[ids == hit["part_id"]]
+    assert np.isclose(mine[:, :, 0], hit["point"][0]).all(axis=1).any()

@@ -10,7 +10,9 @@ use std::time::Duration;
 
 use dmu_geom::{Aabb3f, Ray3d, RayBoxTest3d, RayTriTest3d};
 use dmu_scene::{ChunkId, Scene};
-use glam::Vec3A;
+
+use crate::stack::{Stack, reach};
+use glam::{Vec3, Vec3A};
 use obvhs::BvhBuildParams;
 use obvhs::bvh2::Bvh2;
 use obvhs::triangle::Triangle;
@@ -85,8 +87,9 @@ impl ChunkBvhCache {
     }
 
     /// Calls `visit` with every triangle of `chunk` whose BVH leaf the local ray
-    /// reaches before `t_max`; `visit` returns the new `t_max` (to shrink the
-    /// search for the nearest hit) or the old one (to see every hit).
+    /// reaches before `t_max`, nearer subtrees first; `visit` returns the new
+    /// `t_max` (to shrink the search for the nearest hit) or the old one (to
+    /// see every hit). Panics when the chunk's geometry is not loaded.
     pub fn for_each_hit(
         &self,
         scene: &Scene,
@@ -97,42 +100,70 @@ impl ChunkBvhCache {
     ) {
         let c = scene.chunk(chunk);
         let tri_test = RayTriTest3d::new(local);
-        let test = |t: u32, t_max: f64| {
-            let [a, b, d] = scene.triangle_local(c.mesh, chunk, t).map(|v| v.as_dvec3());
-            tri_test.hit(a, b, d, 0.0, t_max).map(|h| LocalHit {
-                triangle: t,
-                t: h.t,
-            })
+        let mut test = |t: u32, corners: [Vec3; 3], t_max: f64| {
+            let [a, b, d] = corners.map(Vec3::as_dvec3);
+            match tri_test.hit(a, b, d, 0.0, t_max) {
+                Some(h) => visit(LocalHit {
+                    triangle: c.triangles.start + t,
+                    t: h.t,
+                }),
+                None => t_max,
+            }
+        };
+        let geometry = scene
+            .chunk_geometry(chunk)
+            .expect("picking a chunk whose geometry is loaded");
+        let corners = |t: u32| {
+            let i = 3 * t as usize;
+            [0, 1, 2].map(|k| geometry.positions[geometry.indices[i + k] as usize])
         };
         let Some(bvh) = self.get(scene, chunk) else {
-            for t in c.triangles.clone() {
-                if let Some(hit) = test(t, t_max) {
-                    t_max = visit(hit);
-                }
+            for t in 0..c.triangle_count() {
+                t_max = test(t, corners(t), t_max);
             }
             return;
         };
         let box_test = RayBoxTest3d::new(local);
-        let mut stack: Vec<u32> = vec![0];
-        while let Some(n) = stack.pop() {
-            let BvhNode {
-                bounds,
-                count,
-                first,
-            } = bvh.nodes[n as usize];
-            if box_test.hit(&bounds.as_dvec(), t_max).is_none() {
-                continue;
-            }
-            if count == 0 {
-                stack.push(first);
-                stack.push(first + 1);
-                continue;
-            }
-            for &t in &bvh.triangles[first as usize..(first + count) as usize] {
-                if let Some(hit) = test(c.triangles.start + t, t_max) {
-                    t_max = visit(hit);
+        let enter = |n: u32, t_max: f64| {
+            box_test
+                .hit(&bvh.nodes[n as usize].bounds.as_dvec(), reach(t_max))
+                .map(|(t, _)| t)
+        };
+        // Subtrees still to see, with the distance at which the ray enters them.
+        let mut stack = Stack::new();
+        let mut node = enter(0, t_max).map(|_| 0);
+        loop {
+            if let Some(n) = node {
+                let BvhNode { count, first, .. } = bvh.nodes[n as usize];
+                if count == 0 {
+                    node = match (enter(first, t_max), enter(first + 1, t_max)) {
+                        (Some(a), Some(b)) => {
+                            let (near, far, t_far) = if a <= b {
+                                (first, first + 1, b)
+                            } else {
+                                (first + 1, first, a)
+                            };
+                            stack.push((far, t_far));
+                            Some(near)
+                        }
+                        (Some(_), None) => Some(first),
+                        (None, Some(_)) => Some(first + 1),
+                        (None, None) => None,
+                    };
+                    continue;
+                }
+                let leaf = first as usize..(first + count) as usize;
+                for &t in &bvh.triangles[leaf] {
+                    t_max = test(t, corners(t), t_max);
                 }
             }
+            node = loop {
+                match stack.pop() {
+                    None => return,
+                    Some((n, t)) if t <= reach(t_max) => break Some(n),
+                    Some(_) => {}
+                }
+            };
         }
     }
 }
@@ -152,7 +183,7 @@ fn build(scene: &Scene, chunk: ChunkId) -> Option<ChunkBvh> {
         .collect();
     let mut build_time = Duration::ZERO;
     let bvh: Bvh2 =
-        obvhs::bvh2::builder::build_bvh2(&tris, BvhBuildParams::fast_build(), &mut build_time);
+        obvhs::bvh2::builder::build_bvh2(&tris, BvhBuildParams::very_fast_build(), &mut build_time);
     let nodes = bvh
         .nodes
         .iter()

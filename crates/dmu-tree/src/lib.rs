@@ -47,6 +47,7 @@ mod chunk_bvh;
 mod overlap;
 mod query;
 mod smallest;
+mod stack;
 mod tree;
 mod update;
 mod validate;

@@ -1,12 +1,10 @@
 //! Queries: nearest and all ray hits, parts in a box, frustum traversal.
 
-use std::collections::BinaryHeap;
-
 use dmu_geom::{Aabb3d, Containment, Frustum, Plane, Ray3d, RayBoxTest3d};
 use dmu_scene::{ChunkId, PartId, Scene};
 use glam::DVec3;
 
-use crate::smallest::Smallest;
+use crate::stack::{Stack, reach};
 use crate::tree::{CellId, EntryId, Kind, Tree};
 
 /// A ray hit on a triangle.
@@ -87,6 +85,13 @@ impl Tree {
         self.pick_kept(scene, ray, &[])
     }
 
+    /// [`Tree::pick`] of each ray, in order, on rayon's threads (the
+    /// current pool's). Every chunk BVH a ray needs is built on first use.
+    pub fn pick_many(&self, scene: &Scene, rays: &[Ray3d]) -> Vec<Option<Hit>> {
+        use rayon::prelude::*;
+        rays.par_iter().map(|ray| self.pick(scene, ray)).collect()
+    }
+
     /// The nearest hit of a world ray on what a section keeps: hits on the
     /// negative side of any of `section`'s planes (cut away, not drawn) are
     /// passed through, as the eye sees through them. No planes: [`Tree::pick`].
@@ -105,13 +110,14 @@ impl Tree {
         ray: &Ray3d,
         section: &[Plane],
     ) -> (Option<Hit>, Vec<EntryId>) {
-        let mut best: Option<Hit> = None;
+        let mut best: Option<Found> = None;
         let mut unloaded = Vec::new();
         self.ray_search(
             scene,
             ray,
             &mut |hit| {
-                let kept = section.iter().all(|p| p.signed_distance(hit.point) >= 0.0);
+                let point = ray.at(hit.t);
+                let kept = section.iter().all(|p| p.signed_distance(point) >= 0.0);
                 if kept && best.is_none_or(|b| hit.t < b.t) {
                     best = Some(hit);
                 }
@@ -122,6 +128,7 @@ impl Tree {
         let limit = best.map_or(f64::INFINITY, |b| b.t);
         unloaded.retain(|&(t, _)| t < limit);
         unloaded.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.0.cmp(&b.1.0)));
+        let best = best.map(|f| f.hit(scene, ray));
         (best, unloaded.into_iter().map(|(_, e)| e).collect())
     }
 
@@ -134,7 +141,7 @@ impl Tree {
             scene,
             ray,
             &mut |hit| {
-                hits.push(hit);
+                hits.push(hit.hit(scene, ray));
                 f64::INFINITY
             },
             &mut |_, _| {},
@@ -150,17 +157,17 @@ impl Tree {
         hits
     }
 
-    /// Best-first traversal: nodes by the distance at which the ray enters them.
+    /// Nearest-first traversal: depth first, the nearer child first.
     /// `found` gets each hit and returns the farthest `t` still of interest (the
-    /// hit's own `t` for the nearest hit, infinity for all hits); the search stops
-    /// once the next node starts beyond it. Chunk instances whose mesh is not
+    /// hit's own `t` for the nearest hit, infinity for all hits); nodes that
+    /// start beyond it are skipped. Chunk instances whose mesh is not
     /// loaded are not searched: `unloaded` gets each with the `t` at which
     /// the ray enters its box.
     fn ray_search(
         &self,
         scene: &Scene,
         ray: &Ray3d,
-        found: &mut dyn FnMut(Hit) -> f64,
+        found: &mut dyn FnMut(Found) -> f64,
         unloaded: &mut dyn FnMut(EntryId, f64),
     ) {
         if !(ray.origin.is_finite() && ray.dir.is_finite()) || ray.dir == DVec3::ZERO {
@@ -168,70 +175,67 @@ impl Tree {
         }
         let test = RayBoxTest3d::new(ray);
         let mut t_max = f64::INFINITY;
-        let mut heap = BinaryHeap::new();
-        if let Some((t, _)) = test.hit(&self.nodes[self.root as usize].bounds, t_max) {
-            heap.push(Smallest {
-                key: t,
-                item: self.root,
-            });
+        let enter = |n: u32, t_max: f64| {
+            test.hit(&self.nodes[n as usize].bounds, reach(t_max))
+                .map(|h| h.0)
+        };
+        // Depth first, the nearer child first; a subtree waits on the stack
+        // with the distance at which the ray enters it, and is dropped once
+        // a hit is nearer.
+        let mut stack = Stack::new();
+        if let Some(t) = enter(self.root, t_max) {
+            stack.push((self.root, t));
         }
-        // Nodes nearest entry first.
-        while let Some(Smallest { key: t, item: node }) = heap.pop() {
-            if t > t_max {
-                break;
+        while let Some((node, t)) = stack.pop() {
+            if t > reach(t_max) {
+                continue;
             }
             match self.nodes[node as usize].kind {
-                Kind::Internal(children) => {
-                    for c in children {
-                        if let Some((t, _)) = test.hit(&self.nodes[c as usize].bounds, t_max) {
-                            heap.push(Smallest { key: t, item: c });
-                        }
+                Kind::Internal([a, b]) => match (enter(a, t_max), enter(b, t_max)) {
+                    (Some(ta), Some(tb)) if ta <= tb => {
+                        stack.push((b, tb));
+                        stack.push((a, ta));
                     }
-                }
+                    (Some(ta), Some(tb)) => {
+                        stack.push((a, ta));
+                        stack.push((b, tb));
+                    }
+                    (Some(ta), None) => stack.push((a, ta)),
+                    (None, Some(tb)) => stack.push((b, tb)),
+                    (None, None) => {}
+                },
                 Kind::Leaf(cell) => {
-                    for (part, entries) in self.cell_groups(CellId(cell)) {
-                        if scene.part(part).hidden {
+                    // The entries' boxes first: the part's pose and frame are
+                    // fetched only for entries the ray meets. A cell keeps each
+                    // part's entries together, so its frame is made once.
+                    let mut frame: Option<(PartId, Option<PartFrame>)> = None;
+                    for &e in &self.cells[cell as usize].entries {
+                        let entry = &self.entries[e as usize];
+                        let Some((t_enter, _)) = test.hit(&entry.bounds, reach(t_max)) else {
+                            continue;
+                        };
+                        let part = entry.part;
+                        if frame.as_ref().is_none_or(|(p, _)| *p != part) {
+                            frame = Some((part, PartFrame::new(scene, part, ray)));
+                        }
+                        let Some((_, Some(f))) = &frame else {
+                            continue;
+                        };
+                        if !f.loaded {
+                            unloaded(EntryId(e), t_enter);
                             continue;
                         }
-                        if !scene.part_mesh(part).is_loaded() {
-                            for &e in entries {
-                                if let Some((t, _)) =
-                                    test.hit(&self.entries[e as usize].bounds, t_max)
-                                {
-                                    unloaded(EntryId(e), t);
-                                }
-                            }
-                            continue;
-                        }
-                        let world = scene.part_world(part);
-                        let local = ray.to_local(&world);
-                        let normal_matrix = world.matrix3.inverse().transpose();
-                        for &e in entries {
-                            let entry = &self.entries[e as usize];
-                            if test.hit(&entry.bounds, t_max).is_none() {
-                                continue;
-                            }
-                            self.bvhs
-                                .for_each_hit(scene, entry.chunk, &local, t_max, &mut |h| {
-                                    let [a, b, c] = scene.triangle_local(
-                                        scene.part(part).mesh,
-                                        entry.chunk,
-                                        h.triangle,
-                                    );
-                                    let n = (normal_matrix * (b - a).cross(c - a).as_dvec3())
-                                        .normalize_or_zero();
-                                    let hit = Hit {
-                                        part,
-                                        chunk: entry.chunk,
-                                        triangle: h.triangle,
-                                        t: h.t,
-                                        point: ray.at(h.t),
-                                        normal: if n.dot(ray.dir) > 0.0 { -n } else { n },
-                                    };
-                                    t_max = t_max.min(found(hit));
-                                    t_max
-                                });
-                        }
+                        self.bvhs
+                            .for_each_hit(scene, entry.chunk, &f.local, t_max, &mut |h| {
+                                let hit = Found {
+                                    part,
+                                    chunk: entry.chunk,
+                                    triangle: h.triangle,
+                                    t: h.t,
+                                };
+                                t_max = t_max.min(found(hit));
+                                t_max
+                            });
                     }
                 }
                 Kind::Free => unreachable!("free node in the tree"),
@@ -302,6 +306,54 @@ impl Tree {
             {
                 stack.extend(children.map(|c| (c, containment)));
             }
+        }
+    }
+}
+
+/// A visible part as a ray search sees it: the ray in its frame, and
+/// whether its mesh is loaded.
+struct PartFrame {
+    loaded: bool,
+    local: Ray3d,
+}
+
+impl PartFrame {
+    /// `None` for a hidden part.
+    fn new(scene: &Scene, part: PartId, ray: &Ray3d) -> Option<Self> {
+        if scene.part(part).hidden {
+            return None;
+        }
+        Some(Self {
+            loaded: scene.part_mesh(part).is_loaded(),
+            local: ray.to_local(&scene.part_world(part)),
+        })
+    }
+}
+
+/// A hit as a ray search finds it; the world point and normal are made
+/// only for the hits kept ([`Found::hit`]).
+#[derive(Clone, Copy, Debug)]
+struct Found {
+    part: PartId,
+    chunk: ChunkId,
+    /// Within the part's mesh.
+    triangle: u32,
+    t: f64,
+}
+
+impl Found {
+    /// The world hit of `ray`.
+    fn hit(self, scene: &Scene, ray: &Ray3d) -> Hit {
+        let [a, b, c] = scene.triangle_local(scene.part(self.part).mesh, self.chunk, self.triangle);
+        let normal_matrix = scene.part_world(self.part).matrix3.inverse().transpose();
+        let n = (normal_matrix * (b - a).cross(c - a).as_dvec3()).normalize_or_zero();
+        Hit {
+            part: self.part,
+            chunk: self.chunk,
+            triangle: self.triangle,
+            t: self.t,
+            point: ray.at(self.t),
+            normal: if n.dot(ray.dir) > 0.0 { -n } else { n },
         }
     }
 }

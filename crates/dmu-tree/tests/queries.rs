@@ -9,7 +9,7 @@ use proptest::prelude::*;
 
 use crate::support::{
     brute_parts_in_box, brute_pick, brute_pick_where, random_box, random_ray, random_scene,
-    random_transform, world_triangles,
+    random_scene_sized, random_transform, world_triangles,
 };
 
 fn options() -> TreeOptions {
@@ -29,9 +29,12 @@ fn check_queries(
     let tris = world_triangles(scene);
     let bounds = scene.world_bounds();
     let mut hits = 0;
-    for _ in 0..rays {
-        let ray = random_ray(rng, &bounds);
+    let rays: Vec<_> = (0..rays).map(|_| random_ray(rng, &bounds)).collect();
+    let many = tree.pick_many(scene, &rays);
+    for (ray, got_many) in rays.iter().zip(many) {
+        let ray = *ray;
         let got = tree.pick(scene, &ray);
+        prop_assert_eq!(got, got_many, "pick_many differs from pick");
         let want = brute_pick(&tris, &ray);
         match (got, want) {
             (None, None) => {}
@@ -63,7 +66,7 @@ fn check_queries(
             }
         }
     }
-    for _ in 0..rays / 2 {
+    for _ in 0..rays.len() / 2 {
         let b = random_box(rng, &bounds);
         prop_assert_eq!(tree.parts_in_box(scene, &b), brute_parts_in_box(&tris, &b));
     }
@@ -156,6 +159,15 @@ proptest! {
         tree.validate_against(&scene)
             .map_err(|e| TestCaseError::fail(e.to_string()))?;
         check_queries(&tree, &scene, &mut Rng::new(seed ^ 1), 40)?;
+    }
+
+    #[test]
+    fn picks_through_chunk_bvhs_equal_brute_force(seed in any::<u64>(), parts in 1usize..12) {
+        // Meshes of up to 400 triangles in chunks of 128: most chunks have a BVH.
+        let scene = random_scene_sized(seed, parts, DVec3::ZERO, 400, 128);
+        let tree = Tree::build(&scene, options());
+        let hits = check_queries(&tree, &scene, &mut Rng::new(seed ^ 5), 60)?;
+        prop_assert!(tree.chunk_bvhs_built() > 0 || hits == 0);
     }
 
     #[test]
@@ -275,4 +287,23 @@ fn empty_box_and_empty_scene() {
             .is_none()
     );
     assert_eq!(tree.cell_count(), 1);
+}
+
+/// Regression: two nearly coincident triangles in one chunk BVH, hit 2e-14
+/// apart. The box of the nearer one was entered, by its rounded slab
+/// distance, just beyond the farther one's hit and skipped, so the pick
+/// was the farther. Every pick must be the nearest of all hits.
+#[test]
+fn a_box_entered_an_ulp_beyond_the_nearest_hit_is_still_searched() {
+    let seed = 12973194666839402101;
+    let scene = random_scene_sized(seed, 8, DVec3::ZERO, 400, 128);
+    let tree = Tree::build(&scene, options());
+    let mut rng = Rng::new(seed ^ 5);
+    let bounds = scene.world_bounds();
+    for _ in 0..60 {
+        let ray = random_ray(&mut rng, &bounds);
+        let nearest = tree.pick_all(&scene, &ray).first().map(|h| h.t);
+        assert_eq!(tree.pick(&scene, &ray).map(|h| h.t), nearest);
+    }
+    assert!(tree.chunk_bvhs_built() > 0);
 }

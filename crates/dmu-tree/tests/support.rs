@@ -28,14 +28,26 @@ pub fn random_transform(rng: &mut Rng, origin: DVec3, reach: f64) -> DAffine3 {
 /// flat, some with degenerate triangles), at random transforms near `origin`.
 /// Small chunks so meshes split into several.
 pub fn random_scene(seed: u64, parts: usize, origin: DVec3) -> Scene {
+    random_scene_sized(seed, parts, origin, 30, 6)
+}
+
+/// [`random_scene`] with up to `triangles` triangles a mesh, in chunks of
+/// `chunk_triangles` (over 16, so picks go through chunk BVHs).
+pub fn random_scene_sized(
+    seed: u64,
+    parts: usize,
+    origin: DVec3,
+    triangles: u64,
+    chunk_triangles: u32,
+) -> Scene {
     let mut rng = Rng::new(seed);
-    let mut b = SceneBuilder::new("random", 6);
+    let mut b = SceneBuilder::new("random", chunk_triangles);
     let material = b.add_material("m", [1.0; 4]);
     let meshes: Vec<_> = (0..(parts / 2).max(1))
         .map(|m| {
             let flat = rng.chance(0.2);
             let size = rng.range(0.5, 8.0) as f32;
-            let n = 1 + rng.below(30) as usize;
+            let n = 1 + rng.below(triangles) as usize;
             let mut positions = Vec::new();
             for _ in 0..3 * n {
                 let mut p = Vec3::new(
