@@ -28,7 +28,9 @@ import os
 import sys
 import time
 
-os.environ.setdefault("RAYON_NUM_THREADS", "1")
+if __name__ == "__main__":
+    # One thread, as Embree's `run`; imported (by the tests), it leaves the pool be.
+    os.environ.setdefault("RAYON_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
@@ -144,22 +146,58 @@ def timed(f):
     return out, time.perf_counter() - start
 
 
-def compare(name, origins, directions, model, embree, centre, brute, args, rng):
+class Embree:
+    """Embree's scene of the world triangles, recentred on their box and
+    narrowed to f32, as a user of it would give them."""
+
+    def __init__(self, tris):
+        lo, hi = tris.reshape(-1, 3).min(axis=0), tris.reshape(-1, 3).max(axis=0)
+        self.centre = (lo + hi) / 2
+        self.scene = rtcore_scene.EmbreeScene()
+        TriangleMesh(self.scene, (tris - self.centre).astype(np.float32))
+        # Embree commits its scene on the first query: pay for it here.
+        self.scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))
+
+    def rays32(self, origins, directions):
+        return (origins - self.centre).astype(np.float32), directions.astype(np.float32)
+
+    def distances(self, o32, d32):
+        """Nearest hit distances (unit directions), inf for a miss."""
+        res = self.scene.run(o32, d32, output=1)
+        return np.where(res["geomID"] != -1, res["tfar"].astype(np.float64), np.inf)
+
+
+def differ(a, b, tolerance):
+    """Rays whose distances differ by more than `tolerance` (a hit against a miss too)."""
+    both = np.isfinite(a) & np.isfinite(b)
+    gap = np.full(len(a), np.inf)
+    gap[both] = np.abs(a[both] - b[both])
+    gap[~np.isfinite(a) & ~np.isfinite(b)] = 0.0
+    return gap, np.flatnonzero(gap > tolerance)
+
+
+def wrong_answers(brute, origins, directions, dist, rays):
+    """The rays among `rays` where `dist` is not the brute force's distance."""
+    wrong = []
+    for i in rays:
+        truth = brute.nearest(origins[i], directions[i])
+        ok = (np.isinf(truth) and np.isinf(dist[i])) or abs(truth - dist[i]) <= 1e-6 * max(1.0, truth)
+        if not ok:
+            wrong.append({"ray": int(i), "dmu": float(dist[i]), "brute_force": float(truth)})
+    return wrong
+
+
+def compare(name, origins, directions, model, embree, brute, args, rng):
     # Cold: the first pick of a freshly opened model pays for chunk BVHs.
     _, cold_s = timed(lambda: model.pick_many(origins, directions))
+    o32, d32 = embree.rays32(origins, directions)
     dmu_s, embree_s = [], []
     for _ in range(args.repeat):
-        (ids, dist, _), s = timed(lambda: model.pick_many(origins, directions))
+        (_, dist, _), s = timed(lambda: model.pick_many(origins, directions))
         dmu_s.append(s)
-        o32 = (origins - centre).astype(np.float32)
-        d32 = directions.astype(np.float32)
-        res, s = timed(lambda: embree.run(o32, d32, output=1))
+        e_dist, s = timed(lambda: embree.distances(o32, d32))
         embree_s.append(s)
-    hit = res["geomID"] != -1
-    e_dist = np.where(hit, res["tfar"].astype(np.float64), np.inf)
-    both = np.isfinite(dist) & np.isfinite(e_dist)
-    gap = np.where(both, np.abs(dist - e_dist), np.where(np.isfinite(dist) == np.isfinite(e_dist), 0, np.inf))
-    disagree = np.nonzero(gap > args.tolerance)[0]
+    gap, disagree = differ(dist, e_dist, args.tolerance)
     sample = rng.choice(len(origins), min(args.sample, len(origins)), replace=False)
     checked = np.union1d(sample, disagree)
     print(
@@ -167,12 +205,7 @@ def compare(name, origins, directions, model, embree, centre, brute, args, rng):
         f"{min(embree_s) / len(origins) * 1e6:.2f} us/ray; checking {len(checked)} rays by brute force",
         file=sys.stderr,
     )
-    wrong = []
-    for i in checked:
-        truth = brute.nearest(origins[i], directions[i])
-        ok = (np.isinf(truth) and np.isinf(dist[i])) or abs(truth - dist[i]) <= 1e-6 * max(1.0, truth)
-        if not ok:
-            wrong.append({"ray": int(i), "dmu": float(dist[i]), "brute_force": float(truth)})
+    wrong = wrong_answers(brute, origins, directions, dist, checked)
     rays = len(origins)
     dmu_us = min(dmu_s) / rays * 1e6
     embree_us = min(embree_s) / rays * 1e6
@@ -189,7 +222,6 @@ def compare(name, origins, directions, model, embree, centre, brute, args, rng):
         "embree_hit_or_miss_differs": int(np.isinf(gap).sum()),
         "checked_against_brute_force": int(len(checked)),
         "dmu_wrong": wrong,
-        "name": name,
     }
 
 
@@ -210,26 +242,22 @@ def main():
 
     model, load_s = timed(open_model)
     tris, _ = model.world_triangles()
-    lo, hi = tris.reshape(-1, 3).min(axis=0), tris.reshape(-1, 3).max(axis=0)
-    centre = (lo + hi) / 2
-    embree = rtcore_scene.EmbreeScene()
-    _, embree_build_s = timed(lambda: TriangleMesh(embree, (tris - centre).astype(np.float32)))
-    # Embree commits its scene on the first query: pay for it before timing.
-    embree.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))
+    embree, embree_build_s = timed(lambda: Embree(tris))
     brute = BruteForce(tris)
     rng = np.random.default_rng(args.seed)
     side = int(round(np.sqrt(args.rays)))
+    lo, hi = tris.reshape(-1, 3).min(axis=0), tris.reshape(-1, 3).max(axis=0)
     results = {
         "model": args.model or f"built-in plant {args.triangles}",
         "triangles": len(tris),
         "threads": 1,
         "load_s": load_s,
         "embree_build_s": embree_build_s,
-        "random": compare("random", *random_rays(tris, args.rays, rng), model, embree, centre, brute, args, rng),
+        "random": compare("random", *random_rays(tris, args.rays, rng), model, embree, brute, args, rng),
     }
     # A fresh model, so the camera rays' cold time is cold too.
     model = open_model()
-    results["camera"] = compare("camera", *camera_rays(lo, hi, side, side), model, embree, centre, brute, args, rng)
+    results["camera"] = compare("camera", *camera_rays(lo, hi, side, side), model, embree, brute, args, rng)
     if args.json:
         print(json.dumps(results, indent=2))
     else:
