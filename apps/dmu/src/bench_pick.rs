@@ -14,7 +14,10 @@ use rayon::prelude::*;
 use serde_json::{Value, json};
 
 use crate::load::{ModelArgs, load};
-use crate::units::{MAX_CHUNK_TRIANGLES, MAX_STEPS, MAX_TRIANGLES, MIN_PLANT_TRIANGLES, count_in};
+use crate::units::{
+    MAX_CHUNK_TRIANGLES, MAX_LENGTH, MAX_STEPS, MAX_TRIANGLES, MIN_PLANT_TRIANGLES, count_in,
+    number_in,
+};
 
 /// Picks a second per core, random and camera rays, cold and warm, checked
 /// against a brute force on a sample.
@@ -38,7 +41,7 @@ pub struct PickArgs {
     sample: usize,
     /// Length unit of the 0.5-20 m of the random rays, in model units (the
     /// built-in plant is in millimetres).
-    #[arg(long, default_value_t = 1000.0)]
+    #[arg(long, default_value_t = 1000.0, value_parser = number_in(1e-6, MAX_LENGTH))]
     metre: f64,
     /// Maximum triangles per chunk.
     #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..=MAX_CHUNK_TRIANGLES as i64))]

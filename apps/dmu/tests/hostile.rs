@@ -281,6 +281,8 @@ fn sizes_out_of_range_are_refused() {
         vec!["bench", "tree", "--rays", "0"],
         vec!["bench", "pick", "--rays", "0"],
         vec!["bench", "pick", "--threads", "0"],
+        vec!["bench", "pick", "--metre", "0"],
+        vec!["bench", "pick", "--metre", "nan"],
         vec!["generate", "grid", "--n", "100000", "-o", &out],
         vec!["generate", "plant", "--triangles", "5G", "-o", &out],
         vec!["info", "--plant-triangles", "0"],
