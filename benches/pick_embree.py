@@ -14,8 +14,9 @@ Embree is given the world triangles (`Model.world_triangles`) recentred on
 the model's box and narrowed to f32, as a user of it would; dmu answers in
 f64. Every ray where the two disagree by more than `--tolerance`, and a
 sample of `--sample` random rays, is checked against an f64 brute force
-written here in numpy (Moeller-Trumbore over every triangle, after a
-bounding-sphere cut), which shares no code with dmu.
+written here in numpy (Moeller-Trumbore over every triangle in the grid cells
+the ray's line crosses, each cell bounded by its triangles' boxes), which
+shares no code with dmu.
 
 Usage (in a venv with the dmu wheel, numpy and embreex):
     python benches/pick_embree.py [MODEL.dmu] [--rays 100000] [--json]

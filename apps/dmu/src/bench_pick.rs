@@ -102,13 +102,15 @@ pub(crate) fn random_rays(
 }
 
 /// A pinhole camera's `side` × `side` rays: from above one corner of the
-/// model's box, looking at its centre, 60° across (as benches/pick_embree.py).
+/// box of the model's triangles, looking at its centre, 60° across (as
+/// benches/pick_embree.py, whose box leaves hidden parts out).
 fn camera_rays(scene: &Scene, side: usize) -> Vec<Ray3d> {
-    let b = scene.world_bounds();
+    let b = scene.tight_world_bounds();
     let centre = b.center();
     let eye = centre + DVec3::new(-0.45, -0.55, 0.35) * b.extent();
-    let forward = (centre - eye).normalize();
-    let right = forward.cross(DVec3::Z).normalize();
+    let forward = (centre - eye).normalize_or(DVec3::X);
+    // A model with no width in x and y looks straight down: any right will do.
+    let right = forward.cross(DVec3::Z).try_normalize().unwrap_or(DVec3::Y);
     let up = right.cross(forward);
     let half = 30f64.to_radians().tan();
     let at = |i: usize| ((i as f64 + 0.5) / side as f64 * 2.0 - 1.0) * half;
@@ -159,9 +161,14 @@ fn measure(
         .map(|_| pass())
         .min_by(|a, b| a.1.total_cmp(&b.1))
         .expect("three passes");
-    let checked: Vec<usize> = (0..sample.min(rays.len()))
-        .map(|_| rng.below(rays.len() as u64) as usize)
-        .collect();
+    // Distinct rays: the first `sample` of a partial shuffle.
+    let mut checked: Vec<usize> = (0..rays.len()).collect();
+    let sample = sample.min(rays.len());
+    for i in 0..sample {
+        let j = i + rng.below((rays.len() - i) as u64) as usize;
+        checked.swap(i, j);
+    }
+    checked.truncate(sample);
     let wrong: Vec<Value> = checked
         .par_iter()
         .filter_map(|&i| {

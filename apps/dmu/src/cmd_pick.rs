@@ -158,12 +158,12 @@ impl RayReader {
         Ok((reader, len))
     }
 
-    /// Fills `lines` (cleared first) with up to `max` lines that are not
-    /// blank, with their numbers; fewer only at the end of the input. They
-    /// are parsed apart ([`parse_ray_line`]), on all threads.
-    fn read_block(&mut self, lines: &mut Vec<(usize, String)>, max: usize) -> anyhow::Result<()> {
-        lines.clear();
-        while lines.len() < max {
+    /// Fills `rays` (cleared first) with up to `max` rays and their line
+    /// numbers; fewer only at the end of the input. A bad line is an error
+    /// at once, naming it.
+    fn read_block(&mut self, rays: &mut Vec<(usize, Ray3d)>, max: usize) -> anyhow::Result<()> {
+        rays.clear();
+        while rays.len() < max {
             self.buf.clear();
             let read = Read::take(&mut self.input, MAX_RAY_LINE_BYTES + 1)
                 .read_until(b'\n', &mut self.buf)
@@ -175,32 +175,26 @@ impl RayReader {
             }
             self.line += 1;
             self.bytes += read as u64;
+            let error =
+                |reason: &str| anyhow::anyhow!("rays {}: line {}: {reason}", self.name, self.line);
             let content = self.buf.strip_suffix(b"\n").unwrap_or(&self.buf);
             if content.len() as u64 > MAX_RAY_LINE_BYTES {
-                return Err(self.error(
-                    self.line,
-                    &format!(
-                        "longer than {MAX_RAY_LINE_BYTES} bytes (a ray is one line of six numbers)"
-                    ),
-                ));
+                return Err(error(&format!(
+                    "longer than {MAX_RAY_LINE_BYTES} bytes (a ray is one line of six numbers)"
+                )));
             }
-            let text =
-                std::str::from_utf8(content).map_err(|_| self.error(self.line, "not UTF-8"))?;
+            let text = std::str::from_utf8(content).map_err(|_| error("not UTF-8"))?;
             // Editors on some systems start UTF-8 files with a byte-order mark.
             let text = match self.line {
                 1 => text.strip_prefix('\u{feff}').unwrap_or(text),
                 _ => text,
             };
-            if !text.trim().is_empty() {
-                lines.push((self.line, text.to_owned()));
+            if text.trim().is_empty() {
+                continue;
             }
+            rays.push((self.line, parse_ray_line(text).map_err(|r| error(&r))?));
         }
         Ok(())
-    }
-
-    /// The error of line `line`.
-    fn error(&self, line: usize, reason: &str) -> anyhow::Error {
-        anyhow::anyhow!("rays {}: line {line}: {reason}", self.name)
     }
 }
 
@@ -218,8 +212,10 @@ fn pick_json(scene: &Scene, tree: &Tree, ray: &Ray3d, all: bool) -> Value {
     }
 }
 
-/// The nearest hit of one ray as a line of JSON, as [`pick_json`] gives it,
-/// serialized straight from the report (the bulk of `--rays --json`).
+/// The nearest hit of one ray as a line of JSON, the bytes of [`pick_json`]'s
+/// (the report's fields are in the order a `Value` prints them), serialized
+/// straight from the report: the bulk of `--rays --json`, without building
+/// a `Value` for each ray.
 fn nearest_json_line(scene: &Scene, tree: &Tree, ray: &Ray3d) -> String {
     let mut line = match tree.pick(scene, ray) {
         Some(hit) => serde_json::to_string(&HitReport::new(scene, &hit, ray.dir.length()))
@@ -286,38 +282,31 @@ fn run_many(args: &Args, path: &Path) -> anyhow::Result<()> {
     };
     dmu_app::progress::style_input_bar(&bar, "picking rays", len.is_some());
     let mut stdout = std::io::stdout().lock();
-    let mut lines = Vec::with_capacity(RAYS_PER_BLOCK);
+    let mut rays = Vec::with_capacity(RAYS_PER_BLOCK);
     loop {
-        reader.read_block(&mut lines, RAYS_PER_BLOCK)?;
-        // Parsed, picked and written out on all threads, collected in input
-        // order; each result is one or more whole lines. A bad line stops
-        // the run before its block is printed.
-        let results: Vec<Result<String, (usize, String)>> = lines
+        reader.read_block(&mut rays, RAYS_PER_BLOCK)?;
+        // Picked and written out on all threads, collected in input order;
+        // each result is one or more whole lines.
+        let results: Vec<String> = rays
             .par_iter()
-            .map(|(line, text)| {
-                let ray = parse_ray_line(text).map_err(|reason| (*line, reason))?;
-                Ok(if args.json && !args.all {
-                    nearest_json_line(scene, &tree, &ray)
+            .map(|(line, ray)| {
+                if args.json && !args.all {
+                    return nearest_json_line(scene, &tree, ray);
+                }
+                let out = pick_json(scene, &tree, ray, args.all);
+                if args.json {
+                    format!("{out}\n")
                 } else {
-                    let out = pick_json(scene, &tree, &ray, args.all);
-                    if args.json {
-                        format!("{out}\n")
-                    } else {
-                        pick_text(&out, &format!("line {line}: "))
-                    }
-                })
+                    pick_text(&out, &format!("line {line}: "))
+                }
             })
             .collect();
-        let results = results
-            .into_iter()
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(|(line, reason)| reader.error(line, &reason))?;
         for result in &results {
             stdout.write_all(result.as_bytes())?;
         }
         stdout.flush()?;
         bar.set_position(reader.bytes);
-        if lines.len() < RAYS_PER_BLOCK {
+        if rays.len() < RAYS_PER_BLOCK {
             break;
         }
     }

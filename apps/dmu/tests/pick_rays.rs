@@ -105,15 +105,20 @@ fn rays_give_what_single_picks_give_in_order() {
         if all {
             args.push("--all");
         }
-        let bulk = json_lines(&dmu(&args));
+        let out = dmu(&args);
+        let bulk = json_lines(&out);
         assert_eq!(bulk.len(), rays.len(), "one result per ray");
-        for (ray, got) in rays.iter().zip(&bulk) {
+        let text = String::from_utf8(out.stdout).unwrap();
+        for ((ray, got), line) in rays.iter().zip(&bulk).zip(text.lines()) {
             let ray = comma_separated(ray);
             let mut args = vec!["pick", &grid, "--ray", &ray, "--json"];
             if all {
                 args.push("--all");
             }
-            assert_eq!(got, &json(&dmu(&args)), "ray {ray}, --all {all}");
+            let single = json(&dmu(&args));
+            assert_eq!(got, &single, "ray {ray}, --all {all}");
+            // Byte for byte what `--ray --json` prints, made compact.
+            assert_eq!(line, serde_json::to_string(&single).unwrap(), "ray {ray}");
         }
         if !all {
             let hits = bulk.iter().filter(|v| v["hit"] == true).count();

@@ -457,9 +457,13 @@ impl Model {
     ) -> (Bound<'py, PyArray3<f64>>, Bound<'py, PyArray1<i64>>) {
         let (corners, ids) = self.reading(py, |st| {
             let scene = &st.scene;
-            let mut corners = Vec::new();
-            let mut ids = Vec::new();
-            for part in scene.part_ids().filter(|&p| !scene.part(p).hidden) {
+            let visible = || scene.part_ids().filter(|&p| !scene.part(p).hidden);
+            let count: u64 = visible().map(|p| scene.part_mesh(p).triangle_count()).sum();
+            let count =
+                usize::try_from(count).expect("a model in memory counts its triangles in usize");
+            let mut corners = Vec::with_capacity(9 * count);
+            let mut ids = Vec::with_capacity(count);
+            for part in visible() {
                 let world = scene.part_world(part);
                 let mesh = scene.part(part).mesh;
                 for chunk in scene.mesh(mesh).chunk_ids() {

@@ -26,10 +26,10 @@ def test_where_embree_differs_dmu_equals_a_brute_force():
     assert np.isfinite(dist).all(), "every ray is aimed at a triangle"
     embree = bench.Embree(tris)
     e_dist = embree.distances(*embree.rays32(origins, directions))
+    # Embree's f32 (the plant recentred, still 100 m across) differs from
+    # dmu's f64 by more than 0.01 mm on some rays: each of those is judged.
     _, disagree = bench.differ(dist, e_dist, 0.01)
-    # The plant lies millions of millimetres from the origin: Embree's f32
-    # answers differ from dmu's by more than 0.01 mm on some rays.
-    assert 0 < len(disagree) < len(dist)
+    assert len(disagree) < len(dist) // 10
     brute = bench.BruteForce(tris)
     checked = np.union1d(disagree, rng.choice(len(dist), 200, replace=False))
     assert bench.wrong_answers(brute, origins, directions, dist, checked) == []

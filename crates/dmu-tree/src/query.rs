@@ -27,24 +27,29 @@ pub struct Hit {
 /// A hit as reports print it, named from the scene: the one definition of the
 /// fields of `dmu pick --json`, the viewer's pick report and the Python
 /// module's `pick` (serialized with serde, so they cannot drift apart).
+///
+/// The fields are in alphabetical order, the order serde_json's `Value` (a
+/// sorted map) prints them in: a report serialized straight (`dmu pick
+/// --rays --json`) and one serialized through a `Value` (`--ray --json`)
+/// are the same bytes.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct HitReport<'a> {
+    /// Distance from the ray's origin, world units, whatever the direction's length.
+    pub distance: f64,
     /// Always `true` (a miss is reported as `{"hit": false}` or `None`).
     pub hit: bool,
+    /// Unit world normal, facing the ray's origin.
+    pub normal: [f64; 3],
     /// The part's name.
     pub part: &'a str,
     /// The part's id.
     pub part_id: u32,
     /// The part's full assembly path.
     pub path: String,
-    /// Triangle index within the part's mesh.
-    pub triangle: u32,
-    /// Distance from the ray's origin, world units, whatever the direction's length.
-    pub distance: f64,
     /// World point.
     pub point: [f64; 3],
-    /// Unit world normal, facing the ray's origin.
-    pub normal: [f64; 3],
+    /// Triangle index within the part's mesh.
+    pub triangle: u32,
 }
 
 impl<'a> HitReport<'a> {

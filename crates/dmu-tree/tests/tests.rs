@@ -1,4 +1,5 @@
 mod changes;
+mod exact_picks;
 mod hard_cases;
 mod overlap;
 mod queries;
