@@ -2,7 +2,6 @@
 //! step through the tree and, for the ratio, without it. Single-threaded: the
 //! timed loops run on the calling thread (only the tree build uses rayon).
 
-use std::path::PathBuf;
 use std::time::Instant;
 
 use dmu_collide::{Checker, ClashKind, Report, Settings};
@@ -12,21 +11,15 @@ use glam::{DAffine3, DVec3};
 use serde_json::json;
 use xxhash_rust::xxh3::Xxh3;
 
-use crate::load::{ModelArgs, load};
-use crate::units::{
-    MAX_CHUNK_TRIANGLES, MAX_LENGTH, MAX_STEPS, MAX_TRIANGLES, MIN_PLANT_TRIANGLES, count_in,
-    number_in,
-};
+use crate::cmd_bench::BenchModel;
+use crate::units::{MAX_LENGTH, MAX_STEPS, number_in};
 use dmu_geom::{median, percentile};
 
 /// Collision checks per second for a part moving through the model.
 #[derive(Debug, clap::Args)]
 pub struct CollideArgs {
-    /// Model file; the built-in plant of `--triangles` when omitted.
-    file: Option<PathBuf>,
-    /// Size of the built-in plant.
-    #[arg(long, default_value = "10M", value_parser = count_in(MIN_PLANT_TRIANGLES, MAX_TRIANGLES))]
-    triangles: u64,
+    #[command(flatten)]
+    model: BenchModel,
     /// The moving part is the one whose triangle count is closest to this.
     #[arg(long, default_value_t = 10_000)]
     part_triangles: u64,
@@ -46,9 +39,6 @@ pub struct CollideArgs {
     /// Soft clash distance, model units.
     #[arg(long, default_value_t = 5.0, value_parser = number_in(0.0, MAX_LENGTH))]
     clearance: f64,
-    /// Maximum triangles per chunk.
-    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..=MAX_CHUNK_TRIANGLES as i64))]
-    chunk_triangles: u32,
     /// Print JSON.
     #[arg(long)]
     json: bool,
@@ -134,12 +124,7 @@ fn found(report: &Report) -> Found {
 }
 
 pub fn bench_collide(args: &CollideArgs) -> anyhow::Result<()> {
-    let model = ModelArgs {
-        file: args.file.clone(),
-        chunk_triangles: args.chunk_triangles,
-        plant_triangles: args.triangles,
-    };
-    let mut loaded = load(&model)?;
+    let mut loaded = args.model.load()?;
     let scene = &mut loaded.scene;
     let part = dragged_part(scene, args.part_triangles)?;
     let home = scene.part_world(part);
@@ -231,7 +216,7 @@ pub fn bench_collide(args: &CollideArgs) -> anyhow::Result<()> {
     let same_steps_per_s = nf / warm.seconds(flat_poses.len());
     let steps_per_s_no_tree = nf / flat_s;
     let out = json!({
-        "model": loaded.source.as_ref().map_or_else(|| format!("built-in plant {}", args.triangles), |p| p.display().to_string()),
+        "model": args.model.name(loaded.source.as_deref()),
         "triangles": scene.triangle_count(),
         "parts": scene.parts().len(),
         "chunk_instances": tree.entries().len(),

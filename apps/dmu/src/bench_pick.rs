@@ -2,33 +2,27 @@
 //! and from a camera, cold (chunk BVHs built on the way) and warm, beside a
 //! brute-force check of a sample.
 
-use std::path::PathBuf;
 use std::time::Instant;
 
-use dmu_geom::{Ray3d, RayTriTest3d};
+use dmu_geom::Ray3d;
 use dmu_samples::Rng;
 use dmu_scene::Scene;
-use dmu_tree::{Entry, Hit, Tree, TreeOptions};
+use dmu_tree::{Entry, Hit, Tree, TreeOptions, pick_brute_force};
 use glam::DVec3;
 use rayon::prelude::*;
 use serde_json::{Value, json};
 
-use crate::load::{ModelArgs, load};
-use crate::units::{
-    MAX_CHUNK_TRIANGLES, MAX_LENGTH, MAX_STEPS, MAX_TRIANGLES, MIN_PLANT_TRIANGLES, count_in,
-    number_in,
-};
+use crate::cmd_bench::BenchModel;
+use crate::units::{MAX_LENGTH, MAX_STEPS, number_in};
 
 /// Picks a second per core, random and camera rays, cold and warm, checked
 /// against a brute force on a sample.
 #[derive(Debug, clap::Args)]
 pub struct PickArgs {
-    /// Model file; the built-in plant of `--triangles` when omitted.
-    file: Option<PathBuf>,
-    /// Size of the built-in plant.
-    #[arg(long, default_value = "10M", value_parser = count_in(MIN_PLANT_TRIANGLES, MAX_TRIANGLES))]
-    triangles: u64,
-    /// Rays of each kind: random rays, each aimed at a random triangle from
+    #[command(flatten)]
+    model: BenchModel,
+    /// Rays of each kind: random rays, each aimed at the centroid of a
+    /// triangle drawn uniformly (instances counted) from
     /// 0.5-20 m away, and a square camera grid of about as many.
     #[arg(long, default_value_t = 100_000, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=MAX_STEPS))]
     rays: usize,
@@ -43,9 +37,6 @@ pub struct PickArgs {
     /// built-in plant is in millimetres).
     #[arg(long, default_value_t = 1000.0, value_parser = number_in(1e-6, MAX_LENGTH))]
     metre: f64,
-    /// Maximum triangles per chunk.
-    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..=MAX_CHUNK_TRIANGLES as i64))]
-    chunk_triangles: u32,
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Print JSON.
@@ -122,25 +113,6 @@ fn camera_rays(scene: &Scene, side: usize) -> Vec<Ray3d> {
         .collect()
 }
 
-/// The nearest hit's `t` by testing every triangle of every visible part.
-fn brute_force(scene: &Scene, ray: &Ray3d) -> Option<f64> {
-    let mut best: Option<f64> = None;
-    for part in scene.part_ids().filter(|&p| !scene.part(p).hidden) {
-        let local = ray.to_local(&scene.part_world(part));
-        let test = RayTriTest3d::new(&local);
-        let mesh = scene.part(part).mesh;
-        for chunk in scene.mesh(mesh).chunk_ids() {
-            for t in scene.chunk(chunk).triangles.clone() {
-                let [a, b, c] = scene.triangle_local(mesh, chunk, t).map(|v| v.as_dvec3());
-                if let Some(h) = test.hit(a, b, c, 0.0, best.unwrap_or(f64::INFINITY)) {
-                    best = Some(h.t);
-                }
-            }
-        }
-    }
-    best
-}
-
 /// Cold and warm passes of `rays` on `threads` threads, and the sample's check.
 fn measure(
     scene: &Scene,
@@ -172,7 +144,7 @@ fn measure(
     let wrong: Vec<Value> = checked
         .par_iter()
         .filter_map(|&i| {
-            let truth = brute_force(scene, &rays[i]);
+            let truth = pick_brute_force(scene, &rays[i]);
             let got = hits[i].map(|h: Hit| h.t);
             (truth != got).then(|| json!({ "ray": i, "pick_t": got, "brute_force_t": truth }))
         })
@@ -192,12 +164,7 @@ fn measure(
 }
 
 pub(crate) fn bench_pick(args: &PickArgs) -> anyhow::Result<()> {
-    let model = ModelArgs {
-        file: args.file.clone(),
-        chunk_triangles: args.chunk_triangles,
-        plant_triangles: args.triangles,
-    };
-    let loaded = load(&model)?;
+    let loaded = args.model.load()?;
     loaded.require_triangles("benchmark")?;
     let scene = &loaded.scene;
     let pool = rayon::ThreadPoolBuilder::new()
@@ -217,7 +184,7 @@ pub(crate) fn bench_pick(args: &PickArgs) -> anyhow::Result<()> {
     let side = (args.rays as f64).sqrt().round().max(1.0) as usize;
     let camera = camera_rays(scene, side);
     let out = json!({
-        "model": loaded.source.as_ref().map_or_else(|| format!("built-in plant {}", args.triangles), |p| p.display().to_string()),
+        "model": args.model.name(loaded.source.as_deref()),
         "triangles": scene.triangle_count(),
         "threads": args.threads,
         "random": measure(scene, &random, &pool, args.sample, &mut rng),

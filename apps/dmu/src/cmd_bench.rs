@@ -15,7 +15,7 @@ use serde_json::json;
 
 use crate::bench_collide::{drag_path, dragged_part};
 use crate::bench_pick::{in_ball, random_rays};
-use crate::load::{ModelArgs, load};
+use crate::load::{Loaded, ModelArgs, load};
 use crate::units::{
     MAX_CHUNK_TRIANGLES, MAX_LENGTH, MAX_STEPS, MAX_TRIANGLES, MIN_PLANT_TRIANGLES, count_in,
     number_in,
@@ -39,13 +39,42 @@ enum What {
     Pick(crate::bench_pick::PickArgs),
 }
 
+/// The model a benchmark measures: a file, or the built-in plant.
 #[derive(Debug, clap::Args)]
-struct TreeArgs {
+pub(crate) struct BenchModel {
     /// Model file; the built-in plant of `--triangles` when omitted.
     file: Option<PathBuf>,
     /// Size of the built-in plant.
     #[arg(long, default_value = "10M", value_parser = count_in(MIN_PLANT_TRIANGLES, MAX_TRIANGLES))]
     triangles: u64,
+    /// Maximum triangles per chunk.
+    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..=MAX_CHUNK_TRIANGLES as i64))]
+    pub chunk_triangles: u32,
+}
+
+impl BenchModel {
+    /// Opens the file or makes the plant.
+    pub(crate) fn load(&self) -> anyhow::Result<Loaded> {
+        load(&ModelArgs {
+            file: self.file.clone(),
+            chunk_triangles: self.chunk_triangles,
+            plant_triangles: self.triangles,
+        })
+    }
+
+    /// How reports name the model opened from `source` (`None`: the plant).
+    pub(crate) fn name(&self, source: Option<&std::path::Path>) -> String {
+        source.map_or_else(
+            || format!("built-in plant {}", self.triangles),
+            |p| p.display().to_string(),
+        )
+    }
+}
+
+#[derive(Debug, clap::Args)]
+struct TreeArgs {
+    #[command(flatten)]
+    model: BenchModel,
     /// Rays to pick (each aimed at a random triangle, so it hits).
     #[arg(long, default_value_t = 10_000, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=MAX_STEPS))]
     rays: usize,
@@ -75,9 +104,6 @@ struct TreeArgs {
     /// Nodes the re-insertion search may expand (0: unlimited, the exact branch and bound).
     #[arg(long, default_value_t = TreeOptions::default().insert_search_nodes)]
     insert_search_nodes: usize,
-    /// Maximum triangles per chunk.
-    #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..=MAX_CHUNK_TRIANGLES as i64))]
-    chunk_triangles: u32,
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Print JSON.
@@ -100,12 +126,7 @@ fn time<T>(f: impl FnOnce() -> T) -> (T, f64) {
 }
 
 fn bench_tree(args: &TreeArgs) -> anyhow::Result<()> {
-    let model = ModelArgs {
-        file: args.file.clone(),
-        chunk_triangles: args.chunk_triangles,
-        plant_triangles: args.triangles,
-    };
-    let mut loaded = load(&model)?;
+    let mut loaded = args.model.load()?;
     loaded.require_triangles("benchmark")?;
     let scene = &mut loaded.scene;
     let options = TreeOptions {
@@ -173,7 +194,7 @@ fn bench_tree(args: &TreeArgs) -> anyhow::Result<()> {
     let fresh = Tree::build(scene, options);
     let move_median = median(&mut move_us);
     let out = json!({
-        "model": loaded.source.as_ref().map_or_else(|| format!("built-in plant {}", args.triangles), |p| p.display().to_string()),
+        "model": args.model.name(loaded.source.as_deref()),
         "triangles": scene.triangle_count(),
         "parts": scene.parts().len(),
         "entries": tree.entries().len(),
@@ -181,7 +202,7 @@ fn bench_tree(args: &TreeArgs) -> anyhow::Result<()> {
         "depth": fresh.depth(),
         "cell_triangles": args.cell_triangles,
         "insert_search_nodes": args.insert_search_nodes,
-        "chunk_triangles": args.chunk_triangles,
+        "chunk_triangles": args.model.chunk_triangles,
         "load_ms": loaded.load_ms,
         "build_ms": build_s * 1e3,
         "rays": rays.len(),

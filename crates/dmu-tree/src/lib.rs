@@ -55,7 +55,9 @@ mod visible;
 
 pub use changes::{Change, Changes, NodeId, NodeKind, Revision};
 pub use chunk_bvh::{BvhNode, ChunkBvh, ChunkBvhCache, LocalHit};
-pub use query::{FrustumNode, Hit, HitReport, chunk_touches_box, triangle_box_overlap};
+pub use query::{
+    FrustumNode, Hit, HitReport, chunk_touches_box, pick_brute_force, triangle_box_overlap,
+};
 pub use tree::{CellId, Entry, EntryId, Tree, TreeOptions, UpdateStats};
 pub use validate::InvariantError;
 pub use visible::{EntryVisibility, VisibleNodes};

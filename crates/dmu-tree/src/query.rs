@@ -1,6 +1,6 @@
 //! Queries: nearest and all ray hits, parts in a box, frustum traversal.
 
-use dmu_geom::{Aabb3d, Containment, Frustum, Plane, Ray3d, RayBoxTest3d};
+use dmu_geom::{Aabb3d, Containment, Frustum, Plane, Ray3d, RayBoxTest3d, RayTriTest3d};
 use dmu_scene::{ChunkId, PartId, Scene};
 use glam::DVec3;
 
@@ -361,6 +361,30 @@ impl Found {
             normal: if n.dot(ray.dir) > 0.0 { -n } else { n },
         }
     }
+}
+
+/// The nearest hit's `t` of a world ray by testing every triangle of every
+/// visible part whose mesh is loaded, in the part's frame, with the same
+/// watertight test as [`Tree::pick`], and no tree and no BVH: the oracle
+/// that `dmu bench pick` and the tests hold picks to, exactly.
+pub fn pick_brute_force(scene: &Scene, ray: &Ray3d) -> Option<f64> {
+    let mut best: Option<f64> = None;
+    let parts = scene
+        .part_ids()
+        .filter(|&p| !scene.part(p).hidden && scene.part_mesh(p).is_loaded());
+    for part in parts {
+        let test = RayTriTest3d::new(&ray.to_local(&scene.part_world(part)));
+        let mesh = scene.part(part).mesh;
+        for chunk in scene.mesh(mesh).chunk_ids() {
+            for t in scene.chunk(chunk).triangles.clone() {
+                let [a, b, c] = scene.triangle_local(mesh, chunk, t).map(|v| v.as_dvec3());
+                if let Some(h) = test.hit(a, b, c, 0.0, best.unwrap_or(f64::INFINITY)) {
+                    best = Some(h.t);
+                }
+            }
+        }
+    }
+    best
 }
 
 /// Whether any triangle of the chunk, in world f64, touches the box.

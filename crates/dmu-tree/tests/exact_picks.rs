@@ -3,35 +3,13 @@
 //! directions of extreme length, grazing rays from far away, parts far from
 //! the origin. Included from `tests.rs` as `mod exact_picks;`.
 
-use dmu_geom::{Ray3d, RayTriTest3d};
+use dmu_geom::Ray3d;
 use dmu_samples::Rng;
 use dmu_scene::{MeshData, Scene, SceneBuilder};
-use dmu_tree::{Tree, TreeOptions};
+use dmu_tree::{Tree, TreeOptions, pick_brute_force};
 use glam::{DAffine3, DVec3, Vec3, Vec3A};
 
 use crate::support::{random_ray, random_scene_sized};
-
-/// Nearest `t` over every triangle of every visible part, each tested in
-/// its part's frame with the same watertight test as the tree.
-fn brute(scene: &Scene, ray: &Ray3d) -> Option<f64> {
-    let mut best: Option<f64> = None;
-    for part in scene.part_ids().filter(|&p| !scene.part(p).hidden) {
-        let local = ray.to_local(&scene.part_world(part));
-        let test = RayTriTest3d::new(&local);
-        let mesh = scene.part(part).mesh;
-        for chunk in scene.mesh(mesh).chunk_ids() {
-            for t in scene.chunk(chunk).triangles.clone() {
-                let [a, b, c] = scene.triangle_local(mesh, chunk, t).map(|v| v.as_dvec3());
-                if let Some(h) = test.hit(a, b, c, 0.0, f64::INFINITY)
-                    && best.is_none_or(|b| h.t < b)
-                {
-                    best = Some(h.t);
-                }
-            }
-        }
-    }
-    best
-}
 
 fn one_mesh(positions: Vec<Vec3>, chunk: u32) -> Scene {
     let mut b = SceneBuilder::new("deep", chunk);
@@ -88,7 +66,6 @@ fn deep_chunk_bvh_spills_and_stays_exact() {
         ]);
     }
     let depth = bvh_depth(&tris);
-    eprintln!("BVH depth {depth}");
     let positions: Vec<Vec3> = tris.iter().flatten().copied().collect();
     let scene = one_mesh(positions, 1 << 20);
     let tree = Tree::build(&scene, TreeOptions::default());
@@ -107,12 +84,12 @@ fn deep_chunk_bvh_spills_and_stays_exact() {
         );
         let ray = Ray3d::new(o, d);
         let got = tree.pick(&scene, &ray).map(|h| h.t);
-        let want = brute(&scene, &ray);
+        let want = pick_brute_force(&scene, &ray);
         assert_eq!(got, want, "ray {ray:?}");
         hits += usize::from(got.is_some());
     }
-    eprintln!("hits {hits}");
-    assert!(depth > 64, "depth {depth}");
+    assert!(depth > 64, "depth {depth}: the stack does not spill");
+    assert!(hits > 1000, "{hits} of 4,000 rays hit");
 }
 
 /// Directions far from unit length (the tree API takes any finite ray).
@@ -135,7 +112,7 @@ fn extreme_direction_lengths_stay_exact() {
             for scale in [1e-300, 1e300, 1e307] {
                 let ray = Ray3d::new(r.origin, r.dir * scale);
                 let got = tree.pick(&scene, &ray).map(|h| h.t);
-                let want = brute(&scene, &ray);
+                let want = pick_brute_force(&scene, &ray);
                 let all = tree.pick_all(&scene, &ray).first().map(|h| h.t);
                 if got != want || got != all {
                     bad.push((seed, scale, got, want, all));
@@ -170,7 +147,7 @@ fn picks_equal_same_test_brute_force_exactly() {
         for _ in 0..80 {
             let ray = random_ray(&mut rng, &bounds);
             let got = tree.pick(&scene, &ray).map(|h| h.t);
-            let want = brute(&scene, &ray);
+            let want = pick_brute_force(&scene, &ray);
             if got != want {
                 bad.push((seed, got, want));
             }
@@ -184,14 +161,14 @@ fn picks_equal_same_test_brute_force_exactly() {
     );
 }
 
-/// Far origins and nearly axis-parallel directions in rotated parts: the
-/// world entry boxes and the local triangle tests round differently.
-#[test]
-fn far_grazing_rays_stay_exact() {
+/// Far origins and nearly axis-parallel directions in rotated parts, near
+/// `origin`: the world entry boxes and the local triangle tests round
+/// differently. Scenes of `seeds`, 200 rays each.
+fn far_grazing_rays_stay_exact_near(seeds: std::ops::Range<u64>, origin: DVec3) {
     let mut bad = Vec::new();
     let mut hits = 0;
-    for seed in 0..50u64 {
-        let scene = random_scene_sized(seed, 10, DVec3::ZERO, 200, 32);
+    for seed in seeds {
+        let scene = random_scene_sized(seed, 10, origin, 200, 32);
         let tree = Tree::build(
             &scene,
             TreeOptions {
@@ -204,7 +181,7 @@ fn far_grazing_rays_stay_exact() {
         for k in 0..200 {
             let target =
                 bounds.min + DVec3::new(rng.unit(), rng.unit(), rng.unit()) * bounds.extent();
-            let axis = (k % 3) as usize;
+            let axis = k % 3;
             let mut d = DVec3::ZERO;
             d[axis] = if rng.chance(0.5) { 1.0 } else { -1.0 };
             let tiny = 10f64.powf(rng.range(-16.0, -6.0));
@@ -216,66 +193,28 @@ fn far_grazing_rays_stay_exact() {
             let dist = 10f64.powf(rng.range(0.0, 7.0));
             let ray = Ray3d::new(target - d * dist, d);
             let got = tree.pick(&scene, &ray).map(|h| h.t);
-            let want = brute(&scene, &ray);
+            let want = pick_brute_force(&scene, &ray);
             hits += usize::from(want.is_some());
             if got != want {
                 bad.push((seed, k, got, want, ray));
             }
         }
     }
-    eprintln!("hits {hits}");
     assert!(
         bad.is_empty(),
         "{} differ: {:?}",
         bad.len(),
         &bad[..bad.len().min(6)]
     );
+    assert!(hits > 2000, "{hits} of 10,000 rays hit");
 }
 
-/// Far origins and nearly axis-parallel directions in rotated parts: the
-/// world entry boxes and the local triangle tests round differently.
+#[test]
+fn far_grazing_rays_stay_exact() {
+    far_grazing_rays_stay_exact_near(0..50, DVec3::ZERO);
+}
+
 #[test]
 fn far_grazing_rays_stay_exact_off_origin() {
-    let mut bad = Vec::new();
-    let mut hits = 0;
-    for seed in 100..150u64 {
-        let scene = random_scene_sized(seed, 10, DVec3::new(2.5e6, -1.3e6, 7e5), 200, 32);
-        let tree = Tree::build(
-            &scene,
-            TreeOptions {
-                cell_triangles: 24,
-                ..TreeOptions::default()
-            },
-        );
-        let mut rng = Rng::new(seed ^ 13);
-        let bounds = scene.world_bounds();
-        for k in 0..200 {
-            let target =
-                bounds.min + DVec3::new(rng.unit(), rng.unit(), rng.unit()) * bounds.extent();
-            let axis = (k % 3) as usize;
-            let mut d = DVec3::ZERO;
-            d[axis] = if rng.chance(0.5) { 1.0 } else { -1.0 };
-            let tiny = 10f64.powf(rng.range(-16.0, -6.0));
-            for j in 0..3 {
-                if j != axis && rng.chance(0.7) {
-                    d[j] = rng.range(-1.0, 1.0) * tiny;
-                }
-            }
-            let dist = 10f64.powf(rng.range(0.0, 7.0));
-            let ray = Ray3d::new(target - d * dist, d);
-            let got = tree.pick(&scene, &ray).map(|h| h.t);
-            let want = brute(&scene, &ray);
-            hits += usize::from(want.is_some());
-            if got != want {
-                bad.push((seed, k, got, want, ray));
-            }
-        }
-    }
-    eprintln!("hits {hits}");
-    assert!(
-        bad.is_empty(),
-        "{} differ: {:?}",
-        bad.len(),
-        &bad[..bad.len().min(6)]
-    );
+    far_grazing_rays_stay_exact_near(100..150, DVec3::new(2.5e6, -1.3e6, 7e5));
 }
