@@ -6,8 +6,8 @@ use std::time::Instant;
 
 use dmu_geom::Ray3d;
 use dmu_samples::Rng;
-use dmu_scene::Scene;
-use dmu_tree::{Entry, Hit, Tree, TreeOptions, pick_brute_force};
+use dmu_scene::{ChunkId, PartId, Scene};
+use dmu_tree::{Hit, Tree, TreeOptions, pick_brute_force};
 use glam::DVec3;
 use rayon::prelude::*;
 use serde_json::{Value, json};
@@ -63,28 +63,32 @@ pub(crate) fn in_ball(rng: &mut Rng) -> DVec3 {
 /// something.
 pub(crate) fn random_rays(
     scene: &Scene,
-    entries: &[Entry],
     rng: &mut Rng,
     count: usize,
     (near, far): (f64, f64),
 ) -> Vec<Ray3d> {
-    // Triangles before each entry, to draw a triangle and find its entry.
-    let mut starts = Vec::with_capacity(entries.len());
+    // Every chunk instance with the triangles before it, to draw a triangle
+    // and find its instance.
+    let instances: Vec<(PartId, ChunkId)> = scene
+        .part_ids()
+        .flat_map(|p| scene.part_mesh(p).chunk_ids().map(move |c| (p, c)))
+        .collect();
+    let mut starts = Vec::with_capacity(instances.len());
     let mut total = 0u64;
-    for e in entries {
+    for &(_, chunk) in &instances {
         starts.push(total);
-        total += u64::from(scene.chunk(e.chunk).triangle_count());
+        total += u64::from(scene.chunk(chunk).triangle_count());
     }
     (0..count)
         .map(|_| {
             let k = rng.below(total);
             let i = starts.partition_point(|&s| s <= k) - 1;
-            let e = &entries[i];
-            let c = scene.chunk(e.chunk);
+            let (part, chunk) = instances[i];
+            let c = scene.chunk(chunk);
             let t = c.triangles.start + (k - starts[i]) as u32;
-            let tri = scene.triangle_local(c.mesh, e.chunk, t);
+            let tri = scene.triangle_local(c.mesh, chunk, t);
             let target = scene
-                .part_world(e.part)
+                .part_world(part)
                 .transform_point3(((tri[0] + tri[1] + tri[2]) / 3.0).as_dvec3());
             let eye = target + in_ball(rng).normalize_or(DVec3::Z) * rng.range(near, far);
             Ray3d::new(eye, (target - eye).normalize())
@@ -171,16 +175,8 @@ pub(crate) fn bench_pick(args: &PickArgs) -> anyhow::Result<()> {
         .num_threads(args.threads)
         .build()?;
     let mut rng = Rng::new(args.seed);
-    let entries = Tree::build(scene, TreeOptions::default())
-        .entries()
-        .to_vec();
-    let random = random_rays(
-        scene,
-        &entries,
-        &mut rng,
-        args.rays,
-        (0.5 * args.metre, 20.0 * args.metre),
-    );
+    let reach = (0.5 * args.metre, 20.0 * args.metre);
+    let random = random_rays(scene, &mut rng, args.rays, reach);
     let side = (args.rays as f64).sqrt().round().max(1.0) as usize;
     let camera = camera_rays(scene, side);
     let out = json!({

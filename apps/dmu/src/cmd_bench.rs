@@ -139,7 +139,7 @@ fn bench_tree(args: &TreeArgs) -> anyhow::Result<()> {
 
     // Rays aimed at random triangles from a few metres away: each hits something.
     let reach = (0.5 * args.move_reach, 20.0 * args.move_reach);
-    let rays = random_rays(scene, tree.entries(), &mut rng, args.rays, reach);
+    let rays = random_rays(scene, &mut rng, args.rays, reach);
     let mut pick_cold = Vec::with_capacity(rays.len());
     let mut pick_warm = Vec::with_capacity(rays.len());
     let mut hits = 0usize;

@@ -10,12 +10,12 @@ use std::time::Duration;
 
 use dmu_geom::{Aabb3f, Ray3d, RayBoxTest3d, RayTriTest3d};
 use dmu_scene::{ChunkId, Scene};
-
-use crate::stack::{Stack, reach};
 use glam::{Vec3, Vec3A};
 use obvhs::BvhBuildParams;
 use obvhs::bvh2::Bvh2;
 use obvhs::triangle::Triangle;
+
+use crate::stack::{Stack, reach};
 
 /// Chunks of at most this many triangles are tested without a BVH.
 const BRUTE_FORCE_MAX: u32 = 16;
