@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# The Python module and the Ray example: builds the wheel into a fresh venv
-# (target/py-venv), installs pytest, ray, bcf-client (IfcOpenShell's BCF
+# The Python module and the Ray example: builds the wheel with its `cad`
+# extra (OpenCascade's OCP and IfcOpenShell, which read STEP and IFC) into a
+# fresh venv (target/py-venv), installs pytest, ray, bcf-client (IfcOpenShell's BCF
 # library, the independent reader and writer of the BCF tests) and embreex
 # (Embree, the ray tracer picks are compared with), and runs crates/dmu-py/tests
 # against the `dmu` binary of the workspace build (DMU_BIN). Under CI=true a
@@ -28,8 +29,8 @@ rm -rf "$venv"
 python3 -m venv "$venv"
 start=$(date +%s)
 # The dev profile builds in half the time of release; the tests' models are small.
-MATURIN_PEP517_ARGS="--profile dev" "$venv/bin/pip" install --quiet --disable-pip-version-check ./crates/dmu-py pytest 'ray>=2.9' bcf-client embreex ||
-    skip "pip could not install the wheel, pytest, ray, bcf-client or embreex"
+MATURIN_PEP517_ARGS="--profile dev" "$venv/bin/pip" install --quiet --disable-pip-version-check './crates/dmu-py[cad]' pytest 'ray>=2.9' bcf-client embreex ||
+    skip "pip could not install the wheel with its cad extra, pytest, ray, bcf-client or embreex"
 echo "wheel and packages installed in $(($(date +%s) - start)) s"
 # -s: the Ray test prints its 1- and 2-worker times into the log.
 "$venv/bin/python" -m pytest -rs -q -s crates/dmu-py/tests

@@ -90,7 +90,7 @@ pub fn issues(review: &Review, viewpoints: &[Viewpoint], near: f64) -> Vec<Issue
 /// A viewer viewpoint as a BCF viewpoint (no snapshot yet).
 pub fn bcf_viewpoint(review: &Review, v: &Viewpoint) -> bcf::Viewpoint {
     let scene = &review.scene;
-    let component = |p: PartId| Component::part(scene.part_name(p));
+    let component = |p: PartId| Component::of(scene, p);
     let camera = dmu_geom::Camera {
         eye: v.eye,
         target: v.eye + v.forward * v.pivot_distance.max(1e-9),
@@ -148,17 +148,14 @@ pub struct Imported {
 }
 
 /// The topics' first viewpoints as the viewer's: camera, selection (parts
-/// found by `AuthoringToolId`, the node name), hidden parts, and clipping
+/// found by `IfcGuid`, else by `AuthoringToolId`, the node name), hidden parts, and clipping
 /// planes as a section. More than [`dmu_render::MAX_SECTION_PLANES`] planes
 /// in a viewpoint is an error naming the topic.
 pub fn import(review: &Review, topics: &[Topic], pivot_distance: f64) -> anyhow::Result<Imported> {
     let scene = &review.scene;
     let mut out = Imported::default();
     let mut find = |c: &Component| {
-        let part = c
-            .authoring_tool_id
-            .as_deref()
-            .and_then(|n| scene.find_part(n).ok());
+        let part = c.find(scene);
         if part.is_none() {
             out.unknown_components += 1;
         }

@@ -9,7 +9,7 @@
 //!   {"drag": {"by": [0, 0, 500], "steps": 20}},
 //!   {"mouse_drag": {"axis": "x", "from": [640, 360], "to": [700, 360], "steps": 10}},
 //!   "undo", "redo", "focus", "frame_all",
-//!   {"select": "U00-L1-PIPE-0003"},
+//!   {"select": "U00-L1-PIPE-0003"}, {"search": "2O2Fr$t4X7Zf8NOew3FLOH"},
 //!   {"rotate": {"axis": "z", "degrees": 90}},
 //!   {"hover": [640, 360]},
 //!   {"view": "top"}, {"camera": {"eye": [0, 0, 1500], "forward": [1, 0, 0]}},
@@ -226,8 +226,12 @@ fn default_steps() -> u32 {
 pub enum Action {
     /// Click at a view pixel `[x, y]`: select what is there (or nothing).
     Pick([f64; 2]),
-    /// Select a part by name, path or `#id`.
+    /// Select a part by name, path, `#id` or a property value (a GlobalId).
     Select(String),
+    /// Type into the product structure's search: the parts whose name or a
+    /// property value (a GlobalId, an IFC class) holds the text, ignoring
+    /// case.
+    Search(String),
     /// Move the selection by `[dx, dy, dz]` as one typed edit.
     Move([f64; 3]),
     /// Drag the selection by an offset in steps.
@@ -328,6 +332,7 @@ impl Action {
         match self {
             Self::Pick(_) => "pick",
             Self::Select(_) => "select",
+            Self::Search(_) => "search",
             Self::Move(_) => "move",
             Self::Drag(_) => "drag",
             Self::MouseDrag(_) => "mouse_drag",

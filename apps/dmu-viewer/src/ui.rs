@@ -406,6 +406,17 @@ fn record_button(
     }
 }
 
+impl UiState {
+    /// Types `text` into the structure's search, as a user does: the parts
+    /// it lists.
+    pub fn search(&mut self, scene: &Scene, text: &str) -> &[PartId] {
+        self.search = text.to_owned();
+        self.matches_for = text.trim().to_lowercase();
+        self.matches = scene.search_parts(&self.matches_for);
+        &self.matches
+    }
+}
+
 fn structure_panel(
     ui: &mut egui::Ui,
     state: &mut UiState,
@@ -432,11 +443,7 @@ fn structure_panel(
         return;
     }
     if state.matches_for != query {
-        state.matches = review
-            .scene
-            .part_ids()
-            .filter(|&p| review.scene.part_name(p).to_lowercase().contains(&query))
-            .collect();
+        state.matches = review.scene.search_parts(&query);
         state.matches_for = query;
     }
     ui.weak(format!("{} parts", state.matches.len()));
@@ -524,7 +531,7 @@ fn node_ui(
             }
             if children.len() > CHILDREN_SHOWN {
                 ui.weak(format!(
-                    "… {} more (search by name)",
+                    "… {} more (search by name, GlobalId or class)",
                     children.len() - CHILDREN_SHOWN
                 ));
                 // The part being revealed is shown even past the limit.
@@ -613,6 +620,9 @@ fn properties_panel(
                     format!("{:.3}° about {}", angle.to_degrees(), vec_text(axis)),
                 );
                 row("scale", vec_text(scale));
+                for (key, value) in scene.node_properties(scene.part(part).node) {
+                    row(key, value.to_owned());
+                }
             });
         ui.horizontal(|ui| {
             on_click(ui.button("hide").clicked(), commands, R::Hide(part));

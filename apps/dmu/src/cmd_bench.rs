@@ -59,6 +59,7 @@ impl BenchModel {
             file: self.file.clone(),
             chunk_triangles: self.chunk_triangles,
             plant_triangles: self.triangles,
+            cad: Default::default(),
         })
     }
 

@@ -9,15 +9,22 @@ use indicatif::ProgressBar;
 use crate::progress::{peak_rss_bytes, style_mesh_bar};
 use crate::units::parse_bytes;
 
-/// Import a glTF file (.glb or .gltf) into a dmu store (.dmu).
+/// Import a glTF (.glb, .gltf), STEP (.step, .stp) or IFC (.ifc) file into a dmu store (.dmu).
 ///
-/// The JSON is read as a stream (nodes straight into flat arrays, a few dozen
-/// bytes each), and meshes are decoded, chunked and written one batch at a time
-/// and dropped, so peak memory stays near the budget whatever the geometry's
-/// size. The store replaces OUTPUT only when complete.
+/// glTF's JSON is read as a stream (nodes straight into flat arrays, a few
+/// dozen bytes each), and meshes are decoded, chunked and written one batch
+/// at a time and dropped, so peak memory stays near the budget whatever the
+/// geometry's size. STEP and IFC are first converted to glTF in a scratch
+/// folder beside OUTPUT, by OpenCascade and IfcOpenShell run from Python
+/// (`DMU_PYTHON`, or `python3` on the PATH, with `pip install 'dmu[cad]'`):
+/// the assembly or spatial structure, names, instancing, colours, units
+/// (converted to millimetres) and each element's GlobalId, IFC class or STEP
+/// product name (`dmu info --parts`, `dmu pick --json`). A product that
+/// cannot be tessellated is named and left out. The store replaces OUTPUT
+/// only when complete.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The glTF file.
+    /// The glTF, STEP or IFC file.
     input: PathBuf,
     /// The store to write (`.dmu`).
     #[arg(short, long, value_parser = crate::units::output_with("dmu"))]
@@ -37,6 +44,8 @@ pub struct Args {
     /// within a quarter of --memory-budget.
     #[arg(long)]
     no_lod: bool,
+    #[command(flatten)]
+    cad: dmu_app::load::CadArgs,
     /// Print a JSON summary instead of text.
     #[arg(long)]
     json: bool,
@@ -58,6 +67,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             quantize: args.quantize,
         },
         progress: Some(&progress),
+        cad: &args.cad.options(),
     };
     // With the hierarchy the store is written twice (geometry, then the
     // hierarchy's rewrite): both go to a staging name beside it, renamed
@@ -70,7 +80,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             PathBuf::from(name)
         }
     };
-    let result = dmu_store::import_gltf(&args.input, &staged, &options).with_context(|| {
+    let result = dmu_store::import_file(&args.input, &staged, &options).with_context(|| {
         format!(
             "importing {} into {}",
             args.input.display(),
@@ -141,6 +151,15 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         import_ms / 1e3,
         peak_rss.map_or_else(|| "unknown".into(), |b| format!("{:.0} MB", b as f64 / 1e6))
     );
+    if let Some(c) = &summary.converted {
+        println!(
+            "  converted from {} in {:.1} s: {} products, {} left out",
+            c.format, c.seconds, c.products, c.failed
+        );
+    }
+    for f in &summary.report.failed_products {
+        println!("  left out: {} ({}): {}", f.name, f.class, f.reason);
+    }
     if let Some(lod) = lod {
         println!(
             "  level-of-detail hierarchy: {} proxies, {} triangles, {:.1} MB, {:.1} s",

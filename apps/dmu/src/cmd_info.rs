@@ -12,9 +12,50 @@ use crate::load::{ModelArgs, load};
 pub struct Args {
     #[command(flatten)]
     model: ModelArgs,
+    /// List the parts instead, one a line: id, assembly path and properties
+    /// (an IFC element's GlobalId and class, a STEP product's name, a glTF
+    /// node's extras); with --json one object a line (`id`, `name`, `path`,
+    /// `properties`).
+    #[arg(long)]
+    parts: bool,
     /// Print one JSON object instead of text.
     #[arg(long)]
     json: bool,
+}
+
+/// One part as `--parts --json` lists it.
+#[derive(Serialize)]
+struct PartLine<'a> {
+    id: u32,
+    name: &'a str,
+    path: String,
+    properties: std::collections::BTreeMap<&'a str, &'a str>,
+}
+
+/// `--parts`: every part, one a line.
+fn list_parts(scene: &dmu_scene::Scene, json: bool) -> anyhow::Result<()> {
+    use std::io::Write as _;
+    let mut out = std::io::BufWriter::new(std::io::stdout().lock());
+    for part in scene.part_ids() {
+        let line = PartLine {
+            id: part.0,
+            name: scene.part_name(part),
+            path: scene.part_path(part),
+            properties: scene.node_properties(scene.part(part).node).collect(),
+        };
+        if json {
+            serde_json::to_writer(&mut out, &line)?;
+            writeln!(out)?;
+        } else {
+            write!(out, "{:>8}  {}", line.id, line.path)?;
+            for (k, v) in &line.properties {
+                write!(out, "  {k}={v}")?;
+            }
+            writeln!(out)?;
+        }
+    }
+    out.flush()?;
+    Ok(())
 }
 
 #[derive(Serialize)]
@@ -53,6 +94,9 @@ struct Info {
 pub fn run(args: &Args) -> anyhow::Result<()> {
     let loaded = load(&args.model)?;
     let s = &loaded.scene;
+    if args.parts {
+        return list_parts(s, args.json);
+    }
     let b = s.tight_world_bounds();
     let (min, max) = if b.is_empty() {
         ([0.0; 3], [0.0; 3])
@@ -111,6 +155,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         info.import_triangles_per_s / 1e6
     );
     let r = &info.skipped;
+    for f in &r.failed_products {
+        println!("  left out        {} ({}): {}", f.name, f.class, f.reason);
+    }
     if r.point_primitives_skipped
         + r.line_primitives_skipped
         + r.unused_meshes

@@ -57,6 +57,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         file: args.file.clone(),
         chunk_triangles: dmu_scene::DEFAULT_CHUNK_TRIANGLES,
         plant_triangles: scale.plant_triangles,
+        cad: Default::default(),
     };
     let loaded = load(&model_args)?;
     loaded.require_triangles("measure")?;

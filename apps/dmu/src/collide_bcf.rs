@@ -344,7 +344,10 @@ fn topic(
         "dmu collide",
         Viewpoint {
             camera: Some(bcf::Camera::perspective(&camera)),
-            selected: vec![Component::part(a), Component::part(b)],
+            selected: vec![
+                Component::of(scene, PartId(worst.a_id)),
+                Component::of(scene, PartId(worst.b_id)),
+            ],
             snapshot: snapshot.map(Into::into),
             ..Viewpoint::new()
         },

@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use dmu_scene::{ImportOptions, ImportReport, Scene};
+use dmu_store::cad::CadOptions;
 use indicatif::ProgressBar;
 
 use crate::progress::style_mesh_bar;
@@ -46,7 +47,8 @@ pub fn require_triangles(scene: &Scene, source: &str, work: &str) -> anyhow::Res
 /// Shared clap arguments for commands that open a model.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ModelArgs {
-    /// Model file (.glb, .gltf, or a .dmu store); the built-in plant when omitted.
+    /// Model file (.glb, .gltf, .step, .stp, .ifc, or a .dmu store); the
+    /// built-in plant when omitted.
     pub file: Option<PathBuf>,
     /// Maximum triangles per chunk (the unit of loading, drawing and picking).
     #[arg(long, default_value_t = dmu_scene::DEFAULT_CHUNK_TRIANGLES, value_parser = clap::value_parser!(u32).range(1..=crate::units::MAX_CHUNK_TRIANGLES as i64))]
@@ -54,6 +56,50 @@ pub struct ModelArgs {
     /// Size of the built-in plant used when no file is given (10k to 1G).
     #[arg(long = "plant-triangles", default_value = "2M", value_parser = crate::units::count_in(crate::units::MIN_PLANT_TRIANGLES, crate::units::MAX_TRIANGLES))]
     pub plant_triangles: u64,
+    #[command(flatten)]
+    pub cad: CadArgs,
+}
+
+/// How STEP and IFC files are read (through `DMU_PYTHON` or `python3` with
+/// `pip install 'dmu[cad]'`).
+#[derive(Debug, Clone, clap::Args)]
+pub struct CadArgs {
+    /// STEP: the largest gap between a surface and its triangles, as a
+    /// fraction of each part's size.
+    #[arg(long, default_value_t = CadOptions::default().deflection, value_parser = crate::units::number_in(1e-6, 0.5))]
+    pub deflection: f64,
+    /// STEP: the largest angle between neighbouring triangles' normals on a
+    /// curved face, radians.
+    #[arg(long, default_value_t = CadOptions::default().angular_deflection, value_parser = crate::units::number_in(0.01, 1.5))]
+    pub angular_deflection: f64,
+    /// IFC: classes to keep that are left out by default, comma separated
+    /// (IfcSpace, IfcOpeningElement).
+    #[arg(long, value_delimiter = ',')]
+    pub ifc_include: Vec<String>,
+}
+
+impl Default for CadArgs {
+    /// The defaults of the command line.
+    fn default() -> Self {
+        let d = CadOptions::default();
+        Self {
+            deflection: d.deflection,
+            angular_deflection: d.angular_deflection,
+            ifc_include: d.ifc_include,
+        }
+    }
+}
+
+impl CadArgs {
+    /// The converter's settings.
+    pub fn options(&self) -> CadOptions {
+        CadOptions {
+            deflection: self.deflection,
+            angular_deflection: self.angular_deflection,
+            ifc_include: self.ifc_include.clone(),
+            ..Default::default()
+        }
+    }
 }
 
 /// Opens the model: the file, or the built-in plant.
@@ -70,7 +116,7 @@ pub fn load_reporting(
 ) -> anyhow::Result<Loaded> {
     let start = Instant::now();
     let (scene, report) = match &args.file {
-        Some(path) => import(path, args.chunk_triangles, progress)?,
+        Some(path) => import(path, args.chunk_triangles, &args.cad.options(), progress)?,
         None => {
             let options = dmu_samples::PlantOptions {
                 triangles: args.plant_triangles,
@@ -91,6 +137,7 @@ pub fn load_reporting(
 fn import(
     path: &Path,
     chunk_triangles: u32,
+    cad: &CadOptions,
     report: &(dyn Fn(usize, usize) + Sync),
 ) -> anyhow::Result<(Scene, ImportReport)> {
     // A bar only for files big enough to take a while; indicatif hides it when
@@ -114,7 +161,7 @@ fn import(
         progress: Some(&progress),
     };
     // The one opening path, shared with the GPU-free users (the Python module).
-    let result = dmu_store::open_scene(path, &options);
+    let result = dmu_store::open_scene(path, &options, cad);
     bar.finish_and_clear();
     Ok(result?)
 }

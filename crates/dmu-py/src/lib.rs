@@ -183,9 +183,13 @@ fn from_json<'py>(py: Python<'py>, json: &str) -> PyResult<Bound<'py, PyAny>> {
 
 #[pymethods]
 impl Model {
-    /// Every part as a dict: `id`, `name`, `path`, `triangles`, `hidden`.
+    /// Every part as a dict: `id`, `name`, `path`, `triangles`, `hidden`,
+    /// and `properties` (a dict of what the source file says of the part:
+    /// an IFC element's `GlobalId` and `IfcClass`, a STEP product's
+    /// `StepProduct`, a glTF node's `extras`).
     fn parts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
-        let parts: Vec<(String, String, u64, bool)> = self.reading(py, |st| {
+        type Row = (String, String, u64, bool, Vec<(String, String)>);
+        let parts: Vec<Row> = self.reading(py, |st| {
             let scene = &st.scene;
             scene
                 .parts()
@@ -198,18 +202,27 @@ impl Model {
                         scene.part_path(id),
                         scene.mesh(part.mesh).triangle_count(),
                         part.hidden,
+                        scene
+                            .node_properties(part.node)
+                            .map(|(k, v)| (k.to_owned(), v.to_owned()))
+                            .collect(),
                     )
                 })
                 .collect()
         });
         let list = PyList::empty(py);
-        for (i, (name, path, triangles, hidden)) in parts.into_iter().enumerate() {
+        for (i, (name, path, triangles, hidden, properties)) in parts.into_iter().enumerate() {
             let d = PyDict::new(py);
             d.set_item("id", i)?;
             d.set_item("name", name)?;
             d.set_item("path", path)?;
             d.set_item("triangles", triangles)?;
             d.set_item("hidden", hidden)?;
+            let p = PyDict::new(py);
+            for (k, v) in properties {
+                p.set_item(k, v)?;
+            }
+            d.set_item("properties", p)?;
             list.append(d)?;
         }
         Ok(list)
@@ -218,7 +231,7 @@ impl Model {
     /// The nearest part along the world ray `origin + t * direction`, as a dict
     /// with the fields of `dmu pick --json` (`part`, `part_id`, `path`,
     /// `triangle`, `distance` in world units whatever the direction's length,
-    /// `point`, `normal`), or `None` when the ray hits nothing.
+    /// `point`, `normal`, `properties`), or `None` when the ray hits nothing.
     fn pick<'py>(
         &self,
         py: Python<'py>,
@@ -563,18 +576,48 @@ fn check_chunk_triangles(chunk_triangles: u32) -> PyResult<()> {
     }
 }
 
-/// Opens a model file: a `.dmu` store, or `.glb`/`.gltf` (chunked into
-/// `chunk_triangles`-triangle chunks; a store keeps its own).
+/// Opens a model file: a `.dmu` store, `.glb`/`.gltf`, or STEP (`.step`,
+/// `.stp`) or IFC (`.ifc`) through OpenCascade and IfcOpenShell run by this
+/// interpreter (`pip install 'dmu[cad]'`), chunked into
+/// `chunk_triangles`-triangle chunks (a store keeps its own). STEP is
+/// tessellated within `deflection` of each part's size and
+/// `angular_deflection` radians; `ifc_include` keeps IFC classes left out
+/// by default (`IfcSpace`, `IfcOpeningElement`).
 #[pyfunction]
-#[pyo3(signature = (path, chunk_triangles = dmu_scene::DEFAULT_CHUNK_TRIANGLES))]
-fn open(py: Python<'_>, path: PathBuf, chunk_triangles: u32) -> PyResult<Model> {
+#[pyo3(signature = (path, chunk_triangles = dmu_scene::DEFAULT_CHUNK_TRIANGLES, deflection = 0.001, angular_deflection = 0.5, ifc_include = Vec::new()))]
+fn open(
+    py: Python<'_>,
+    path: PathBuf,
+    chunk_triangles: u32,
+    deflection: f64,
+    angular_deflection: f64,
+    ifc_include: Vec<String>,
+) -> PyResult<Model> {
     check_chunk_triangles(chunk_triangles)?;
+    let in_range = |v: f64, lo: f64, hi: f64| v.is_finite() && (lo..=hi).contains(&v);
+    if !in_range(deflection, 1e-6, 0.5) || !in_range(angular_deflection, 0.01, 1.5) {
+        return Err(DmuError::new_err(format!(
+            "deflection {deflection}, angular_deflection {angular_deflection}: expected 1e-6 to 0.5 and 0.01 to 1.5"
+        )));
+    }
+    let python: PathBuf = py
+        .import("sys")?
+        .getattr("executable")?
+        .extract::<String>()?
+        .into();
+    let cad = dmu_store::cad::CadOptions {
+        deflection,
+        angular_deflection,
+        ifc_include,
+        python: (!python.as_os_str().is_empty()).then_some(python),
+        ..Default::default()
+    };
     py.detach(|| {
         let options = ImportOptions {
             chunk_triangles,
             progress: None,
         };
-        let (scene, _) = dmu_store::open_scene(&path, &options)?;
+        let (scene, _) = dmu_store::open_scene(&path, &options, &cad)?;
         Ok(Model::new(scene, Some(path)))
     })
     .map_err(|e: dmu_store::StoreError| dmu_error(e))

@@ -8,6 +8,7 @@ import json
 import os
 import pathlib
 import random
+import shutil
 import subprocess
 
 import pytest
@@ -98,3 +99,33 @@ def cli_collide(dmu_bin, model_path, record, clearance=5.0, continuous=False):
     args.append("--continuous" if continuous else "--discrete")
     _, out = run_cli(dmu_bin, *args)
     return json.loads(out)["clashes"]
+
+
+LVP_ICD = "/usr/share/vulkan/icd.d/lvp_icd.x86_64.json"
+
+
+@pytest.fixture(scope="session")
+def viewer_bin(dmu_bin):
+    """The `dmu-viewer` beside the `dmu` binary, with Xvfb and lavapipe to run it."""
+    viewer = pathlib.Path(dmu_bin).with_name("dmu-viewer")
+    require(viewer.is_file(), f"no dmu-viewer beside {dmu_bin} (cargo build --workspace)")
+    require(shutil.which("xvfb-run") is not None, "xvfb-run is missing (apt-get install xvfb xauth)")
+    require(pathlib.Path(LVP_ICD).is_file(), "lavapipe is missing (apt-get install mesa-vulkan-drivers)")
+    return viewer
+
+
+def run_viewer(viewer_bin, model, script, tmp_path, env=None):
+    """Runs the viewer on `model` with a script (a list of actions) under Xvfb,
+    with `env` added to the environment; returns its JSON report."""
+    script_path = tmp_path / "script.json"
+    script_path.write_text(json.dumps(script))
+    env = dict(os.environ, WGPU_BACKEND="vulkan", VK_ICD_FILENAMES=LVP_ICD, **(env or {}))
+    out = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1600x1000x24", str(viewer_bin), str(model),
+                          "--script", str(script_path)], capture_output=True, text=True, timeout=600, env=env)
+    assert out.returncode == 0, f"dmu-viewer failed: {out.stderr}"
+    return json.loads(out.stdout)
+
+
+def step_of(report, action):
+    (step,) = [s for s in report["steps"] if s["action"] == action]
+    return step

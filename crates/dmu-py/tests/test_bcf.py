@@ -7,17 +7,13 @@ saying so."""
 
 import json
 import math
-import os
-import pathlib
-import shutil
 import struct
-import subprocess
 import uuid
 import zlib
 
 import pytest
 
-from conftest import require, run_cli
+from conftest import require, run_cli, run_viewer, step_of
 
 # box_x_y_z of the 4×4×4 grid spans 10·(x, y, z) ± 2.
 HALF = 2.0
@@ -240,36 +236,6 @@ def test_bcf_client_file_reads_in_dmu(dmu_bin, tmp_path, version):
     # In metres the same file reads 1000 times smaller.
     _, out = run_cli(dmu_bin, "bcf", "show", path, "--json", "--unit", "m")
     assert json.loads(out)["topics"][0]["viewpoints"][0]["camera"]["eye"] == pytest.approx([1.5, -2.5, 3.25])
-
-
-LVP_ICD = "/usr/share/vulkan/icd.d/lvp_icd.x86_64.json"
-
-
-@pytest.fixture(scope="session")
-def viewer_bin(dmu_bin):
-    """The `dmu-viewer` beside the `dmu` binary, with Xvfb and lavapipe to run it."""
-    viewer = pathlib.Path(dmu_bin).with_name("dmu-viewer")
-    require(viewer.is_file(), f"no dmu-viewer beside {dmu_bin} (cargo build --workspace)")
-    require(shutil.which("xvfb-run") is not None, "xvfb-run is missing (apt-get install xvfb xauth)")
-    require(pathlib.Path(LVP_ICD).is_file(), "lavapipe is missing (apt-get install mesa-vulkan-drivers)")
-    return viewer
-
-
-def run_viewer(viewer_bin, model, script, tmp_path):
-    """Runs the viewer on `model` with a script (a list of actions) under Xvfb;
-    returns its JSON report."""
-    script_path = tmp_path / "script.json"
-    script_path.write_text(json.dumps(script))
-    env = dict(os.environ, WGPU_BACKEND="vulkan", VK_ICD_FILENAMES=LVP_ICD)
-    out = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1600x1000x24", str(viewer_bin), str(model),
-                          "--script", str(script_path)], capture_output=True, text=True, timeout=600, env=env)
-    assert out.returncode == 0, f"dmu-viewer failed: {out.stderr}"
-    return json.loads(out.stdout)
-
-
-def step_of(report, action):
-    (step,) = [s for s in report["steps"] if s["action"] == action]
-    return step
 
 
 def test_viewer_bcf_reads_in_bcf_client(grid_glb, viewer_bin, tmp_path):

@@ -175,6 +175,13 @@ fn build(scene: &Scene) -> (Value, Vec<u8>) {
             if let Some(part) = node.part {
                 n["mesh"] = json!(scene.part(part).mesh.0);
             }
+            let properties: serde_json::Map<String, serde_json::Value> = scene
+                .node_properties(id)
+                .map(|(k, v)| (k.to_owned(), json!(v)))
+                .collect();
+            if !properties.is_empty() {
+                n["extras"] = serde_json::Value::Object(properties);
+            }
             n
         })
         .collect();

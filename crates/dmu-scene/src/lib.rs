@@ -41,6 +41,7 @@ mod gltf_import;
 mod ids;
 mod lod;
 mod nearest;
+pub mod properties;
 mod scene;
 mod solid;
 mod structure;
@@ -52,7 +53,7 @@ pub use chunking::{
 pub use error::{ExportError, ImportError, SceneError};
 pub use gltf_export::export_gltf;
 pub use gltf_import::{
-    ImportOptions, ImportReport, SUPPORTED_REQUIRED, import_gltf, import_gltf_slice,
+    FailedProduct, ImportOptions, ImportReport, SUPPORTED_REQUIRED, import_gltf, import_gltf_slice,
 };
 pub use gltf_import::{StreamOptions, Streamed, import_gltf_streaming};
 pub use ids::{ChunkId, MaterialId, MeshId, NodeId, PartId};
@@ -60,6 +61,7 @@ pub use lod::{
     LodLevel, MAX_LOD_LEVELS, MIN_LOD_TRIANGLES, lod_levels, simplified_error, simplify_mended,
     simplify_to_error,
 };
+pub use properties::Properties;
 pub use scene::{
     AssemblyNode, Children, Chunk, ChunkGeometry, DEFAULT_CHUNK_TRIANGLES, MAX_WORLD_COORDINATE,
     Material, Mesh, Part, Scene, SceneBuilder, limits,

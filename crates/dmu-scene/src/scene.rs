@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 use crate::chunking::{ChunkData, ChunkedMesh, MeshData, chunk_mesh};
 use crate::error::SceneError;
 use crate::ids::{ChunkId, MaterialId, MeshId, NodeId, PartId};
+use crate::properties::Properties;
 use crate::structure::Names;
 
 /// Default maximum triangles per chunk.
@@ -249,6 +250,8 @@ pub struct Scene {
     nodes: Vec<AssemblyNode>,
     /// Every node's name, by node.
     names: Names,
+    /// What the source file says of nodes beside their names.
+    properties: Properties,
     parts: Vec<Part>,
     meshes: Vec<Mesh>,
     chunks: Vec<Chunk>,
@@ -287,6 +290,25 @@ impl Scene {
     /// A node's name; importers give unnamed nodes stable generated names.
     pub fn node_name(&self, id: NodeId) -> &str {
         self.names.get(id.index())
+    }
+    /// A node's properties (an IFC element's GlobalId and class, a STEP
+    /// product's name, a glTF node's `extras`), in file order.
+    pub fn node_properties(&self, id: NodeId) -> impl Iterator<Item = (&str, &str)> + '_ {
+        self.properties.of(id)
+    }
+    /// Every node's properties.
+    pub fn properties(&self) -> &Properties {
+        &self.properties
+    }
+    /// Gives the nodes the properties `properties` (a store keeps them in a
+    /// segment of their own); an error when one names a node the scene does
+    /// not have.
+    pub fn set_properties(&mut self, properties: Properties) -> Result<(), SceneError> {
+        properties
+            .check(self.nodes.len())
+            .map_err(|what| SceneError::Invalid { what })?;
+        self.properties = properties;
+        Ok(())
     }
     /// A node's children in file order.
     pub fn children(&self, id: NodeId) -> Children<'_> {
@@ -531,8 +553,9 @@ impl Scene {
         [0, 1, 2].map(|k| m.positions[base + m.indices[i + k] as usize])
     }
 
-    /// Finds a part by name, by `#id`, or by its full path. Fails when nothing or
-    /// more than one part matches, listing the candidates.
+    /// Finds a part by name, by `#id`, by its full path, or else by a
+    /// property value (an IFC GlobalId). Fails when nothing or more than one
+    /// part matches, listing the candidates.
     pub fn find_part(&self, key: &str) -> Result<PartId, SceneError> {
         if let Some(num) = key.strip_prefix('#') {
             return match num.parse::<u32>() {
@@ -546,11 +569,14 @@ impl Scene {
             .part_ids()
             .filter(|&p| self.part_name(p) == key)
             .collect();
-        let matches = if by_name.is_empty() && key.contains('/') {
+        let mut matches = if by_name.is_empty() && key.contains('/') {
             self.parts_at_path(key)
         } else {
             by_name
         };
+        if matches.is_empty() {
+            matches = self.parts_with_property_value(key);
+        }
         match matches.as_slice() {
             [one] => Ok(*one),
             [] => Err(SceneError::UnknownPart {
@@ -566,6 +592,37 @@ impl Scene {
                 count: many.len(),
             }),
         }
+    }
+
+    /// The parts with a property whose value is `value`, in id order.
+    pub fn parts_with_property_value(&self, value: &str) -> Vec<PartId> {
+        let mut parts: Vec<PartId> = self
+            .properties
+            .iter()
+            .filter(|&(_, _, v)| v == value)
+            .filter_map(|(node, _, _)| self.node(node).part)
+            .collect();
+        parts.dedup();
+        parts
+    }
+
+    /// The parts whose name, or one of whose property values (a GlobalId,
+    /// an IFC class), holds `query`, ignoring case; in id order. What the
+    /// viewer's product-structure search lists.
+    pub fn search_parts(&self, query: &str) -> Vec<PartId> {
+        let query = query.to_lowercase();
+        let holds = |s: &str| s.to_lowercase().contains(&query);
+        let mut found = vec![false; self.parts.len()];
+        for (node, _, value) in self.properties.iter() {
+            if let Some(part) = self.node(node).part
+                && holds(value)
+            {
+                found[part.index()] = true;
+            }
+        }
+        self.part_ids()
+            .filter(|&p| found[p.index()] || holds(self.part_name(p)))
+            .collect()
     }
 
     /// The parts whose [`Scene::node_path`] is `path`, found by walking down
@@ -598,6 +655,9 @@ impl Scene {
         let fail = |what: String| Err(SceneError::Invalid { what });
         if self.nodes.first().is_none_or(|r| r.parent.is_some()) {
             return fail("node 0 must be the root".into());
+        }
+        if let Err(what) = self.properties.check(self.nodes.len()) {
+            return fail(what);
         }
         // Each node listed once among its parent's children: linear, where a
         // search of the parent's list was quadratic for wide assemblies.
@@ -757,6 +817,7 @@ impl SceneBuilder {
                     names.push(name.as_ref());
                     names
                 },
+                properties: Properties::default(),
                 parts: Vec::new(),
                 meshes: Vec::new(),
                 chunks: Vec::new(),
@@ -812,6 +873,15 @@ impl SceneBuilder {
             .push(AssemblyNode::new(Some(parent), world));
         self.scene.names.push(name.as_ref());
         id
+    }
+
+    /// Gives a node added earlier a property.
+    ///
+    /// # Panics
+    /// When `node` comes before a node given one earlier: properties are
+    /// added in node order.
+    pub fn add_property(&mut self, node: NodeId, key: &str, value: &str) {
+        self.scene.properties.push(node, key, value);
     }
 
     /// The world transform of a node added earlier.

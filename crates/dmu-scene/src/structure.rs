@@ -11,6 +11,7 @@ use glam::{DAffine3, Vec3};
 use crate::chunking::{ChunkData, ChunkedMesh};
 use crate::error::SceneError;
 use crate::ids::{MaterialId, MeshId, NodeId, PartId};
+use crate::properties::Properties;
 use crate::scene::{Scene, SceneBuilder, world_is_valid};
 
 /// Marks the root's parent in [`NodeEntry::parent`].
@@ -127,7 +128,7 @@ impl Names {
         Ok(())
     }
 
-    fn held_bytes(&self) -> u64 {
+    pub(crate) fn held_bytes(&self) -> u64 {
         (self.ends.capacity() * 8 + self.bytes.capacity()) as u64
     }
 }
@@ -152,6 +153,8 @@ pub struct Structure {
     pub materials: Vec<[f32; 4]>,
     /// Material names.
     pub material_names: Names,
+    /// Nodes' properties.
+    pub properties: Properties,
 }
 
 impl Structure {
@@ -210,6 +213,7 @@ impl Structure {
             s.materials.push(m.base_color);
             s.material_names.push(&m.name);
         }
+        s.properties = scene.properties().clone();
         s
     }
 
@@ -331,6 +335,7 @@ impl Structure {
             + self.node_names.held_bytes()
             + self.mesh_names.held_bytes()
             + self.material_names.held_bytes()
+            + self.properties.held_bytes()
     }
 
     /// Checks every index, count, range and number, so that
@@ -341,6 +346,7 @@ impl Structure {
         if node_count == 0 {
             return Err("no root node".into());
         }
+        self.properties.check(node_count)?;
         for (len, names, what) in [
             (node_count, &self.node_names, "node"),
             (self.meshes.len(), &self.mesh_names, "mesh"),
@@ -478,6 +484,9 @@ impl Structure {
         // Validated here, an error: `Structure::check` does not see the
         // parts' world boxes (a finite transform can still put one beyond
         // ±MAX_WORLD_COORDINATE), and `finish` would assert on them.
+        for (node, key, value) in self.properties.iter() {
+            b.add_property(node, key, value);
+        }
         let mut scene = b.finish_unvalidated();
         for part in hidden {
             scene.set_part_hidden(part, true);

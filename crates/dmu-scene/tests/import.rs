@@ -389,3 +389,72 @@ fn issue_18_a_huge_accessor_without_a_buffer_view_is_refused() {
     );
     assert!(import_gltf_slice(gltf(3).as_bytes(), None, "t", &ImportOptions::default()).is_ok());
 }
+
+#[test]
+fn node_extras_become_properties_that_export_keeps() {
+    let mut d = one_quad_doc();
+    d.json["nodes"][0]["extras"] = json!({
+        "GlobalId": "2O2Fr$t4X7Zf8NOew3FLOH",
+        "IfcClass": "IfcWallStandardCase",
+        "storey": 3,
+        "fire_rated": true,
+        "nested": { "a": 1 },
+        "list": [1, 2],
+        "none": null,
+        "long": "x".repeat(dmu_scene::properties::MAX_VALUE_BYTES + 1),
+    });
+    let storey = d.node(
+        json!({ "name": "Level 1", "children": [0], "extras": { "GlobalId": "0Storey" } }),
+        false,
+    );
+    let odd = d.node(json!({ "name": "odd", "extras": "not an object" }), false);
+    let crowded: serde_json::Map<String, serde_json::Value> =
+        (0..100).map(|i| (format!("k{i:03}"), json!(i))).collect();
+    let many = d.node(json!({ "name": "many", "extras": crowded }), false);
+    d.json["scenes"][0]["nodes"] = json!([storey, odd, many]);
+    let (scene, report) = d.import().unwrap();
+    // The nested, the list, the null and the long value; the string; 36 past 64.
+    assert_eq!(report.properties_dropped, 4 + 1 + 36);
+    let wall = dmu_scene::PartId(0);
+    let props = |s: &dmu_scene::Scene, n: dmu_scene::NodeId| {
+        let mut v: Vec<(String, String)> = s
+            .node_properties(n)
+            .map(|(k, v)| (k.to_owned(), v.to_owned()))
+            .collect();
+        v.sort();
+        v
+    };
+    let node = scene.part(wall).node;
+    assert_eq!(
+        props(&scene, node),
+        [
+            ("GlobalId", "2O2Fr$t4X7Zf8NOew3FLOH"),
+            ("IfcClass", "IfcWallStandardCase"),
+            ("fire_rated", "true"),
+            ("storey", "3"),
+        ]
+        .map(|(k, v)| (k.to_owned(), v.to_owned()))
+    );
+    let level = scene.node(node).parent.unwrap();
+    assert_eq!(
+        props(&scene, level),
+        [("GlobalId".into(), "0Storey".into())]
+    );
+    let many_node = dmu_scene::NodeId(scene.nodes().len() as u32 - 1);
+    assert_eq!(scene.node_name(many_node), "many");
+    assert_eq!(scene.node_properties(many_node).count(), 64);
+    // Found by GlobalId and by class, ignoring case; a storey has no part.
+    assert_eq!(scene.find_part("2O2Fr$t4X7Zf8NOew3FLOH").unwrap(), wall);
+    assert_eq!(scene.search_parts("ifcwall"), [wall]);
+    assert_eq!(scene.search_parts("2o2fr$T4"), [wall]);
+    assert!(scene.search_parts("0Storey").is_empty());
+    assert!(scene.find_part("0Storey").is_err());
+    // Exported as extras and read back the same.
+    let dir = tempfile::tempdir().unwrap();
+    let glb = dir.path().join("walls.glb");
+    dmu_scene::export_gltf(&scene, &glb).unwrap();
+    let (again, report) =
+        dmu_scene::import_gltf(&glb, &dmu_scene::ImportOptions::default()).unwrap();
+    assert_eq!(report.properties_dropped, 0);
+    assert_eq!(again.properties(), scene.properties());
+}

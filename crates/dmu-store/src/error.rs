@@ -100,8 +100,16 @@ pub enum StoreError {
         #[source]
         source: dmu_scene::ExportError,
     },
+    /// A STEP or IFC file the converter could not read (see [`crate::cad`]).
+    #[error("{}: {what}", path.display())]
+    Convert {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong, one line.
+        what: String,
+    },
     /// An input that is neither a store nor glTF by its name or its first bytes.
-    #[error("{}: unknown file type (dmu reads .glb, .gltf and .dmu)", path.display())]
+    #[error("{}: unknown file type (dmu reads .glb, .gltf, .dmu, .step, .stp and .ifc)", path.display())]
     UnknownInputFormat {
         /// The file.
         path: PathBuf,

@@ -6,7 +6,8 @@
 //! 64       segment, segment, ...  each at a 16-byte boundary, zero padded to
 //!          the next one; a chunk's geometry, one skeleton, and optionally
 //!          blob sets (`BlobSet`): one far-field index with a blob per
-//!          far-field cell, one level-of-detail index with a blob per node
+//!          far-field cell, one level-of-detail index with a blob per node;
+//!          the nodes' properties when some node has one
 //! toc      table of contents: one 32-byte entry per segment (last in the file,
 //!          so a streaming writer needs no second pass)
 //! ```
@@ -44,7 +45,8 @@ pub(crate) const MAGIC: [u8; 8] = *b"DMUSTORE";
 /// byte for byte what it was, and a version-2 reader from before them refuses
 /// a store that has them with "segment N has unknown kind 3" (or 4) rather
 /// than misreading it, which is acceptable for an optional addition. The
-/// level-of-detail hierarchy's segments (kinds 5 and 6) are such a set too.
+/// level-of-detail hierarchy's segments (kinds 5 and 6) are such a set too,
+/// and so are the nodes' properties (kind 7, issue 44).
 ///
 /// Version 4 (issue 42) stores each chunk's simplified levels after its
 /// indices (`geometry.rs`), made at import rather than on every upload.
@@ -74,6 +76,9 @@ pub(crate) const KIND_FAR_CELL: u32 = 4;
 pub(crate) const KIND_LOD_INDEX: u32 = 5;
 /// One level-of-detail node's blob: like kind 4.
 pub(crate) const KIND_LOD_NODE: u32 = 6;
+/// The nodes' properties ([`dmu_scene::Properties`]'s encoding), id 0, at
+/// most one; absent when no node has a property.
+pub(crate) const KIND_PROPERTIES: u32 = 7;
 
 /// The sets of opaque blobs a store keeps beside its geometry, each an index
 /// (id 0, at most one) and blobs numbered `0..n` (only beside an index), in
@@ -212,6 +217,8 @@ pub(crate) struct Layout {
     /// [`FORMAT_VERSION`].
     pub version: u32,
     pub skeleton: TocEntry,
+    /// The nodes' properties, when some node has one.
+    pub properties: Option<TocEntry>,
     /// Indexed by chunk id (the ids are exactly `0..n`).
     pub chunks: Vec<TocEntry>,
     /// Each [`BlobSet`]'s segments, in [`BlobSet::ALL`]'s order.
@@ -385,6 +392,7 @@ fn validate_entries(entries: &[TocEntry], toc_offset: u64) -> Result<Layout, Str
         return Err(format!("bytes {at}..{toc_offset} belong to no segment"));
     }
     let mut skeleton = None;
+    let mut properties = None;
     let mut chunks = Dense::new(entries, KIND_CHUNK, "chunk");
     let mut sets = BlobSet::ALL.map(|set| {
         let (_, blob_kind) = set.kinds();
@@ -399,6 +407,11 @@ fn validate_entries(entries: &[TocEntry], toc_offset: u64) -> Result<Layout, Str
         match e.kind {
             KIND_SKELETON if skeleton.is_none() => skeleton = Some(*e),
             KIND_SKELETON => return Err("two skeleton segments".into()),
+            KIND_PROPERTIES if e.id != 0 => {
+                return Err(format!("the properties segment has id {}, not 0", e.id));
+            }
+            KIND_PROPERTIES if properties.is_none() => properties = Some(*e),
+            KIND_PROPERTIES => return Err("two properties segments".into()),
             KIND_CHUNK => chunks.insert(e)?,
             kind => {
                 let Some(set) = BlobSet::ALL.into_iter().find(|s| {
@@ -432,6 +445,7 @@ fn validate_entries(entries: &[TocEntry], toc_offset: u64) -> Result<Layout, Str
     Ok(Layout {
         version: FORMAT_VERSION,
         skeleton: skeleton.ok_or("no skeleton segment")?,
+        properties,
         chunks: chunks.into_entries(),
         blobs: sets.map(|(index, blobs)| BlobSegments {
             index,

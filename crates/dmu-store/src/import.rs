@@ -6,6 +6,7 @@ use std::path::Path;
 
 use dmu_scene::{ImportReport, StreamOptions, import_gltf_streaming};
 
+use crate::cad::{CadOptions, CadSummary, convert, is_cad};
 use crate::error::StoreError;
 use crate::write::{StoreSummary, StoreWriter, WriteOptions};
 
@@ -25,8 +26,11 @@ pub struct ImportOptions<'a> {
     pub memory_budget_bytes: u64,
     /// How geometry is written.
     pub write: WriteOptions,
-    /// Called with (meshes done, meshes total).
+    /// Called with (meshes done, meshes total); for STEP and IFC, first with
+    /// (products done, products total) while they are converted.
     pub progress: Option<&'a (dyn Fn(usize, usize) + Sync)>,
+    /// How STEP and IFC files are converted.
+    pub cad: &'a CadOptions,
 }
 
 impl std::fmt::Debug for ImportOptions<'_> {
@@ -64,6 +68,38 @@ pub struct ImportSummary {
     pub fixed_bytes: u64,
     /// The most bytes the structure's flat arrays held at once (counted).
     pub structure_peak_bytes: u64,
+    /// What the converter made of a STEP or IFC file; `None` for glTF.
+    pub converted: Option<CadSummary>,
+}
+
+/// Imports a glTF, STEP or IFC file (by its extension; see [`crate::cad`])
+/// into a store at `output`, as [`import_gltf`] does. A STEP or IFC file is
+/// first converted to glTF in a scratch folder beside `output`, removed
+/// afterwards; products that could not be tessellated are left out and
+/// listed in the summary's report.
+pub fn import_file(
+    input: &Path,
+    output: &Path,
+    options: &ImportOptions<'_>,
+) -> Result<ImportSummary, StoreError> {
+    if !is_cad(input) {
+        return import_gltf(input, output, options);
+    }
+    let folder = match output.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let converted = convert(input, folder, options.cad, options.progress)?;
+    let mut summary = import_gltf(&converted.glb, output, options).map_err(|e| match e {
+        StoreError::Import { source, .. } => StoreError::Import {
+            path: input.to_owned(),
+            source,
+        },
+        e => e,
+    })?;
+    summary.report.failed_products = converted.failed;
+    summary.converted = Some(converted.summary);
+    Ok(summary)
 }
 
 /// Imports a .glb or .gltf file into a store at `output`, never holding more
@@ -105,6 +141,7 @@ pub fn import_gltf(
         batch_bytes: streamed.batch_bytes,
         fixed_bytes: streamed.fixed_bytes,
         structure_peak_bytes: streamed.structure_peak_bytes,
+        converted: None,
     })
 }
 

@@ -73,6 +73,7 @@
 //! assert_eq!(loaded.meshes(), scene.meshes());
 //! ```
 
+pub mod cad;
 mod error;
 mod format;
 mod geometry;
@@ -92,7 +93,7 @@ mod write;
 pub use error::{ResidencyError, StoreError, WalkError};
 pub use format::{BlobSet, FORMAT_VERSION, OLDEST_READABLE_VERSION, reseal};
 pub use geometry::OwnedChunkGeometry;
-pub use import::{ImportOptions, ImportSummary, import_gltf};
+pub use import::{ImportOptions, ImportSummary, import_file, import_gltf};
 pub use open::open_scene;
 pub use prefetch::{PrefetchOptions, Prefetcher};
 pub use priority::{Class, LoadOrder, Request};

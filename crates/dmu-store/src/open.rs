@@ -5,17 +5,21 @@ use std::path::Path;
 
 use dmu_scene::{ImportOptions, ImportReport, Scene};
 
+use crate::cad::{CadOptions, convert, is_cad};
 use crate::{Store, StoreError, format::MAGIC};
 
-/// Opens a `.dmu` store (all geometry loaded) or a `.glb`/`.gltf` file as a
-/// scene: the one opening path of the command line, the viewer and the Python
-/// module. A file that starts with a store's magic is read as the store it is,
-/// whatever its name says (a store renamed `.glb` is not reported as malformed
-/// JSON). A store keeps its own chunks; `options` applies to glTF only.
-/// Any other extension is refused with [`StoreError::UnknownInputFormat`].
+/// Opens a `.dmu` store (all geometry loaded), a `.glb`/`.gltf` file, or a
+/// STEP or IFC file (through the converter, [`crate::cad`], with `cad`'s
+/// settings) as a scene: the one opening path of the command line, the viewer
+/// and the Python module. A file that starts with a store's magic is read as
+/// the store it is, whatever its name says (a store renamed `.glb` is not
+/// reported as malformed JSON). A store keeps its own chunks; `options`
+/// applies to glTF, STEP and IFC. Any other extension is refused with
+/// [`StoreError::UnknownInputFormat`].
 pub fn open_scene(
     path: &Path,
     options: &ImportOptions<'_>,
+    cad: &CadOptions,
 ) -> Result<(Scene, ImportReport), StoreError> {
     let ext = path
         .extension()
@@ -24,14 +28,30 @@ pub fn open_scene(
         let scene = Store::open(path)?.load_scene()?;
         return Ok((scene, ImportReport::default()));
     }
+    if is_cad(path) {
+        let converted = convert(path, &std::env::temp_dir(), cad, options.progress)?;
+        let (scene, mut report) = import(&converted.glb, path, options)?;
+        report.failed_products = converted.failed;
+        return Ok((scene, report));
+    }
     if !matches!(ext.as_deref(), Some("glb" | "gltf")) {
         return Err(StoreError::UnknownInputFormat {
             path: path.to_owned(),
         });
     }
-    dmu_scene::import_gltf(path, options).map_err(|source| StoreError::Import {
-        path: path.to_owned(),
-        source,
+    import(path, path, options)
+}
+
+/// The glTF file `glb` imported, its errors naming `source` (the file the
+/// user gave).
+fn import(
+    glb: &Path,
+    source: &Path,
+    options: &ImportOptions<'_>,
+) -> Result<(Scene, ImportReport), StoreError> {
+    dmu_scene::import_gltf(glb, options).map_err(|e| StoreError::Import {
+        path: source.to_owned(),
+        source: e,
     })
 }
 

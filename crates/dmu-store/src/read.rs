@@ -5,7 +5,7 @@
 use std::fs::File;
 use std::path::{Path, PathBuf};
 
-use dmu_scene::{ChunkId, MeshId, Scene};
+use dmu_scene::{ChunkId, MeshId, Properties, Scene};
 
 use crate::error::StoreError;
 use crate::format::{self, BlobSet, Layout, TocEntry};
@@ -71,7 +71,13 @@ impl Store {
             path: path.to_owned(),
             what,
         };
-        let skeleton = skeleton::read(&file, &layout.skeleton, path)?
+        let mut skeleton = skeleton::read(&file, &layout.skeleton, path)?;
+        if let Some(entry) = &layout.properties {
+            let bytes = format::verified(&file, entry, || "the properties".into(), path)?;
+            skeleton.properties = Properties::from_bytes(&bytes, skeleton.nodes.len())
+                .map_err(|e| corrupt(format!("the properties: {e}")))?;
+        }
+        let skeleton = skeleton
             .into_scene()
             .map_err(|e| corrupt(format!("the skeleton: {e}")))?;
         if skeleton.chunks().len() != layout.chunks.len() {
@@ -206,6 +212,18 @@ impl Store {
             || "the skeleton".into(),
             &self.path,
         )
+    }
+
+    /// The properties segment as it is in the file, its checksum verified
+    /// (for a rewrite to copy); `None` when no node has a property.
+    pub(crate) fn properties_segment(&self) -> Result<Option<Vec<u8>>, StoreError> {
+        self.layout
+            .properties
+            .as_ref()
+            .map(|entry| {
+                format::verified(&self.file, entry, || "the properties".into(), &self.path)
+            })
+            .transpose()
     }
 
     /// The index of blob set `set`, its checksum verified; `None` when the

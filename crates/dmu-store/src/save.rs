@@ -137,11 +137,13 @@ impl<'a> BlobWriter<'a> {
         self.push(&bytes)
     }
 
-    /// Writes the set's index, the skeleton (the store's, as it is in the
-    /// file) and the table of contents, and syncs the file.
+    /// Writes the set's index, the skeleton and properties (the store's, as
+    /// they are in the file) and the table of contents, and syncs the file.
     pub fn finish(mut self, index: &[u8]) -> Result<PendingStore, StoreError> {
         self.writer.blob_index(self.set, index)?;
-        self.writer.finish_copied(&self.store.skeleton_segment()?)
+        let properties = self.store.properties_segment()?;
+        self.writer
+            .finish_copied(&self.store.skeleton_segment()?, properties.as_deref())
     }
 }
 

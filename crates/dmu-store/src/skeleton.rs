@@ -26,7 +26,7 @@ use std::path::Path;
 use bytemuck::{Pod, Zeroable};
 use dmu_scene::{
     ChunkData, ChunkEntry, ChunkId, ChunkedMesh, DEFAULT_CHUNK_TRIANGLES, MeshEntry, MeshId, Names,
-    NodeEntry, NodeId, PartEntry, PartId, Scene, SceneBuilder, Structure,
+    NodeEntry, NodeId, PartEntry, PartId, Properties, Scene, SceneBuilder, Structure,
 };
 use xxhash_rust::xxh3::Xxh3;
 
@@ -207,6 +207,7 @@ pub(crate) fn read(
         chunks,
         materials,
         material_names,
+        properties: Properties::default(),
     })
 }
 
@@ -259,6 +260,9 @@ pub(crate) fn with_geometry(
             skeleton.node_name(NodeId(i as u32)),
             n.world,
         );
+    }
+    for (node, key, value) in skeleton.properties().iter() {
+        b.add_property(node, key, value);
     }
     // Decoding is the work; meshes go to the builder in order.
     let ids: Vec<MeshId> = (0..skeleton.meshes().len())

@@ -13,7 +13,9 @@ use rayon::prelude::*;
 use xxhash_rust::xxh3::Xxh3;
 
 use crate::error::StoreError;
-use crate::format::{ALIGN, BlobSet, HEADER_LEN, Header, KIND_CHUNK, KIND_SKELETON, TocEntry};
+use crate::format::{
+    ALIGN, BlobSet, HEADER_LEN, Header, KIND_CHUNK, KIND_PROPERTIES, KIND_SKELETON, TocEntry,
+};
 use crate::geometry::{self, resident_bytes};
 use crate::skeleton;
 
@@ -286,21 +288,36 @@ impl StoreWriter {
         let (counts, arrays) = skeleton::pieces(structure);
         let mut pieces = vec![&counts[..]];
         pieces.extend(arrays);
-        self.finish_with_skeleton(&pieces)
+        let properties = &structure.properties;
+        let properties = (!properties.is_empty()).then(|| properties.to_bytes());
+        self.finish_with_skeleton(&pieces, properties.as_deref())
     }
 
-    /// [`StoreWriter::finish`] with a skeleton segment copied from another
-    /// store (verified, as it was there), whose chunks are the ones written.
-    pub(crate) fn finish_copied(self, skeleton: &[u8]) -> Result<PendingStore, StoreError> {
-        self.finish_with_skeleton(&[skeleton])
+    /// [`StoreWriter::finish`] with a skeleton segment and properties copied
+    /// from another store (verified, as they were there), whose chunks are
+    /// the ones written.
+    pub(crate) fn finish_copied(
+        self,
+        skeleton: &[u8],
+        properties: Option<&[u8]>,
+    ) -> Result<PendingStore, StoreError> {
+        self.finish_with_skeleton(&[skeleton], properties)
     }
 
-    /// Writes the skeleton segment made of `pieces`, the table of contents and
-    /// the header, and syncs the file.
+    /// Writes the skeleton segment made of `pieces`, the properties segment
+    /// when there is one, the table of contents and the header, and syncs
+    /// the file.
     ///
     /// # Panics
     /// When a blob set has blobs but no index.
-    fn finish_with_skeleton(mut self, pieces: &[&[u8]]) -> Result<PendingStore, StoreError> {
+    fn finish_with_skeleton(
+        mut self,
+        pieces: &[&[u8]],
+        properties: Option<&[u8]>,
+    ) -> Result<PendingStore, StoreError> {
+        if let Some(bytes) = properties {
+            self.segment(0, KIND_PROPERTIES, &[bytes])?;
+        }
         for (set, &(index, blobs)) in BlobSet::ALL.iter().zip(&self.blob_sets) {
             assert!(
                 index || blobs == 0,

@@ -26,6 +26,7 @@ fn import_store(glb: &Path, budget: u64) -> (tempfile::TempDir, Scene) {
         memory_budget_bytes: budget,
         write: WriteOptions::default(),
         progress: None,
+        cad: &Default::default(),
     };
     let summary = dmu_store::import_gltf(glb, &out, &options).unwrap();
     let store = Store::open(&out).unwrap();
@@ -247,4 +248,102 @@ fn a_taken_skeleton_loads_mesh_by_mesh_and_picks_as_the_whole_scene() {
     skeleton.unload_mesh_geometry(m);
     assert!(!skeleton.mesh(m).is_loaded() || skeleton.mesh(m).triangles == 0);
     assert!(skeleton.load_mesh_geometry(m, &[]).is_err() || scene.mesh(m).chunks.is_empty());
+}
+
+/// Each part's properties by its path.
+fn properties_by_path(scene: &Scene) -> Vec<(String, Vec<(String, String)>)> {
+    scene
+        .part_ids()
+        .map(|p| {
+            let props = scene
+                .node_properties(scene.part(p).node)
+                .map(|(k, v)| (k.to_owned(), v.to_owned()))
+                .collect();
+            (scene.part_path(p), props)
+        })
+        .collect()
+}
+
+#[test]
+fn properties_survive_the_store_its_saves_rewrites_and_a_streamed_import() {
+    use dmu_store::StoreError;
+    let mut scene = small_plant(20_000);
+    let mut nodes: Vec<_> = scene
+        .part_ids()
+        .step_by(5)
+        .map(|p| (scene.part(p).node, p))
+        .collect();
+    nodes.sort();
+    let mut props = dmu_scene::Properties::default();
+    for (node, p) in nodes {
+        props.push(node, "GlobalId", &format!("guid-{}", p.0));
+        props.push(node, "IfcClass", "IfcPipeSegment");
+    }
+    scene.set_properties(props.clone()).unwrap();
+    let (dir, path) = stored(&scene, WriteOptions::default());
+    let store = Store::open(&path).unwrap();
+    assert_eq!(store.skeleton().properties(), &props);
+    assert_eq!(store.load_scene().unwrap().properties(), &props);
+    // Saved edits, then a far-field rewrite, copy them.
+    let mut edited = store.skeleton().clone();
+    let p = edited.part_ids().next().unwrap();
+    edited.set_part_world(
+        p,
+        DAffine3::from_translation(DVec3::X) * edited.part_world(p),
+    );
+    save_edits(&store, &edited).unwrap();
+    let store = Store::open(&path).unwrap();
+    assert_eq!(store.skeleton().properties(), &props);
+    dmu_store::write_far_fields(&store, b"index", [Ok::<_, StoreError>(Some(vec![1, 2]))])
+        .unwrap()
+        .commit()
+        .unwrap();
+    let store = Store::open(&path).unwrap();
+    assert_eq!(store.far_field_cells(), 1);
+    assert_eq!(store.skeleton().properties(), &props);
+    // Through glTF extras and the streaming import, part by part.
+    let glb = dir.path().join("plant.glb");
+    export_gltf(&scene, &glb).unwrap();
+    let (_d, imported) = import_store(&glb, 1 << 30);
+    assert_eq!(properties_by_path(&imported), properties_by_path(&scene));
+    // A store without properties has no properties segment.
+    let kinds = |b: &[u8]| {
+        crate::support::toc(b)
+            .iter()
+            .filter(|e| e.kind == 7)
+            .count()
+    };
+    assert_eq!(kinds(&std::fs::read(&path).unwrap()), 1);
+    let (_bare_dir, bare) = stored(&small_plant(20_000), WriteOptions::default());
+    assert_eq!(kinds(&std::fs::read(bare).unwrap()), 0);
+}
+
+#[test]
+fn a_crafted_properties_segment_is_an_error_naming_it() {
+    use xxhash_rust::xxh3::xxh3_64;
+    let mut scene = small_plant(20_000);
+    let mut props = dmu_scene::Properties::default();
+    props.push(scene.part(dmu_scene::PartId(0)).node, "GlobalId", "g");
+    scene.set_properties(props).unwrap();
+    let (dir, path) = stored(&scene, WriteOptions::default());
+    let bytes = std::fs::read(&path).unwrap();
+    let e = crate::support::entry(&bytes, 7, 0);
+    // The row's node (after the three counts) made one past the last node,
+    // the segment's checksum made right: only the contents' check sees it.
+    let mut out = bytes.clone();
+    let at = e.offset as usize + 24;
+    out[at..at + 4].copy_from_slice(&(scene.nodes().len() as u32).to_le_bytes());
+    let sum = xxh3_64(&out[e.padded()]);
+    let out = crate::support::with_toc(&out, |entries| {
+        for x in entries.iter_mut().filter(|x| x.kind == 7) {
+            x.checksum = sum;
+        }
+    });
+    let crafted = dir.path().join("crafted.dmu");
+    std::fs::write(&crafted, out).unwrap();
+    let err = Store::open(&crafted).unwrap_err().to_string();
+    assert!(
+        err.contains("crafted.dmu") && err.contains("properties") && err.contains("node"),
+        "{err}"
+    );
 }

@@ -48,6 +48,10 @@ pub struct HitReport<'a> {
     pub path: String,
     /// World point.
     pub point: [f64; 3],
+    /// What the source file says of the part (an IFC element's `GlobalId`
+    /// and `IfcClass`, a STEP product's name, a glTF node's `extras`), keys
+    /// in order.
+    pub properties: std::collections::BTreeMap<&'a str, &'a str>,
     /// Triangle index within the part's mesh.
     pub triangle: u32,
 }
@@ -64,6 +68,7 @@ impl<'a> HitReport<'a> {
             distance: hit.t * ray_length,
             point: hit.point.to_array(),
             normal: hit.normal.to_array(),
+            properties: scene.node_properties(scene.part(hit.part).node).collect(),
         }
     }
 }

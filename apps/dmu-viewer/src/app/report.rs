@@ -285,6 +285,26 @@ pub(super) struct PartEntry {
     pub part_id: Option<u32>,
 }
 
+/// The report entry of a search: the parts listed, first ones named.
+#[derive(Debug, Serialize)]
+pub(super) struct SearchEntry<'a> {
+    /// Parts listed.
+    pub count: usize,
+    /// The first 100 of them.
+    pub parts: Vec<SearchedPart<'a>>,
+}
+
+/// A part a search lists.
+#[derive(Debug, Serialize)]
+pub(super) struct SearchedPart<'a> {
+    /// Its id.
+    pub part_id: u32,
+    /// Its name.
+    pub name: &'a str,
+    /// Its properties.
+    pub properties: std::collections::BTreeMap<&'a str, &'a str>,
+}
+
 /// The report entry of a file written: a screenshot, or a BCF export
 /// (with its topics).
 #[derive(Debug, Serialize)]

@@ -8,7 +8,9 @@ use serde_json::Value;
 
 use super::App;
 use super::pointer::PointerDrag;
-use super::report::{ClashesLoaded, FileEntry, PartEntry, selection_json, to_value};
+use super::report::{
+    ClashesLoaded, FileEntry, PartEntry, SearchEntry, SearchedPart, selection_json, to_value,
+};
 use crate::command::{Outcome, ReviewCommand as R, ViewCommand as V, ViewPoint};
 use crate::measure::MeasureMode;
 use crate::script::Action;
@@ -86,6 +88,22 @@ impl App {
                 self.apply_view(V::Reveal(part))?;
                 Some(to_value(PartEntry {
                     part_id: Some(part.0),
+                }))
+            }
+            Action::Search(text) => {
+                let scene = &self.review.scene;
+                let found = self.ui.search(scene, text);
+                Some(to_value(SearchEntry {
+                    count: found.len(),
+                    parts: found
+                        .iter()
+                        .take(100)
+                        .map(|&p| SearchedPart {
+                            part_id: p.0,
+                            name: scene.part_name(p),
+                            properties: scene.node_properties(scene.part(p).node).collect(),
+                        })
+                        .collect(),
                 }))
             }
             Action::Move(d) => {

@@ -12,9 +12,12 @@
 //!   unit); both [`write_bcfzip`] and [`read_bcfzip`] take the model's units
 //!   per metre (1000 for millimetre models such as the plant), so the viewer
 //!   and the command line never convert by hand.
-//! - Parts are named by their glTF node name in `AuthoringToolId` with
-//!   `OriginatingSystem` "dmu" ([`Component::part`]): CAD models carry no IFC
-//!   GUIDs, and the node name is what survives from export to export.
+//! - Parts are named by their IFC `GlobalId` in `IfcGuid` when they have
+//!   one (an imported IFC element), and always by their node name in
+//!   `AuthoringToolId` with `OriginatingSystem` "dmu" ([`Component::of`]):
+//!   CAD models carry no IFC GUIDs, and the node name is what survives from
+//!   export to export. Components are found by `IfcGuid` first, then by
+//!   name ([`Component::find`]).
 //! - The reader is lenient in what it accepts (BCF 2.0, 2.1 and 3.0 markup,
 //!   any element order, unknown elements, JPEG snapshots) and strict in what
 //!   it refuses: a damaged archive, bad XML, an entry path that escapes its
@@ -65,6 +68,7 @@ mod xml;
 use std::path::PathBuf;
 use std::sync::Arc;
 
+use dmu_scene::{PartId, Scene};
 use glam::DVec3;
 
 pub use clash::{CLASH_FOV_Y_DEG, CLASH_VIEW_FORWARD, ClashIssue, at_step, clash_camera};
@@ -212,7 +216,39 @@ impl Component {
             authoring_tool_id: Some(name.into()),
         }
     }
+
+    /// A part of `scene`: its IFC `GlobalId` when it has one (an imported
+    /// IFC element), and its node name.
+    pub fn of(scene: &Scene, part: PartId) -> Self {
+        let node = scene.part(part).node;
+        Self {
+            ifc_guid: scene
+                .node_properties(node)
+                .find(|&(k, _)| k == GLOBAL_ID)
+                .map(|(_, v)| v.to_owned()),
+            ..Self::part(scene.part_name(part))
+        }
+    }
+
+    /// The part of `scene` it names: by `IfcGuid` first (among the parts'
+    /// GlobalIds), then by node name ([`Scene::find_part`]).
+    pub fn find(&self, scene: &Scene) -> Option<PartId> {
+        let by_guid = self.ifc_guid.as_deref().and_then(|g| {
+            match scene.parts_with_property_value(g).as_slice() {
+                [one] => Some(*one),
+                _ => None,
+            }
+        });
+        by_guid.or_else(|| {
+            self.authoring_tool_id
+                .as_deref()
+                .and_then(|n| scene.find_part(n).ok())
+        })
+    }
 }
+
+/// The property that holds an IFC element's GlobalId.
+pub const GLOBAL_ID: &str = "GlobalId";
 
 /// A BCF camera: an eye, a view direction, a screen up and a projection.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -93,6 +93,25 @@ pub struct ImportReport {
     pub primitives_with_computed_normals: usize,
     /// Meshes referenced by no node in the scene (not imported as parts).
     pub unused_meshes: usize,
+    /// Node `extras` members not kept as properties: a value that is null,
+    /// an array or an object, a key over 256 bytes, a value over 4 KiB, or
+    /// beyond 64 on one node (an `extras` that is not an object counts once).
+    pub properties_dropped: usize,
+    /// Products a converter could not tessellate (STEP and IFC, see
+    /// `dmu_store::cad`): left out, the rest imported.
+    pub failed_products: Vec<FailedProduct>,
+}
+
+/// A product of a CAD file left out of an import: its name, its class (an
+/// IFC class, or "STEP product") and why.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct FailedProduct {
+    /// The product's name.
+    pub name: String,
+    /// Its class.
+    pub class: String,
+    /// What failed.
+    pub reason: String,
 }
 
 /// Imports a .gltf or .glb file.
@@ -158,7 +177,7 @@ pub fn import_gltf_slice(
             None => report.unused_meshes += 1,
         }
     }
-    doc.add_nodes(&mesh_ids, &mut builder)?;
+    doc.add_nodes(&mesh_ids, &mut builder, &mut report)?;
     Ok((builder.finish(), report))
 }
 
@@ -365,13 +384,16 @@ impl Document {
         Ok(())
     }
 
-    /// Adds the scene's nodes (parents first, absolute f64 transforms) and a
-    /// part for each node whose mesh was imported (`mesh_ids`).
+    /// Adds the scene's nodes (parents first, absolute f64 transforms) with
+    /// their properties, and a part for each node whose mesh was imported
+    /// (`mesh_ids`); counts the properties dropped into `report`.
     fn add_nodes(
         &self,
         mesh_ids: &[Option<MeshId>],
         builder: &mut dyn Assembly,
+        report: &mut ImportReport,
     ) -> Result<(), ImportError> {
+        report.properties_dropped = self.nodes.properties_dropped();
         let root = &self.root;
         let mut ids: Vec<Option<NodeId>> = vec![None; self.nodes.len()];
         self.walk_nodes(|n, parent| {
@@ -393,6 +415,9 @@ impl Document {
             };
             let id = builder.add_node(parent_id, name, world);
             ids[n] = Some(id);
+            for (key, value) in self.nodes.properties(n) {
+                builder.add_property(id, key, value);
+            }
             let non_finite = |builder: &dyn Assembly, what| ImportError::NonFiniteWorld {
                 node: n,
                 path: builder.node_path(id),
@@ -416,6 +441,7 @@ impl Document {
 /// import) or a flat structure (the streaming one).
 trait Assembly {
     fn add_node(&mut self, parent: NodeId, name: &str, world: DAffine3) -> NodeId;
+    fn add_property(&mut self, node: NodeId, key: &str, value: &str);
     fn node_world(&self, id: NodeId) -> DAffine3;
     fn node_path(&self, id: NodeId) -> String;
     fn add_part(&mut self, node: NodeId, mesh: MeshId) -> PartId;
@@ -425,6 +451,9 @@ trait Assembly {
 impl Assembly for SceneBuilder {
     fn add_node(&mut self, parent: NodeId, name: &str, world: DAffine3) -> NodeId {
         SceneBuilder::add_node(self, parent, name, world)
+    }
+    fn add_property(&mut self, node: NodeId, key: &str, value: &str) {
+        SceneBuilder::add_property(self, node, key, value);
     }
     fn node_world(&self, id: NodeId) -> DAffine3 {
         SceneBuilder::node_world(self, id)
@@ -443,6 +472,9 @@ impl Assembly for SceneBuilder {
 impl Assembly for StructureBuilder {
     fn add_node(&mut self, parent: NodeId, name: &str, world: DAffine3) -> NodeId {
         self.structure.add_node(parent, name, world)
+    }
+    fn add_property(&mut self, node: NodeId, key: &str, value: &str) {
+        self.structure.properties.push(node, key, value);
     }
     fn node_world(&self, id: NodeId) -> DAffine3 {
         self.structure.node_world(id)

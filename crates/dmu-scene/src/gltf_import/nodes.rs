@@ -13,6 +13,8 @@ use serde::de::{self, DeserializeSeed, Deserializer, IgnoredAny, MapAccess, SeqA
 use super::RawNode;
 use super::buffers::invalid;
 use crate::error::ImportError;
+use crate::ids::NodeId;
+use crate::properties::{MAX_KEY_BYTES, MAX_PER_NODE, MAX_VALUE_BYTES, Properties};
 use crate::structure::Names;
 
 /// No mesh, in [`FileNodes::mesh`].
@@ -33,6 +35,11 @@ pub(super) struct FileNodes {
     names: Names,
     /// Nodes without a name.
     unnamed: Vec<bool>,
+    /// The nodes' `extras` members with a string, number or boolean value,
+    /// by file node index.
+    properties: Properties,
+    /// `extras` members not kept (see [`FileNodes::properties_dropped`]).
+    properties_dropped: usize,
     /// Nodes whose transform is invalid, with the error, by node index: raised
     /// only when the import reaches the node, as for any other broken element.
     bad: Vec<(u32, String)>,
@@ -49,6 +56,7 @@ impl FileNodes {
         mesh: Option<u64>,
         children: &[u64],
         raw: &RawNode,
+        extras: Option<&serde_json::Value>,
     ) -> Result<(), String> {
         let index = |what: &str, v: u64| {
             u32::try_from(v)
@@ -73,7 +81,53 @@ impl FileNodes {
         self.local.push(local.to_cols_array());
         self.names.push(name.unwrap_or_default());
         self.unnamed.push(name.is_none());
+        if let Some(extras) = extras {
+            self.add_properties(i, extras);
+        }
         Ok(())
+    }
+
+    /// Keeps node `i`'s `extras` members whose value is a string, number
+    /// or boolean as its properties, within the limits of
+    /// [`crate::properties`]; counts the rest as dropped.
+    fn add_properties(&mut self, i: usize, extras: &serde_json::Value) {
+        use serde_json::Value;
+        let Value::Object(members) = extras else {
+            self.properties_dropped += 1;
+            return;
+        };
+        let mut kept = 0;
+        for (key, value) in members {
+            let value = match value {
+                Value::String(s) => Some(s.clone()),
+                Value::Number(n) => Some(n.to_string()),
+                Value::Bool(b) => Some(b.to_string()),
+                Value::Null | Value::Array(_) | Value::Object(_) => None,
+            };
+            match value {
+                Some(v)
+                    if kept < MAX_PER_NODE
+                        && key.len() <= MAX_KEY_BYTES
+                        && v.len() <= MAX_VALUE_BYTES =>
+                {
+                    self.properties.push(NodeId(i as u32), key, &v);
+                    kept += 1;
+                }
+                _ => self.properties_dropped += 1,
+            }
+        }
+    }
+
+    /// Node `n`'s properties.
+    pub fn properties(&self, n: usize) -> impl Iterator<Item = (&str, &str)> + '_ {
+        self.properties.of(NodeId(n as u32))
+    }
+
+    /// `extras` that were not an object, and members whose value is null,
+    /// an array or an object, or beyond the limits of
+    /// [`crate::properties`]: not kept.
+    pub fn properties_dropped(&self) -> usize {
+        self.properties_dropped
     }
 
     pub fn len(&self) -> usize {
@@ -115,11 +169,12 @@ impl FileNodes {
             + self.names.ends.capacity() * 8
             + self.names.bytes.capacity()
             + self.unnamed.capacity()) as u64
+            + self.properties.held_bytes()
     }
 }
 
 /// A node as it is streamed: only what the import reads; every other member
-/// (extras, extensions, camera, skin, weights) is skipped unread.
+/// (extensions, camera, skin, weights) is skipped unread.
 #[derive(Deserialize)]
 #[serde(expecting = "a node (an object)")]
 struct StreamNode {
@@ -131,6 +186,7 @@ struct StreamNode {
     translation: Option<[f64; 3]>,
     rotation: Option<[f64; 4]>,
     scale: Option<[f64; 3]>,
+    extras: Option<serde_json::Value>,
 }
 
 /// A glTF index: a non-negative integer, also written as an integral float
@@ -254,7 +310,14 @@ impl<'de> Visitor<'de> for NodesSeed {
             };
             let children: Vec<u64> = n.children.iter().map(|c| c.0).collect();
             nodes
-                .push(i, n.name.as_deref(), n.mesh.map(|m| m.0), &children, &raw)
+                .push(
+                    i,
+                    n.name.as_deref(),
+                    n.mesh.map(|m| m.0),
+                    &children,
+                    &raw,
+                    n.extras.as_ref(),
+                )
                 .map_err(<A::Error as de::Error>::custom)?;
         }
         Ok(nodes)

@@ -171,7 +171,7 @@ pub fn import_gltf_streaming<E: From<ImportError>>(
             }
         }
     }
-    doc.add_nodes(&mesh_ids, &mut builder)?;
+    doc.add_nodes(&mesh_ids, &mut builder, &mut report)?;
     let structure_peak_bytes = nodes_bytes + builder.structure.held_bytes();
     Ok(Streamed {
         structure: builder.structure,
