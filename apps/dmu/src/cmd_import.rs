@@ -158,7 +158,13 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         );
     }
     for f in &summary.report.failed_products {
-        println!("  left out: {} ({}): {}", f.name, f.class, f.reason);
+        println!("  left out: {}", crate::text::failed_product(f));
+    }
+    if summary.report.properties_dropped > 0 {
+        println!(
+            "  {} node properties dropped (nested, or past the limits of docs/limits.md)",
+            summary.report.properties_dropped
+        );
     }
     if let Some(lod) = lod {
         println!(

@@ -3,6 +3,7 @@
 use serde::Serialize;
 
 use crate::load::{ModelArgs, load};
+use crate::text::{failed_product, printable};
 
 /// Print a model's size, structure and bounds.
 ///
@@ -47,9 +48,9 @@ fn list_parts(scene: &dmu_scene::Scene, json: bool) -> anyhow::Result<()> {
             serde_json::to_writer(&mut out, &line)?;
             writeln!(out)?;
         } else {
-            write!(out, "{:>8}  {}", line.id, line.path)?;
+            write!(out, "{:>8}  {}", line.id, printable(&line.path, 400))?;
             for (k, v) in &line.properties {
-                write!(out, "  {k}={v}")?;
+                write!(out, "  {}={}", printable(k, 80), printable(v, 200))?;
             }
             writeln!(out)?;
         }
@@ -156,19 +157,21 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     );
     let r = &info.skipped;
     for f in &r.failed_products {
-        println!("  left out        {} ({}): {}", f.name, f.class, f.reason);
+        println!("  left out        {}", failed_product(f));
     }
     if r.point_primitives_skipped
         + r.line_primitives_skipped
         + r.unused_meshes
         + r.primitives_with_computed_normals
+        + r.properties_dropped
         > 0
     {
         println!(
-            "  skipped         points {}, lines {}, unused meshes {}; normals computed for {} primitives",
+            "  skipped         points {}, lines {}, unused meshes {}, properties {}; normals computed for {} primitives",
             r.point_primitives_skipped,
             r.line_primitives_skipped,
             r.unused_meshes,
+            r.properties_dropped,
             r.primitives_with_computed_normals
         );
     }

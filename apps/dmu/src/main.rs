@@ -25,7 +25,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 // Opening models, parsing units and progress live in dmu-app, shared with dmu-viewer.
-use dmu_app::{load, progress, resident, units};
+use dmu_app::{load, progress, resident, text, units};
 
 /// dmu: walk, pick, move and clash-check massive CAD assemblies.
 ///

@@ -49,6 +49,17 @@ pub fn error_line(program: &str, e: &anyhow::Error) -> String {
     )
 }
 
+/// A product a converter left out, as reports print it: name (class):
+/// reason, escaped ([`printable`]).
+pub fn failed_product(f: &dmu_scene::FailedProduct) -> String {
+    format!(
+        "{} ({}): {}",
+        printable(&f.name, 200),
+        printable(&f.class, 80),
+        printable(&f.reason, 400)
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -250,11 +250,17 @@ def test_files_that_are_not_step_or_ifc_are_one_line_errors_naming_them(dmu_bin,
         status, out, err = dmu(dmu_bin, "info", tmp_path / name, check=False)
         assert status == 2 and out == "", err
         assert len(err.strip().splitlines()) == 1 and name in err, err
-    # A Python without the packages: the error names the package and its install.
-    env = dict(os.environ, DMU_PYTHON="/usr/bin/python3")
-    missing = subprocess.run([str(dmu_bin), "info", str(tmp_path / "x.step")], capture_output=True, text=True,
-                             env=env, timeout=120)
-    if subprocess.run(["/usr/bin/python3", "-c", "import OCP, numpy"], capture_output=True).returncode != 0:
-        assert missing.returncode == 2 and len(missing.stderr.strip().splitlines()) == 1, missing.stderr
-        assert "x.step" in missing.stderr and "needs the Python package" in missing.stderr, missing.stderr
-        assert "pip install" in missing.stderr, missing.stderr
+    # A Python without OCP (blocked, as if not installed): the error names
+    # the file, the package and the command that installs it.
+    from test_cad_convert import write_step
+
+    step = write_step(tmp_path / "a.step")
+    blocked = tmp_path / "python-without-ocp"
+    blocked.write_text(f"#!/bin/sh\nexec {sys.executable} -c \"import runpy, sys; sys.modules['OCP'] = None; "
+                       "sys.argv = sys.argv[1:]; runpy.run_path(sys.argv[0], run_name='__main__')\" \"$@\"\n")
+    blocked.chmod(0o755)
+    env = dict(os.environ, DMU_PYTHON=str(blocked))
+    missing = subprocess.run([str(dmu_bin), "info", str(step)], capture_output=True, text=True, env=env, timeout=120)
+    assert missing.returncode == 2 and len(missing.stderr.strip().splitlines()) == 1, missing.stderr
+    assert "a.step" in missing.stderr and "needs the Python package OCP" in missing.stderr, missing.stderr
+    assert "pip install cadquery-ocp-novtk" in missing.stderr, missing.stderr

@@ -378,6 +378,33 @@ def test_bad_inputs(tmp_path):
         assert not (tmp_path / "out.glb").exists() and not (tmp_path / "out.glb.part").exists()
 
 
+@pytest.mark.parametrize("cycle", ["spaces", "storey"])
+def test_ifc_containment_cycles_are_refused_naming_the_entity(tmp_path, cycle):
+    """Crafted files whose aggregates and containers loop (two spaces
+    aggregating each other with the walls contained in one; a storey
+    aggregating its building) are one line naming an entity of the loop,
+    never a hang or a recursion error."""
+    ifcopenshell = ifcos()
+    import ifcopenshell.guid
+
+    ifc = ifcopenshell.open(str(ifc_sample("duplex")))
+    if cycle == "spaces":
+        s1, s2 = ifc.by_type("IfcSpace")[:2]
+        ifc.createIfcRelAggregates(ifcopenshell.guid.new(), None, None, None, s1, [s2])
+        ifc.createIfcRelAggregates(ifcopenshell.guid.new(), None, None, None, s2, [s1])
+        for rel in ifc.by_type("IfcRelContainedInSpatialStructure"):
+            rel.RelatingStructure = s1
+        loop = {s1.id(), s2.id()}
+    else:
+        building, storey = ifc.by_type("IfcBuilding")[0], ifc.by_type("IfcBuildingStorey")[0]
+        ifc.createIfcRelAggregates(ifcopenshell.guid.new(), None, None, None, storey, [building])
+        loop = {building.id(), storey.id()}
+    ifc.write(str(tmp_path / "loop.ifc"))
+    status, lines, err = run(tmp_path / "loop.ifc", tmp_path / "loop.glb")
+    assert_refused(status, [line for line in lines if "progress" not in line], err, "loop.ifc")
+    assert "contains itself" in err and any(f"#{i} " in err for i in loop), err
+
+
 def test_missing_package_exits_3(tmp_path):
     write_step(tmp_path / "a.step")
     status, lines, err = run(tmp_path / "a.step", tmp_path / "a.glb", python_prelude="import sys; sys.modules['OCP'] = None")

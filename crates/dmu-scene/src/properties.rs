@@ -22,6 +22,12 @@ pub const MAX_PER_NODE: usize = 64;
 pub const MAX_KEY_BYTES: usize = 256;
 /// The longest value an importer keeps, bytes.
 pub const MAX_VALUE_BYTES: usize = 4096;
+/// The property that holds an IFC element's GlobalId: what BCF's `IfcGuid`
+/// names, and what a part can be found by ([`crate::Scene::find_part`]).
+pub const GLOBAL_ID: &str = "GlobalId";
+/// The property naming the file a part came from: the same on every part of
+/// a file, so searches leave it out.
+pub const SOURCE_FILE: &str = "SourceFile";
 
 /// Key–value strings of nodes, rows in node order.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -139,7 +145,10 @@ impl Properties {
         let counts = u64s(take(24)?);
         let (rows, key_bytes, value_bytes) = (counts[0], counts[1], counts[2]);
         let node_bytes = rows.checked_mul(4).ok_or("row count overflows")?;
-        let nodes_read = take(node_bytes.next_multiple_of(8))?[..node_bytes as usize]
+        let padded = node_bytes
+            .checked_next_multiple_of(8)
+            .ok_or("row count overflows")?;
+        let nodes_read = take(padded)?[..node_bytes as usize]
             .chunks_exact(4)
             .map(|c| u32::from_le_bytes(c.try_into().expect("4 bytes")))
             .collect();
@@ -213,6 +222,18 @@ mod tests {
         let mut longer = bytes.clone();
         longer.push(0);
         assert!(Properties::from_bytes(&longer, 5).is_err());
+        // Row counts whose arrays overflow (the review's crafted store
+        // panicked sizing the node array).
+        for rows in [
+            u64::MAX,
+            u64::MAX / 4,
+            0x3fff_ffff_ffff_ffff,
+            u64::MAX / 8 + 1,
+        ] {
+            let mut huge = bytes.clone();
+            huge[..8].copy_from_slice(&rows.to_le_bytes());
+            assert!(Properties::from_bytes(&huge, 5).is_err(), "{rows:#x} rows");
+        }
         // Every single-byte change is refused or reads as a valid table.
         for i in 0..bytes.len() {
             let mut bad = bytes.clone();

@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 use crate::chunking::{ChunkData, ChunkedMesh, MeshData, chunk_mesh};
 use crate::error::SceneError;
 use crate::ids::{ChunkId, MaterialId, MeshId, NodeId, PartId};
-use crate::properties::Properties;
+use crate::properties::{GLOBAL_ID, Properties, SOURCE_FILE};
 use crate::structure::Names;
 
 /// Default maximum triangles per chunk.
@@ -553,9 +553,9 @@ impl Scene {
         [0, 1, 2].map(|k| m.positions[base + m.indices[i + k] as usize])
     }
 
-    /// Finds a part by name, by `#id`, by its full path, or else by a
-    /// property value (an IFC GlobalId). Fails when nothing or more than one
-    /// part matches, listing the candidates.
+    /// Finds a part by name, by `#id`, by its full path, or else by its
+    /// GlobalId property (an IFC element's). Fails when nothing or more than
+    /// one part matches, listing the candidates.
     pub fn find_part(&self, key: &str) -> Result<PartId, SceneError> {
         if let Some(num) = key.strip_prefix('#') {
             return match num.parse::<u32>() {
@@ -575,7 +575,7 @@ impl Scene {
             by_name
         };
         if matches.is_empty() {
-            matches = self.parts_with_property_value(key);
+            matches = self.parts_with_global_id(key);
         }
         match matches.as_slice() {
             [one] => Ok(*one),
@@ -594,27 +594,31 @@ impl Scene {
         }
     }
 
-    /// The parts with a property whose value is `value`, in id order.
-    pub fn parts_with_property_value(&self, value: &str) -> Vec<PartId> {
+    /// The parts whose GlobalId property is `global_id`, in id order.
+    pub fn parts_with_global_id(&self, global_id: &str) -> Vec<PartId> {
         let mut parts: Vec<PartId> = self
             .properties
             .iter()
-            .filter(|&(_, _, v)| v == value)
+            .filter(|&(_, k, v)| k == GLOBAL_ID && v == global_id)
             .filter_map(|(node, _, _)| self.node(node).part)
             .collect();
+        parts.sort_unstable();
         parts.dedup();
         parts
     }
 
     /// The parts whose name, or one of whose property values (a GlobalId,
-    /// an IFC class), holds `query`, ignoring case; in id order. What the
-    /// viewer's product-structure search lists.
+    /// an IFC class; not the source file, the same on every part), holds
+    /// `query`, ignoring case; in id order. What the viewer's
+    /// product-structure search lists.
     pub fn search_parts(&self, query: &str) -> Vec<PartId> {
         let query = query.to_lowercase();
-        let holds = |s: &str| s.to_lowercase().contains(&query);
+        let holds = |s: &str| contains_ignoring_case(s, &query);
         let mut found = vec![false; self.parts.len()];
-        for (node, _, value) in self.properties.iter() {
-            if let Some(part) = self.node(node).part
+        for (node, key, value) in self.properties.iter() {
+            if key != SOURCE_FILE
+                && let Some(part) = self.node(node).part
+                && !found[part.index()]
                 && holds(value)
             {
                 found[part.index()] = true;
@@ -1015,4 +1019,14 @@ impl SceneBuilder {
     pub(crate) fn finish_unvalidated(self) -> Scene {
         self.scene
     }
+}
+
+/// Whether `haystack` holds `lower` (already lower-case), ignoring case:
+/// without allocating when `haystack` is ASCII, as names and ids mostly are.
+fn contains_ignoring_case(haystack: &str, lower: &str) -> bool {
+    if !haystack.is_ascii() || !lower.is_ascii() {
+        return haystack.to_lowercase().contains(lower);
+    }
+    let (h, n) = (haystack.as_bytes(), lower.as_bytes());
+    n.is_empty() || h.windows(n.len()).any(|w| w.eq_ignore_ascii_case(n))
 }

@@ -396,6 +396,7 @@ fn node_extras_become_properties_that_export_keeps() {
     d.json["nodes"][0]["extras"] = json!({
         "GlobalId": "2O2Fr$t4X7Zf8NOew3FLOH",
         "IfcClass": "IfcWallStandardCase",
+        "SourceFile": "walls.ifc",
         "storey": 3,
         "fire_rated": true,
         "nested": { "a": 1 },
@@ -430,6 +431,7 @@ fn node_extras_become_properties_that_export_keeps() {
         [
             ("GlobalId", "2O2Fr$t4X7Zf8NOew3FLOH"),
             ("IfcClass", "IfcWallStandardCase"),
+            ("SourceFile", "walls.ifc"),
             ("fire_rated", "true"),
             ("storey", "3"),
         ]
@@ -449,6 +451,11 @@ fn node_extras_become_properties_that_export_keeps() {
     assert_eq!(scene.search_parts("2o2fr$T4"), [wall]);
     assert!(scene.search_parts("0Storey").is_empty());
     assert!(scene.find_part("0Storey").is_err());
+    // Only the GlobalId names a part; the source file, on every part of a
+    // file, is left out of searches.
+    assert!(scene.find_part("true").is_err());
+    assert!(scene.find_part("IfcWallStandardCase").is_err());
+    assert!(scene.search_parts("walls.ifc").is_empty());
     // Exported as extras and read back the same.
     let dir = tempfile::tempdir().unwrap();
     let glb = dir.path().join("walls.glb");

@@ -224,7 +224,7 @@ impl Component {
         Self {
             ifc_guid: scene
                 .node_properties(node)
-                .find(|&(k, _)| k == GLOBAL_ID)
+                .find(|&(k, _)| k == dmu_scene::properties::GLOBAL_ID)
                 .map(|(_, v)| v.to_owned()),
             ..Self::part(scene.part_name(part))
         }
@@ -233,12 +233,13 @@ impl Component {
     /// The part of `scene` it names: by `IfcGuid` first (among the parts'
     /// GlobalIds), then by node name ([`Scene::find_part`]).
     pub fn find(&self, scene: &Scene) -> Option<PartId> {
-        let by_guid = self.ifc_guid.as_deref().and_then(|g| {
-            match scene.parts_with_property_value(g).as_slice() {
-                [one] => Some(*one),
-                _ => None,
-            }
-        });
+        let by_guid =
+            self.ifc_guid
+                .as_deref()
+                .and_then(|g| match scene.parts_with_global_id(g).as_slice() {
+                    [one] => Some(*one),
+                    _ => None,
+                });
         by_guid.or_else(|| {
             self.authoring_tool_id
                 .as_deref()
@@ -246,9 +247,6 @@ impl Component {
         })
     }
 }
-
-/// The property that holds an IFC element's GlobalId.
-pub const GLOBAL_ID: &str = "GlobalId";
 
 /// A BCF camera: an eye, a view direction, a screen up and a projection.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -56,7 +56,7 @@ impl FileNodes {
         mesh: Option<u64>,
         children: &[u64],
         raw: &RawNode,
-        extras: Option<&serde_json::Value>,
+        extras: Option<Extras>,
     ) -> Result<(), String> {
         let index = |what: &str, v: u64| {
             u32::try_from(v)
@@ -90,27 +90,20 @@ impl FileNodes {
     /// Keeps node `i`'s `extras` members whose value is a string, number
     /// or boolean as its properties, within the limits of
     /// [`crate::properties`]; counts the rest as dropped.
-    fn add_properties(&mut self, i: usize, extras: &serde_json::Value) {
-        use serde_json::Value;
-        let Value::Object(members) = extras else {
+    fn add_properties(&mut self, i: usize, extras: Extras) {
+        let Extras::Members(members) = extras else {
             self.properties_dropped += 1;
             return;
         };
         let mut kept = 0;
         for (key, value) in members {
-            let value = match value {
-                Value::String(s) => Some(s.clone()),
-                Value::Number(n) => Some(n.to_string()),
-                Value::Bool(b) => Some(b.to_string()),
-                Value::Null | Value::Array(_) | Value::Object(_) => None,
-            };
             match value {
                 Some(v)
                     if kept < MAX_PER_NODE
                         && key.len() <= MAX_KEY_BYTES
                         && v.len() <= MAX_VALUE_BYTES =>
                 {
-                    self.properties.push(NodeId(i as u32), key, &v);
+                    self.properties.push(NodeId(i as u32), &key, &v);
                     kept += 1;
                 }
                 _ => self.properties_dropped += 1,
@@ -186,7 +179,100 @@ struct StreamNode {
     translation: Option<[f64; 3]>,
     rotation: Option<[f64; 4]>,
     scale: Option<[f64; 3]>,
-    extras: Option<serde_json::Value>,
+    extras: Option<Extras>,
+}
+
+/// A node's `extras` as the import keeps it: each member's value when it is
+/// a string, number or boolean, `None` for any other, whose contents are
+/// skipped unread (however deep, as when `extras` was not read at all).
+enum Extras {
+    Members(Vec<(String, Option<String>)>),
+    NotAnObject,
+}
+
+impl<'de> Deserialize<'de> for Extras {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = Extras;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("any JSON value")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Extras, A::Error> {
+                let mut members = Vec::new();
+                while let Some(key) = map.next_key::<String>()? {
+                    members.push((key, map.next_value::<Scalar>()?.0));
+                }
+                Ok(Extras::Members(members))
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, seq: A) -> Result<Extras, A::Error> {
+                IgnoredAny.visit_seq(seq).map(|_| Extras::NotAnObject)
+            }
+            fn visit_str<E: de::Error>(self, _: &str) -> Result<Extras, E> {
+                Ok(Extras::NotAnObject)
+            }
+            fn visit_bool<E: de::Error>(self, _: bool) -> Result<Extras, E> {
+                Ok(Extras::NotAnObject)
+            }
+            fn visit_i64<E: de::Error>(self, _: i64) -> Result<Extras, E> {
+                Ok(Extras::NotAnObject)
+            }
+            fn visit_u64<E: de::Error>(self, _: u64) -> Result<Extras, E> {
+                Ok(Extras::NotAnObject)
+            }
+            fn visit_f64<E: de::Error>(self, _: f64) -> Result<Extras, E> {
+                Ok(Extras::NotAnObject)
+            }
+            fn visit_unit<E: de::Error>(self) -> Result<Extras, E> {
+                Ok(Extras::NotAnObject)
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+/// A member's value as a property: a string, number or boolean as text;
+/// `None` for null, an array or an object (skipped unread).
+struct Scalar(Option<String>);
+
+impl<'de> Deserialize<'de> for Scalar {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = Scalar;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("any JSON value")
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<Scalar, E> {
+                Ok(Scalar(Some(v.to_owned())))
+            }
+            fn visit_bool<E: de::Error>(self, v: bool) -> Result<Scalar, E> {
+                Ok(Scalar(Some(v.to_string())))
+            }
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<Scalar, E> {
+                Ok(Scalar(Some(v.to_string())))
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<Scalar, E> {
+                Ok(Scalar(Some(v.to_string())))
+            }
+            fn visit_f64<E: de::Error>(self, v: f64) -> Result<Scalar, E> {
+                // As JSON writes it (`1e300`, not 300 zeros).
+                Ok(Scalar(
+                    serde_json::Number::from_f64(v).map(|n| n.to_string()),
+                ))
+            }
+            fn visit_unit<E: de::Error>(self) -> Result<Scalar, E> {
+                Ok(Scalar(None))
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, seq: A) -> Result<Scalar, A::Error> {
+                IgnoredAny.visit_seq(seq).map(|_| Scalar(None))
+            }
+            fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<Scalar, A::Error> {
+                IgnoredAny.visit_map(map).map(|_| Scalar(None))
+            }
+        }
+        d.deserialize_any(V)
+    }
 }
 
 /// A glTF index: a non-negative integer, also written as an integral float
@@ -316,7 +402,7 @@ impl<'de> Visitor<'de> for NodesSeed {
                     n.mesh.map(|m| m.0),
                     &children,
                     &raw,
-                    n.extras.as_ref(),
+                    n.extras,
                 )
                 .map_err(<A::Error as de::Error>::custom)?;
         }

@@ -28,6 +28,7 @@ import json
 import math
 import multiprocessing
 import os
+import resource
 import shutil
 import struct
 import sys
@@ -494,18 +495,37 @@ def ifc_tree(ifc, placed, skipped, source):
     project, parent_of = projects[0], ifc_parents(ifc)
     nodes = {project.id(): (Node(project.Name or "IfcProject", ifc_extras(project, source)), None)}
 
+    def cycle(entity):
+        return BadInput(f"#{entity.id()} ({entity.is_a()} {getattr(entity, 'GlobalId', '')}) contains itself "
+                        "through its aggregates or containers")
+
+    def parent(entity):
+        """The entity `entity` goes under, past left-out ones."""
+        above, passed = parent_of.get(entity.id(), project), set()
+        while above.id() in skipped:
+            if above.id() in passed:
+                raise cycle(above)
+            passed.add(above.id())
+            above = parent_of.get(above.id(), project)
+        return above
+
     def place(entity):
-        if entity.id() not in nodes:
-            parent = parent_of.get(entity.id(), project)
-            while parent.id() in skipped:
-                parent = parent_of.get(parent.id(), project)
-            parent_node, parent_world = place(parent)
+        """Adds `entity`'s node and those above it not yet added (a loop,
+        not recursion: aggregates nest to any depth)."""
+        chain, on_chain = [], set()
+        while entity.id() not in nodes:
+            if entity.id() in on_chain:
+                raise cycle(entity)
+            on_chain.add(entity.id())
+            chain.append(entity)
+            entity = parent(entity)
+        for entity in reversed(chain):
+            parent_node, parent_world = nodes[parent(entity).id()]
             world, mesh = placed.get(entity.id(), (None, None))
             matrix = world if parent_world is None or world is None else np.linalg.solve(parent_world, world)
             node = Node(entity.Name or entity.is_a(), ifc_extras(entity, source), matrix, mesh)
             parent_node.children.append(node)
             nodes[entity.id()] = (node, compose(parent_world, matrix))
-        return nodes[entity.id()]
 
     spatial = "IfcSpatialStructureElement" if ifc.schema == "IFC2X3" else "IfcSpatialElement"
     for entity in [e for e in ifc.by_type(spatial) if e.id() not in skipped] + [ifc.by_id(i) for i in sorted(placed)]:
@@ -589,7 +609,8 @@ def convert(args, reporter):
         doc, products, triangles = glb.document(root)
         summary = {"format": fmt, "products": products, "failed": len(reporter.failures), "triangles": triangles,
                    "unique_triangles": sum(glb.mesh_triangles), "meshes": len(glb.meshes),
-                   "seconds": round(time.monotonic() - start, 3)}
+                   "seconds": round(time.monotonic() - start, 3),
+                   "peak_rss_bytes": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}
         doc["asset"]["extras"] = {"dmu_cad": dict(summary, failed_products=reporter.failures)}
         glb.write(args.output, doc)
     return summary
