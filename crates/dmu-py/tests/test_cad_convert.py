@@ -1,7 +1,8 @@
 """The STEP/IFC converter (`crates/dmu-store/src/cad/convert.py`) alone,
 against independent oracles: IfcOpenShell's own listing, containers and
 world-coordinate shapes for the three sample IFC files, and STEP assemblies
-made here through OCP's XCAF with known names, placements, colours and units.
+made here through OCP's XCAF with known names, placements, colours and units,
+their PRODUCT ids then set in the file's text.
 
 The converter runs as a subprocess of this interpreter ($DMU_CAD_CONVERT
 names another copy). The GLB is read with `json` + `struct` only. Under
@@ -37,6 +38,7 @@ IFC_DIR = REPO.parent / "shared/data/ifc"
 IFC_SAMPLES = ["duplex", "fzk_haus", "mini_project"]
 LEFT_OUT = ("IfcSpace", "IfcOpeningElement")
 FAR_MM = {"MM": 1e7 + 0.0005, "M": 1e7 + 0.25}  # exact in the 13 digits OCCT's writer keeps
+PRODUCT_IDS = {"top": "P-100-top", "sub": "P-101-sub", "box": "P-102-box", "pin": ""}  # by product name
 
 
 def ocp():
@@ -309,6 +311,15 @@ def write_step(path, unit="MM", broken_pair=False):
     return path
 
 
+def set_product_ids(path, ids):
+    """Rewrites the id of each PRODUCT in the STEP file at `path` (OCCT's writer
+    makes it the product's name) to ids[name]."""
+    text, count = re.subn(r"\bPRODUCT\('([^']*)'", lambda m: f"PRODUCT('{ids[m.group(1)]}'", path.read_text())
+    assert count == len(ids)
+    path.write_text(text)
+    return path
+
+
 def all_outward(groups):
     """Whether every triangle of a convex mesh faces away from its centre."""
     positions = np.concatenate([p for p, _ in groups]).astype(np.float64)
@@ -322,18 +333,19 @@ def all_outward(groups):
 
 @pytest.mark.parametrize("unit", ["MM", "M"])
 def test_step_assembly(unit, tmp_path):
-    step = write_step(tmp_path / f"asm_{unit}.step", unit)
+    step = set_product_ids(write_step(tmp_path / f"asm_{unit}.step", unit), PRODUCT_IDS)
     glb, summary, failed = convert_ok(step, tmp_path / "asm.glb")
     assert summary["format"] == "STEP" and failed == [] and summary["failed"] == 0
     nodes = glb.nodes
-    # Tree and names: products and instances.
+    # Tree, names and ids: products and instances; an instance carries its product's id, none where it is empty.
     assert glb.doc["scenes"][0]["name"] == f"asm_{unit}"
     top = glb.named("top")
     assert [nodes[c]["name"] for c in nodes[top]["children"]] == ["box 1", "sub 1", "far box"]
     assert [nodes[c]["name"] for c in nodes[glb.named("sub 1")]["children"]] == ["box in sub", "pin A"]
     for node, product in [("top", "top"), ("sub 1", "sub"), ("box 1", "box"), ("far box", "box"),
                           ("box in sub", "box"), ("pin A", "pin")]:
-        assert nodes[glb.named(node)]["extras"] == {"StepProduct": product, "SourceFile": step.name}
+        product_id = {"StepProductId": PRODUCT_IDS[product]} if PRODUCT_IDS[product] else {}
+        assert nodes[glb.named(node)]["extras"] == {"StepProduct": product, **product_id, "SourceFile": step.name}
     # Instancing: one mesh for the three boxes, each its own node.
     boxes = [glb.named(n) for n in ("box 1", "box in sub", "far box")]
     assert len({nodes[b]["mesh"] for b in boxes}) == 1

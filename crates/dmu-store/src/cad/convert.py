@@ -238,6 +238,14 @@ class StepReader:
         found = label.FindAttribute(self.occ.TDataStd.TDataStd_Name.GetID_s(), attribute)
         return attribute.Get().ToExtString() if found else ""
 
+    def product_id(self, label):
+        """The id of the STEP PRODUCT behind a product label, None where it has
+        none: the product metadata read during the transfer (once per product)
+        keeps it as the string "ProductID", and leaves out an empty one."""
+        data, key = self.occ.TDataStd.TDataStd_NamedData(), self.occ.TCollection.TCollection_ExtendedString("ProductID")
+        found = label.FindAttribute(self.occ.TDataStd.TDataStd_NamedData.GetID_s(), data) and data.HasString(key)
+        return data.GetString(key).ToExtString() if found else None
+
     def colour(self, label):
         """The surface (else generic) colour set on `label`, RGBA, or None."""
         kinds, colour = self.occ.XCAFDoc.XCAFDoc_ColorType, self.occ.Quantity.Quantity_ColorRGBA()
@@ -348,7 +356,10 @@ class StepReader:
         """The node of a shape label placed by `matrix`, None for a failed part.
         Colours: a face's own, else the nearest instance's (`override`), else
         the part's, else the nearest assembly's (`fallback`)."""
-        extras = {"StepProduct": self.name(label), "SourceFile": self.source}
+        extras, product_id = {"StepProduct": self.name(label)}, self.product_id(label)
+        if product_id is not None:
+            extras["StepProductId"] = product_id
+        extras["SourceFile"] = self.source
         if not self.shapes.IsAssembly_s(label):
             made = self.mesh_of(label, override or self.colour(label) or fallback or DEFAULT_RGBA)
             return made and Node(name, extras, compose(matrix, made[1]), made[0])
@@ -370,6 +381,7 @@ def read_step(path, options, glb, reporter, root):
     occ.Interface.Interface_Static.SetCVal_s("xstep.cascade.unit", "MM")
     reader.SetNameMode(True)
     reader.SetColorMode(True)
+    reader.SetProductMetaMode(True)  # PRODUCT.id, read by StepReader.product_id
     status = reader.ReadFile(path)
     if status != occ.IFSelect.IFSelect_ReturnStatus.IFSelect_RetDone:
         raise BadInput(f"truncated or not a STEP file (OCCT reader status {status.name})")
