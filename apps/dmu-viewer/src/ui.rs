@@ -127,6 +127,8 @@ impl UiState {
     /// Panels for a model loaded from `source` (the default save path derives from it).
     pub fn new(source: Option<&std::path::Path>) -> Self {
         let save_path = match source {
+            // STEP and IFC are read, never written: saves go to a store beside.
+            Some(p) if dmu_store::cad::is_cad(p) => p.with_extension("dmu").display().to_string(),
             Some(p) => p.display().to_string(),
             None => "dmu-review.glb".to_owned(),
         };
@@ -989,4 +991,20 @@ fn stats_overlay(painter: &egui::Painter, rect: Rect, o: &Overlay, review: &Revi
         Color32::from_black_alpha(170),
     );
     painter.galley(at, galley, Color32::WHITE);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::UiState;
+    use std::path::Path;
+
+    #[test]
+    fn a_step_or_ifc_model_saves_to_a_store_beside_it_never_over_it() {
+        let save = |p: &str| UiState::new(Some(Path::new(p))).save_path;
+        assert_eq!(save("site/house.ifc"), "site/house.dmu");
+        assert_eq!(save("cad/pump.STEP"), "cad/pump.dmu");
+        assert_eq!(save("cad/pump.stp"), "cad/pump.dmu");
+        assert_eq!(save("plant.glb"), "plant.glb");
+        assert_eq!(UiState::new(None).save_path, "dmu-review.glb");
+    }
 }
