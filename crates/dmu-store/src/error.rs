@@ -100,6 +100,13 @@ pub enum StoreError {
         #[source]
         source: dmu_scene::ExportError,
     },
+    /// A store named on object storage as the target of a write: stores on
+    /// object storage are read only (see [`crate::remote`]).
+    #[error("{}: writing to object storage is not supported (write a local .dmu)", path.display())]
+    RemoteWrite {
+        /// The object's address.
+        path: PathBuf,
+    },
     /// A STEP or IFC file the converter could not read (see [`crate::cad`]).
     #[error("{}: {what}", path.display())]
     Convert {

@@ -82,6 +82,7 @@ mod open;
 mod prefetch;
 mod priority;
 mod read;
+pub mod remote;
 mod residency;
 mod save;
 mod skeleton;

@@ -8,8 +8,9 @@ use std::path::{Path, PathBuf};
 use dmu_scene::{ChunkId, MeshId, Properties, Scene};
 
 use crate::error::StoreError;
-use crate::format::{self, BlobSet, Layout, TocEntry};
+use crate::format::{self, BlobSet, Layout, ReadAt, TocEntry};
 use crate::geometry::{self, OwnedChunkGeometry, resident_bytes};
+use crate::remote::{RemoteOptions, S3Object, is_remote};
 use crate::skeleton;
 
 /// An open store: the skeleton in memory, geometry on disk until asked for.
@@ -25,11 +26,43 @@ use crate::skeleton;
 #[derive(Debug)]
 pub struct Store {
     path: PathBuf,
-    file: File,
+    file: Source,
     /// The file's length when opened (the layout tiles exactly this many bytes).
     file_bytes: u64,
     layout: Layout,
     skeleton: Scene,
+}
+
+/// Where a store's bytes come from: a file, or an object on object storage
+/// ([`crate::remote`]).
+#[derive(Debug)]
+enum Source {
+    Local(File),
+    Remote(Box<S3Object>),
+}
+
+impl Source {
+    fn reader(&self) -> &dyn ReadAt {
+        match self {
+            Source::Local(f) => f,
+            Source::Remote(o) => &**o,
+        }
+    }
+}
+
+impl ReadAt for Source {
+    fn len(&self) -> std::io::Result<u64> {
+        self.reader().len()
+    }
+    fn read_exact_at(&self, offset: u64, len: u64) -> std::io::Result<Vec<u8>> {
+        self.reader().read_exact_at(offset, len)
+    }
+    fn read_at_most(&self, offset: u64, len: u64) -> std::io::Result<Vec<u8>> {
+        self.reader().read_at_most(offset, len)
+    }
+    fn read_into(&self, offset: u64, buf: &mut [u8]) -> std::io::Result<()> {
+        self.reader().read_into(offset, buf)
+    }
 }
 
 /// Sizes of an open store.
@@ -58,13 +91,25 @@ pub struct StoreInfo {
 }
 
 impl Store {
-    /// Opens a store, checking its header, table of contents and skeleton.
+    /// Opens a store, checking its header, table of contents and skeleton:
+    /// a file, or an object on object storage (`s3://bucket/key`, reached
+    /// as the AWS variables say: [`RemoteOptions::from_env`]).
     pub fn open(path: &Path) -> Result<Store, StoreError> {
+        Self::open_with(path, &RemoteOptions::from_env())
+    }
+
+    /// [`Store::open`], reaching object storage as `remote` says.
+    pub fn open_with(path: &Path, remote: &RemoteOptions) -> Result<Store, StoreError> {
         let io = |source| StoreError::Io {
             path: path.to_owned(),
             source,
         };
-        let file = dmu_scene::open_regular_file(path).map_err(io)?;
+        let file = if is_remote(path) {
+            let url = path.to_string_lossy();
+            Source::Remote(Box::new(S3Object::open(&url, remote).map_err(io)?))
+        } else {
+            Source::Local(dmu_scene::open_regular_file(path).map_err(io)?)
+        };
         let layout = format::parse(&file, path)?;
         let file_bytes = format::ReadAt::len(&file).map_err(io)?;
         let corrupt = |what: String| StoreError::Corrupt {

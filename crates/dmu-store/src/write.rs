@@ -100,8 +100,14 @@ pub struct PendingStore {
 }
 
 impl StoreWriter {
-    /// Starts a store that will replace `path` when committed.
+    /// Starts a store that will replace `path` when committed; an address on
+    /// object storage is refused ([`StoreError::RemoteWrite`]).
     pub fn create(path: &Path, options: WriteOptions) -> Result<Self, StoreError> {
+        if crate::remote::is_remote(path) {
+            return Err(StoreError::RemoteWrite {
+                path: path.to_owned(),
+            });
+        }
         let io = |source| StoreError::Io {
             path: path.to_owned(),
             source,

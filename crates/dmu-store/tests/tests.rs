@@ -6,6 +6,7 @@ mod fuzz_replay;
 mod fuzz_store_open;
 mod import;
 mod levels;
+mod remote;
 mod residency;
 mod round_trip;
 mod support;
