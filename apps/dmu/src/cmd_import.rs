@@ -183,11 +183,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
 fn replace(staged: &std::path::Path, target: &std::path::Path) -> anyhow::Result<()> {
     std::fs::rename(staged, target)
         .with_context(|| format!("{}: putting the import in place", target.display()))?;
-    let folder = match target.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => std::path::Path::new("."),
-    };
-    std::fs::File::open(folder)
+    std::fs::File::open(dmu_scene::folder_of(target))
         .and_then(|d| d.sync_all())
         .with_context(|| format!("{}: syncing its folder", target.display()))
 }

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use dmu_scene::{ImportOptions, ImportReport, Scene};
-use dmu_store::cad::CadOptions;
+use dmu_store::cad::{ANGULAR_DEFLECTION_RANGE, CadOptions, DEFLECTION_RANGE};
 use indicatif::ProgressBar;
 
 use crate::progress::style_mesh_bar;
@@ -66,11 +66,11 @@ pub struct ModelArgs {
 pub struct CadArgs {
     /// STEP: the largest gap between a surface and its triangles, as a
     /// fraction of each part's size.
-    #[arg(long, default_value_t = CadOptions::default().deflection, value_parser = crate::units::number_in(1e-6, 0.5))]
+    #[arg(long, default_value_t = CadOptions::default().deflection, value_parser = crate::units::number_in(*DEFLECTION_RANGE.start(), *DEFLECTION_RANGE.end()))]
     pub deflection: f64,
     /// STEP: the largest angle between neighbouring triangles' normals on a
     /// curved face, radians.
-    #[arg(long, default_value_t = CadOptions::default().angular_deflection, value_parser = crate::units::number_in(0.01, 1.5))]
+    #[arg(long, default_value_t = CadOptions::default().angular_deflection, value_parser = crate::units::number_in(*ANGULAR_DEFLECTION_RANGE.start(), *ANGULAR_DEFLECTION_RANGE.end()))]
     pub angular_deflection: f64,
     /// IFC: classes to keep that are left out by default, comma separated
     /// (IfcSpace, IfcOpeningElement).

@@ -50,6 +50,7 @@ use dmu_collide::{
 use dmu_geom::Ray3d;
 use dmu_scene::limits::{MAX_CHUNK_TRIANGLES, MAX_LENGTH, MAX_TRIANGLES, MIN_PLANT_TRIANGLES};
 use dmu_scene::{ImportOptions, PartId, Scene};
+use dmu_store::cad::CadOptions;
 use dmu_tree::{HitReport, Tree, TreeOptions};
 use glam::{DAffine3, DMat3, DVec3};
 use numpy::{AllowTypeChange, IntoPyArray as _, PyArray1, PyArray2, PyArray3, PyArrayLike2};
@@ -584,7 +585,7 @@ fn check_chunk_triangles(chunk_triangles: u32) -> PyResult<()> {
 /// `angular_deflection` radians; `ifc_include` keeps IFC classes left out
 /// by default (`IfcSpace`, `IfcOpeningElement`).
 #[pyfunction]
-#[pyo3(signature = (path, chunk_triangles = dmu_scene::DEFAULT_CHUNK_TRIANGLES, deflection = 0.001, angular_deflection = 0.5, ifc_include = Vec::new()))]
+#[pyo3(signature = (path, chunk_triangles = dmu_scene::DEFAULT_CHUNK_TRIANGLES, deflection = CadOptions::default().deflection, angular_deflection = CadOptions::default().angular_deflection, ifc_include = Vec::new()))]
 fn open(
     py: Python<'_>,
     path: PathBuf,
@@ -594,24 +595,19 @@ fn open(
     ifc_include: Vec<String>,
 ) -> PyResult<Model> {
     check_chunk_triangles(chunk_triangles)?;
-    let in_range = |v: f64, lo: f64, hi: f64| v.is_finite() && (lo..=hi).contains(&v);
-    if !in_range(deflection, 1e-6, 0.5) || !in_range(angular_deflection, 0.01, 1.5) {
-        return Err(DmuError::new_err(format!(
-            "deflection {deflection}, angular_deflection {angular_deflection}: expected 1e-6 to 0.5 and 0.01 to 1.5"
-        )));
-    }
     let python: PathBuf = py
         .import("sys")?
         .getattr("executable")?
         .extract::<String>()?
         .into();
-    let cad = dmu_store::cad::CadOptions {
+    let cad = CadOptions {
         deflection,
         angular_deflection,
         ifc_include,
         python: (!python.as_os_str().is_empty()).then_some(python),
         ..Default::default()
     };
+    cad.check().map_err(DmuError::new_err)?;
     py.detach(|| {
         let options = ImportOptions {
             chunk_triangles,

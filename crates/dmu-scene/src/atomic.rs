@@ -97,10 +97,7 @@ impl AtomicFile {
         self.file.sync_all()?;
         std::fs::rename(&self.temp, &self.target)?;
         self.committed = true;
-        let dir = match self.target.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
+        let dir = folder_of(&self.target);
         // Directories cannot be opened for syncing everywhere; the rename itself
         // has happened, so a failure here only weakens durability.
         if let Ok(d) = File::open(dir) {
@@ -148,6 +145,14 @@ pub fn write_file_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     file.commit()
 }
 
+/// The folder `path` is in: its parent, or `.` for a bare file name.
+pub fn folder_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    }
+}
+
 /// Removes temporary files left beside `path` by writers that died mid-write
 /// (`.NAME.tmpPID-N` of a process that no longer runs), so killed saves do not
 /// pile up copies of a large file. Only where `/proc` tells which processes
@@ -156,10 +161,7 @@ fn remove_stale_temps(path: &Path) {
     let (Some(name), true) = (path.file_name(), Path::new("/proc/self").exists()) else {
         return;
     };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
+    let dir = folder_of(path);
     let prefix = format!(".{}.tmp", name.to_string_lossy());
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;

@@ -46,7 +46,9 @@ mod scene;
 mod solid;
 mod structure;
 
-pub use atomic::{AtomicFile, open_regular_file, read_regular_file, write_file_atomically};
+pub use atomic::{
+    AtomicFile, folder_of, open_regular_file, read_regular_file, write_file_atomically,
+};
 pub use chunking::{
     ChunkData, ChunkedMesh, MeshData, MeshGroup, chunk_mesh, compute_normals, spatial_runs,
 };

@@ -13,6 +13,7 @@
 //! summary as JSON lines on its standard output.
 
 use std::io::{BufRead as _, BufReader, Read as _, Write as _};
+use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
@@ -36,6 +37,12 @@ pub fn is_cad(path: &Path) -> bool {
     })
 }
 
+/// The relative deflections taken: past half a part's size a mesh loses
+/// the part; below a millionth it only costs time.
+pub const DEFLECTION_RANGE: RangeInclusive<f64> = 1e-6..=0.5;
+/// The angular deflections taken, radians.
+pub const ANGULAR_DEFLECTION_RANGE: RangeInclusive<f64> = 0.01..=1.5;
+
 /// How CAD files are tessellated and which IFC classes are kept.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CadOptions {
@@ -52,6 +59,30 @@ pub struct CadOptions {
     pub threads: Option<usize>,
     /// The Python interpreter; `None` for `DMU_PYTHON`, else `python3`.
     pub python: Option<PathBuf>,
+}
+
+impl CadOptions {
+    /// Whether the deflections are finite and within [`DEFLECTION_RANGE`]
+    /// and [`ANGULAR_DEFLECTION_RANGE`]; the error names the one that is not.
+    pub fn check(&self) -> Result<(), String> {
+        for (name, v, range) in [
+            ("deflection", self.deflection, DEFLECTION_RANGE),
+            (
+                "angular_deflection",
+                self.angular_deflection,
+                ANGULAR_DEFLECTION_RANGE,
+            ),
+        ] {
+            if !(v.is_finite() && range.contains(&v)) {
+                return Err(format!(
+                    "{name} {v}: expected {} to {}",
+                    dmu_geom::Short(*range.start()),
+                    dmu_geom::Short(*range.end())
+                ));
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Default for CadOptions {

@@ -85,11 +85,12 @@ pub fn import_file(
     if !is_cad(input) {
         return import_gltf(input, output, options);
     }
-    let folder = match output.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let converted = convert(input, folder, options.cad, options.progress)?;
+    let converted = convert(
+        input,
+        dmu_scene::folder_of(output),
+        options.cad,
+        options.progress,
+    )?;
     let mut summary = import_gltf(&converted.glb, output, options).map_err(|e| match e {
         StoreError::Import { source, .. } => StoreError::Import {
             path: input.to_owned(),

@@ -117,8 +117,7 @@ impl Store {
             what,
         };
         let mut skeleton = skeleton::read(&file, &layout.skeleton, path)?;
-        if let Some(entry) = &layout.properties {
-            let bytes = format::verified(&file, entry, || "the properties".into(), path)?;
+        if let Some(bytes) = properties_segment(&file, &layout, path)? {
             skeleton.properties = Properties::from_bytes(&bytes, skeleton.nodes.len())
                 .map_err(|e| corrupt(format!("the properties: {e}")))?;
         }
@@ -262,13 +261,7 @@ impl Store {
     /// The properties segment as it is in the file, its checksum verified
     /// (for a rewrite to copy); `None` when no node has a property.
     pub(crate) fn properties_segment(&self) -> Result<Option<Vec<u8>>, StoreError> {
-        self.layout
-            .properties
-            .as_ref()
-            .map(|entry| {
-                format::verified(&self.file, entry, || "the properties".into(), &self.path)
-            })
-            .transpose()
+        properties_segment(&self.file, &self.layout, &self.path)
     }
 
     /// The index of blob set `set`, its checksum verified; `None` when the
@@ -366,4 +359,18 @@ impl Store {
     pub fn load_scene(&self) -> Result<Scene, StoreError> {
         skeleton::with_geometry(&self.skeleton, &|mesh| self.mesh_geometry(mesh))
     }
+}
+
+/// The properties segment of the store at `path` laid out as `layout`, its
+/// checksum verified; `None` when it has none.
+fn properties_segment(
+    file: &Source,
+    layout: &Layout,
+    path: &Path,
+) -> Result<Option<Vec<u8>>, StoreError> {
+    layout
+        .properties
+        .as_ref()
+        .map(|entry| format::verified(file, entry, || "the properties".into(), path))
+        .transpose()
 }

@@ -9,7 +9,7 @@ use dmu_scene::{MeshData, Scene, SceneBuilder};
 use dmu_tree::{Tree, TreeOptions, pick_brute_force};
 use glam::{DAffine3, DVec3, Vec3, Vec3A};
 
-use crate::support::{random_ray, random_scene_sized};
+use crate::support::{random_ray, random_scene_sized, small_cells};
 
 fn one_mesh(positions: Vec<Vec3>, chunk: u32) -> Scene {
     let mut b = SceneBuilder::new("deep", chunk);
@@ -98,13 +98,7 @@ fn extreme_direction_lengths_stay_exact() {
     let mut bad = Vec::new();
     for seed in 0..40u64 {
         let scene = random_scene_sized(seed, 8, DVec3::ZERO, 400, 128);
-        let tree = Tree::build(
-            &scene,
-            TreeOptions {
-                cell_triangles: 24,
-                ..TreeOptions::default()
-            },
-        );
+        let tree = Tree::build(&scene, small_cells());
         let mut rng = Rng::new(seed ^ 9);
         let bounds = scene.world_bounds();
         for _ in 0..60 {
@@ -135,13 +129,7 @@ fn picks_equal_same_test_brute_force_exactly() {
     let mut bad = Vec::new();
     for seed in 0..60u64 {
         let scene = random_scene_sized(seed, 10, DVec3::new(3e5, -2e5, 1e5), 400, 128);
-        let tree = Tree::build(
-            &scene,
-            TreeOptions {
-                cell_triangles: 24,
-                ..TreeOptions::default()
-            },
-        );
+        let tree = Tree::build(&scene, small_cells());
         let mut rng = Rng::new(seed ^ 11);
         let bounds = scene.world_bounds();
         for _ in 0..80 {
@@ -169,13 +157,7 @@ fn far_grazing_rays_stay_exact_near(seeds: std::ops::Range<u64>, origin: DVec3) 
     let mut hits = 0;
     for seed in seeds {
         let scene = random_scene_sized(seed, 10, origin, 200, 32);
-        let tree = Tree::build(
-            &scene,
-            TreeOptions {
-                cell_triangles: 24,
-                ..TreeOptions::default()
-            },
-        );
+        let tree = Tree::build(&scene, small_cells());
         let mut rng = Rng::new(seed ^ 13);
         let bounds = scene.world_bounds();
         for k in 0..200 {

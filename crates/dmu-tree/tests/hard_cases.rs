@@ -7,7 +7,7 @@ use dmu_scene::{MeshData, PartId, Scene, SceneBuilder};
 use dmu_tree::{Tree, TreeOptions};
 use glam::{DAffine3, DVec3, Vec3};
 
-use crate::support::{random_scene, random_transform};
+use crate::support::{random_scene, random_transform, small_cells};
 
 /// 3×3×3 boxes of side 4 (from -2 to 2 around each lattice point, pitch 10).
 fn boxes() -> (Scene, Tree) {
@@ -191,13 +191,7 @@ fn a_model_far_from_the_origin_keeps_hundredth_millimetres() {
 #[test]
 fn a_thousand_moves_and_back_restore_the_boxes_exactly() {
     let mut scene = random_scene(11, 40, DVec3::new(4.5e6, 5.3e6, 1.2e4));
-    let mut tree = Tree::build(
-        &scene,
-        TreeOptions {
-            cell_triangles: 24,
-            ..TreeOptions::default()
-        },
-    );
+    let mut tree = Tree::build(&scene, small_cells());
     let original: Vec<DAffine3> = scene.part_ids().map(|p| scene.part_world(p)).collect();
     let boxes: Vec<Aabb3d> = tree.entries().iter().map(|e| e.bounds).collect();
     let mut rng = Rng::new(5);
@@ -224,10 +218,7 @@ fn many_moves_do_not_degrade_the_tree() {
     // Bounded rotations and SAH re-insertion keep the cost near a fresh build, even
     // when parts drift across the whole model.
     let mut scene = random_scene(21, 300, DVec3::ZERO);
-    let options = TreeOptions {
-        cell_triangles: 24,
-        ..TreeOptions::default()
-    };
+    let options = small_cells();
     let mut tree = Tree::build(&scene, options);
     let mut rng = Rng::new(9);
     for _ in 0..2000 {

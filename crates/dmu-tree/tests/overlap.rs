@@ -7,7 +7,7 @@ use dmu_tree::{EntryId, Tree, TreeOptions};
 use glam::DVec3;
 use proptest::prelude::*;
 
-use crate::support::{random_box, random_scene, random_transform};
+use crate::support::{random_box, random_scene, random_transform, small_cells};
 
 fn brute(tree: &Tree, query: &Aabb3d) -> Vec<EntryId> {
     (0..tree.entries().len() as u32)
@@ -27,7 +27,7 @@ proptest! {
     #[test]
     fn entries_in_box_equal_a_linear_scan(seed in any::<u64>(), parts in 1usize..40, moves in 0usize..40) {
         let mut scene = random_scene(seed, parts, DVec3::new(1e7, -3e6, 0.0));
-        let options = TreeOptions { cell_triangles: 24, ..TreeOptions::default() };
+        let options = small_cells();
         let mut tree = Tree::build(&scene, options);
         let mut rng = Rng::new(seed ^ 0x5eed);
         for _ in 0..moves {

@@ -3,21 +3,14 @@
 use dmu_geom::{Aabb3d, Camera, Plane};
 use dmu_samples::Rng;
 use dmu_scene::Scene;
-use dmu_tree::{EntryVisibility, Tree, TreeOptions};
+use dmu_tree::{EntryVisibility, Tree};
 use glam::DVec3;
 use proptest::prelude::*;
 
 use crate::support::{
     brute_parts_in_box, brute_pick, brute_pick_where, random_box, random_ray, random_scene,
-    random_scene_sized, random_transform, world_triangles,
+    random_scene_sized, random_transform, small_cells, world_triangles,
 };
-
-fn options() -> TreeOptions {
-    TreeOptions {
-        cell_triangles: 24,
-        ..TreeOptions::default()
-    }
-}
 
 /// Picks and box queries agree with brute force; returns how many rays hit.
 fn check_queries(
@@ -145,7 +138,7 @@ proptest! {
     #[test]
     fn the_visible_walk_equals_brute_force(seed in any::<u64>(), parts in 1usize..40) {
         let scene = random_scene(seed, parts, DVec3::ZERO);
-        let tree = Tree::build(&scene, options());
+        let tree = Tree::build(&scene, small_cells());
         let mut rng = Rng::new(seed ^ 3);
         for _ in 0..8 {
             check_visible(&tree, &scene, &mut rng)?;
@@ -155,7 +148,7 @@ proptest! {
     #[test]
     fn pick_and_box_equal_brute_force(seed in any::<u64>(), parts in 1usize..40) {
         let scene = random_scene(seed, parts, DVec3::ZERO);
-        let tree = Tree::build(&scene, options());
+        let tree = Tree::build(&scene, small_cells());
         tree.validate_against(&scene)
             .map_err(|e| TestCaseError::fail(e.to_string()))?;
         check_queries(&tree, &scene, &mut Rng::new(seed ^ 1), 40)?;
@@ -165,7 +158,7 @@ proptest! {
     fn picks_through_chunk_bvhs_equal_brute_force(seed in any::<u64>(), parts in 1usize..12) {
         // Meshes of up to 400 triangles in chunks of 128: most chunks have a BVH.
         let scene = random_scene_sized(seed, parts, DVec3::ZERO, 400, 128);
-        let tree = Tree::build(&scene, options());
+        let tree = Tree::build(&scene, small_cells());
         let hits = check_queries(&tree, &scene, &mut Rng::new(seed ^ 5), 60)?;
         prop_assert!(tree.chunk_bvhs_built() > 0 || hits == 0);
     }
@@ -173,7 +166,7 @@ proptest! {
     #[test]
     fn queries_stay_exact_after_random_moves(seed in any::<u64>(), parts in 2usize..30, moves in 1usize..60) {
         let mut scene = random_scene(seed, parts, DVec3::ZERO);
-        let mut tree = Tree::build(&scene, options());
+        let mut tree = Tree::build(&scene, small_cells());
         let mut rng = Rng::new(seed ^ 2);
         for _ in 0..moves {
             let part = dmu_scene::PartId(rng.below(parts as u64) as u32);
@@ -194,7 +187,7 @@ proptest! {
 #[test]
 fn picks_through_a_section_equal_brute_force() {
     let scene = random_scene(5, 30, DVec3::ZERO);
-    let tree = Tree::build(&scene, options());
+    let tree = Tree::build(&scene, small_cells());
     let tris = world_triangles(&scene);
     let bounds = scene.world_bounds();
     let mut rng = Rng::new(17);
@@ -257,7 +250,7 @@ fn picks_through_a_section_equal_brute_force() {
 #[test]
 fn random_cameras_do_want_something_often_enough_to_test_something() {
     let scene = random_scene(7, 30, DVec3::ZERO);
-    let tree = Tree::build(&scene, options());
+    let tree = Tree::build(&scene, small_cells());
     let mut rng = Rng::new(11);
     let wanted: usize = (0..40)
         .filter_map(|_| check_visible(&tree, &scene, &mut rng).ok())
@@ -269,7 +262,7 @@ fn random_cameras_do_want_something_often_enough_to_test_something() {
 #[test]
 fn random_rays_do_hit_often_enough_to_test_something() {
     let scene = random_scene(7, 30, DVec3::ZERO);
-    let tree = Tree::build(&scene, options());
+    let tree = Tree::build(&scene, small_cells());
     let hits = check_queries(&tree, &scene, &mut Rng::new(3), 200).unwrap();
     assert!(hits > 50, "{hits} of 200 rays hit");
 }
@@ -277,10 +270,10 @@ fn random_rays_do_hit_often_enough_to_test_something() {
 #[test]
 fn empty_box_and_empty_scene() {
     let scene = random_scene(1, 5, DVec3::ZERO);
-    let tree = Tree::build(&scene, options());
+    let tree = Tree::build(&scene, small_cells());
     assert!(tree.parts_in_box(&scene, &Aabb3d::EMPTY).is_empty());
     let empty = dmu_scene::SceneBuilder::new("empty", 8).finish();
-    let tree = Tree::build(&empty, options());
+    let tree = Tree::build(&empty, small_cells());
     tree.validate_against(&empty).unwrap();
     assert!(
         tree.pick(&empty, &dmu_geom::Ray3d::new(DVec3::ZERO, DVec3::X))
@@ -297,7 +290,7 @@ fn empty_box_and_empty_scene() {
 fn a_box_entered_an_ulp_beyond_the_nearest_hit_is_still_searched() {
     let seed = 12973194666839402101;
     let scene = random_scene_sized(seed, 8, DVec3::ZERO, 400, 128);
-    let tree = Tree::build(&scene, options());
+    let tree = Tree::build(&scene, small_cells());
     let mut rng = Rng::new(seed ^ 5);
     let bounds = scene.world_bounds();
     for _ in 0..60 {

@@ -3,7 +3,17 @@
 use dmu_geom::{Aabb3d, Ray3d};
 use dmu_samples::Rng;
 use dmu_scene::{MeshData, PartId, Scene, SceneBuilder};
+use dmu_tree::TreeOptions;
 use glam::{DAffine3, DQuat, DVec3, Vec3};
+
+/// Tree options with small cells (24 triangles), so that the random test
+/// scenes make deep trees of many cells.
+pub fn small_cells() -> TreeOptions {
+    TreeOptions {
+        cell_triangles: 24,
+        ..TreeOptions::default()
+    }
+}
 
 /// A random transform: rotation about a random axis, translation within `reach`
 /// of `origin`.
