@@ -68,6 +68,8 @@ pub struct Streaming {
     last: (u64, u64),
     /// Where the renderer draws stored proxies: no chunk below is wanted.
     cut: Option<Arc<LodCut>>,
+    /// Says when reading a remote store fails and when it works again.
+    outage: dmu_app::remote::OutageWatch,
 }
 
 impl Streaming {
@@ -104,6 +106,7 @@ impl Streaming {
             holes: 0,
             stand_ins_drawn: 0,
             last: (0, 0),
+            outage: dmu_app::remote::OutageWatch::default(),
         }
     }
 
@@ -201,6 +204,9 @@ impl Streaming {
         if let Some(e) = residency.first_error() {
             anyhow::bail!("{e}");
         }
+        if let Some(line) = self.outage.update(residency, self.store.path()) {
+            eprintln!("{line}");
+        }
         self.frames.begin(residency, pool);
         let frame = CameraFrame {
             eye: camera.eye,
@@ -253,8 +259,12 @@ impl Streaming {
                 mb(self.budget_bytes)
             );
         }
+        let away = match self.streamer.residency().outage() {
+            Some(_) => " · reading the store fails: stand-ins, trying again",
+            None => "",
+        };
         format!(
-            "memory: budget {:.0} MB · geometry {:.0} of {:.0} MB loaded",
+            "memory: budget {:.0} MB · geometry {:.0} of {:.0} MB loaded{away}",
             mb(self.budget_bytes),
             mb(self.streamer.residency().stats().resident_bytes),
             mb(self.residency_budget_bytes),
@@ -299,6 +309,7 @@ impl Streaming {
             stand_ins_drawn: self.stand_ins_drawn,
             residency: self.streamer.residency().stats(),
             prefetch_rebuilds: self.streamer.prefetch_rebuilds(),
+            remote: self.store.remote_stats(),
         })
     }
 }
@@ -330,4 +341,6 @@ struct Memory {
     stand_ins_drawn: u64,
     residency: dmu_store::ResidencyStats,
     prefetch_rebuilds: u64,
+    /// A store on object storage: requests, bytes fetched, cache hits.
+    remote: Option<dmu_store::remote::RemoteStats>,
 }

@@ -70,6 +70,8 @@ use serde::Serialize;
 struct Cli {
     #[command(flatten)]
     model: dmu_app::load::ModelArgs,
+    #[command(flatten)]
+    remote: dmu_app::remote::RemoteArgs,
     /// Window width, pixels.
     #[arg(long, default_value_t = 1280, value_parser = clap::value_parser!(u32).range(64..=16384))]
     width: u32,
@@ -539,6 +541,7 @@ fn main() -> ExitCode {
     unsafe { dmu_app::quiet_device_select() };
     let started = Instant::now();
     let cli = Cli::parse();
+    cli.remote.apply();
     match run(&cli, started) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -72,9 +72,19 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     // With the hierarchy the store is written twice (geometry, then the
     // hierarchy's rewrite): both go to a staging name beside it, renamed
     // over it once whole, so a kill at any moment leaves the previous store.
-    let staged = match args.no_lod {
-        true => args.output.clone(),
-        false => {
+    // An import to object storage is built in a local file (in the cache
+    // folder) and put there once whole.
+    let remote = dmu_store::remote::is_remote(&args.output);
+    let url = args.output.to_string_lossy().into_owned();
+    if remote && !url.starts_with("s3://") {
+        anyhow::bail!("{url}: stores are written to s3:// addresses only, not to http(s)");
+    }
+    let remote_options = dmu_store::remote::RemoteOptions::from_env();
+    let staged = match (remote, args.no_lod) {
+        (true, _) => dmu_store::remote::spool_path(&url, &remote_options)
+            .with_context(|| format!("{url}: making a local file to build it in"))?,
+        (false, true) => args.output.clone(),
+        (false, false) => {
             let mut name = args.output.clone().into_os_string();
             name.push(".importing");
             PathBuf::from(name)
@@ -99,7 +109,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 args.json,
             )
             .and_then(|built| {
-                replace(&staged, &args.output)?;
+                if !remote {
+                    replace(&staged, &args.output)?;
+                }
                 Ok(built)
             });
             if built.is_err() {
@@ -112,9 +124,20 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let import_ms = start.elapsed().as_secs_f64() * 1e3;
     let mut summary = summary;
     summary.store.path = args.output.clone();
-    summary.store.file_bytes = std::fs::metadata(&args.output)
-        .with_context(|| format!("{}: reading its size", args.output.display()))?
+    let built = if remote { &staged } else { &args.output };
+    summary.store.file_bytes = std::fs::metadata(built)
+        .with_context(|| format!("{}: reading its size", built.display()))?
         .len();
+    if remote {
+        dmu_store::remote::upload_file(&staged, &url, &remote_options).with_context(|| {
+            format!(
+                "{url}: uploading the store (it is kept in {})",
+                staged.display()
+            )
+        })?;
+        std::fs::remove_file(&staged)
+            .with_context(|| format!("{}: removing the local copy", staged.display()))?;
+    }
     let peak_rss = peak_rss_bytes();
     if summary.fixed_bytes > args.memory_budget {
         eprintln!(

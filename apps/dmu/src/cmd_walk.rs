@@ -218,7 +218,9 @@ fn parse_budget(s: &str) -> anyhow::Result<Budget> {
 }
 
 pub fn run(args: &Args) -> anyhow::Result<()> {
+    let started = std::time::Instant::now();
     let store = Arc::new(Store::open(&args.file)?);
+    let open_ms = started.elapsed().as_secs_f64() * 1e3;
     let info = store.info();
     let budget_bytes = match args.memory_budget {
         Budget::Bytes(b) => b,
@@ -322,9 +324,12 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                     predict_scale: args.predict_resolution,
                     progress: true,
                     proxy_bytes,
+                    started,
                 },
             )?
         };
+        let mut report = report;
+        report["open_ms"] = serde_json::json!(open_ms);
         print_render(args, &report)?;
         return Ok(());
     }
@@ -460,6 +465,14 @@ fn print_render(args: &Args, report: &serde_json::Value) -> anyhow::Result<()> {
         if let Ok(opening) = serde_json::from_value(report["walk"]["opening"].clone()) {
             print_opening(&opening);
         }
+        if let Some(ms) = report["first_complete_image_ms"].as_f64() {
+            println!(
+                "  first complete image after {:.2} s (the store opened in {:.2} s)",
+                ms / 1e3,
+                report["open_ms"].as_f64().unwrap_or(f64::NAN) / 1e3
+            );
+        }
+        print_remote(&report["walk"]["remote"], &walk["fetch_errors"]);
         let r = &report["render"];
         println!(
             "  drawn: {} frames with a hole, {} with a stand-in ({} of {} warm; stand-ins: {}); predicted view {} ms ahead, next frame's view: {}",
@@ -515,6 +528,23 @@ fn print_render(args: &Args, report: &serde_json::Value) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// What reading a remote store cost, when it was one.
+fn print_remote(remote: &serde_json::Value, fetch_errors: &serde_json::Value) {
+    if remote.is_null() {
+        return;
+    }
+    println!(
+        "  remote: {} requests, {:.1} MB fetched, {:.1} MB from the cache; {} retries, {} timeouts, {} failed; {} loads failed for I/O and were tried again",
+        remote["requests"],
+        remote["bytes_fetched"].as_f64().unwrap_or(f64::NAN) / 1e6,
+        remote["cache_hit_bytes"].as_f64().unwrap_or(f64::NAN) / 1e6,
+        remote["retries"],
+        remote["timeouts"],
+        remote["failed_requests"],
+        fetch_errors,
+    );
 }
 
 /// The frames before the walk, when there were any.
@@ -579,6 +609,9 @@ fn print_text(args: &Args, info: &dmu_store::StoreInfo, budget: u64, reports: &[
         );
         if let Some(e) = &r.first_error {
             println!("  load errors: {} (first: {e})", t.failed_loads);
+        }
+        if let Ok(remote) = serde_json::to_value(&r.remote) {
+            print_remote(&remote, &serde_json::json!(t.fetch_errors));
         }
     }
 }

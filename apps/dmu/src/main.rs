@@ -37,6 +37,8 @@ use dmu_app::{load, progress, resident, text, units};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    #[command(flatten)]
+    remote: dmu_app::remote::RemoteArgs,
 }
 
 #[derive(Debug, Subcommand)]
@@ -78,6 +80,7 @@ fn main() -> ExitCode {
     #[cfg(unix)]
     die_on_closed_pipe();
     let cli = Cli::parse();
+    cli.remote.apply();
     let result = match cli.command {
         Command::Generate(args) => cmd_generate::run(&args),
         Command::Info(args) => cmd_info::run(&args),

@@ -7,7 +7,7 @@
 
 use std::collections::BTreeSet;
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 pub use dmu_app::farfield::FarUse;
@@ -558,6 +558,8 @@ pub struct Resident {
     /// Bytes the store's stored proxies may take when loaded (its
     /// level-of-detail hierarchy, if it has one).
     pub proxy_bytes: u64,
+    /// When the command started: the first complete image is timed from it.
+    pub started: Instant,
 }
 
 /// Renders `path` from `store` through a residency manager within
@@ -636,7 +638,12 @@ pub fn run_resident(
     } else {
         indicatif::ProgressBar::hidden()
     };
+    let mut outage = dmu_app::remote::OutageWatch::default();
+    let mut first_complete = None;
     let report = dmu_store::walk_with(store, tree, path, options, &mut |index, _, residency| {
+        if let Some(line) = outage.update(residency, store.path()) {
+            progress.suspend(|| eprintln!("{line}"));
+        }
         streamed.begin(residency, renderer.geometry_pool());
         // An opening frame (no index) draws the first view, unrecorded.
         let i = index.unwrap_or(0);
@@ -675,6 +682,9 @@ pub fn run_resident(
             visible[..drawn].iter().copied(),
             stats.not_resident,
         );
+        if misses.holes + misses.stand_ins == 0 {
+            first_complete.get_or_insert_with(|| how.started.elapsed());
+        }
         if index.is_some() {
             rendered.push(mode_frame(&stats, None));
             frames.push(ResidentFrame {
@@ -699,6 +709,7 @@ pub fn run_resident(
     let mut ahead_ms: Vec<f64> = frames.iter().filter_map(|f| f.ahead_ms).collect();
     Ok(serde_json::json!({
         "adapter": adapter.name,
+        "first_complete_image_ms": first_complete.map(|t: Duration| t.as_secs_f64() * 1e3),
         "walk": report,
         "render": {
             "totals": mode_totals(how.culling.name().into(), how.culling_options.target_ms, rendered.iter()),

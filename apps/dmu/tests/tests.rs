@@ -8,6 +8,7 @@ mod farfield;
 mod hostile;
 mod kill;
 mod pick_rays;
+mod remote;
 mod stereo_far;
 mod tradeoffs;
 mod walk_compare;

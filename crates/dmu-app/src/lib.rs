@@ -36,6 +36,7 @@ pub mod hits;
 pub mod load;
 pub mod lod;
 pub mod progress;
+pub mod remote;
 pub mod resident;
 pub mod text;
 pub mod units;

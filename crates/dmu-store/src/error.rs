@@ -100,12 +100,19 @@ pub enum StoreError {
         #[source]
         source: dmu_scene::ExportError,
     },
-    /// A store named on object storage as the target of a write: stores on
-    /// object storage are read only (see [`crate::remote`]).
-    #[error("{}: writing to object storage is not supported (write a local .dmu)", path.display())]
-    RemoteWrite {
+    /// A rewrite of a store on object storage (a save, new far fields)
+    /// refused because someone else saved the object after it was read:
+    /// nothing was overwritten, and the new store is kept in a local file.
+    #[error(
+        "{}: someone else saved it after it was opened (its version changed); nothing was overwritten, and this save is kept in {}",
+        path.display(),
+        kept.display()
+    )]
+    RemoteConflict {
         /// The object's address.
         path: PathBuf,
+        /// The local file holding the store that was not saved.
+        kept: PathBuf,
     },
     /// A STEP or IFC file the converter could not read (see [`crate::cad`]).
     #[error("{}: {what}", path.display())]

@@ -10,7 +10,7 @@ use dmu_scene::{ChunkId, MeshId, Properties, Scene};
 use crate::error::StoreError;
 use crate::format::{self, BlobSet, Layout, ReadAt, TocEntry};
 use crate::geometry::{self, OwnedChunkGeometry, resident_bytes};
-use crate::remote::{RemoteOptions, S3Object, is_remote};
+use crate::remote::{RemoteObject, RemoteOptions, RemoteStats, is_remote};
 use crate::skeleton;
 
 /// An open store: the skeleton in memory, geometry on disk until asked for.
@@ -38,7 +38,7 @@ pub struct Store {
 #[derive(Debug)]
 enum Source {
     Local(File),
-    Remote(Box<S3Object>),
+    Remote(Box<RemoteObject>),
 }
 
 impl Source {
@@ -92,8 +92,9 @@ pub struct StoreInfo {
 
 impl Store {
     /// Opens a store, checking its header, table of contents and skeleton:
-    /// a file, or an object on object storage (`s3://bucket/key`, reached
-    /// as the AWS variables say: [`RemoteOptions::from_env`]).
+    /// a file, an object on object storage (`s3://bucket/key`, reached as
+    /// the AWS variables say: [`RemoteOptions::from_env`]) or a web address
+    /// (`https://…`, read by range requests).
     pub fn open(path: &Path) -> Result<Store, StoreError> {
         Self::open_with(path, &RemoteOptions::from_env())
     }
@@ -106,7 +107,7 @@ impl Store {
         };
         let file = if is_remote(path) {
             let url = path.to_string_lossy();
-            Source::Remote(Box::new(S3Object::open(&url, remote).map_err(io)?))
+            Source::Remote(Box::new(RemoteObject::open(&url, remote).map_err(io)?))
         } else {
             Source::Local(dmu_scene::open_regular_file(path).map_err(io)?)
         };
@@ -138,6 +139,32 @@ impl Store {
             layout,
             skeleton,
         })
+    }
+
+    /// For a store on object storage or a web server: what reading it has
+    /// cost so far (requests, bytes fetched, cache hits, retries).
+    pub fn remote_stats(&self) -> Option<RemoteStats> {
+        match &self.file {
+            Source::Local(_) => None,
+            Source::Remote(o) => Some(o.stats()),
+        }
+    }
+
+    /// For a store on object storage: the version it was read at (the
+    /// object's ETag).
+    pub fn remote_version(&self) -> Option<&str> {
+        match &self.file {
+            Source::Local(_) => None,
+            Source::Remote(o) => o.version(),
+        }
+    }
+
+    /// For a store on object storage: how it was reached.
+    pub fn remote_options(&self) -> Option<&RemoteOptions> {
+        match &self.file {
+            Source::Local(_) => None,
+            Source::Remote(o) => Some(o.options()),
+        }
     }
 
     /// The file it was opened from.

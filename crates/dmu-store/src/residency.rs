@@ -19,10 +19,11 @@
 use std::collections::BTreeSet;
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
 
 use dmu_scene::ChunkId;
 
-use crate::error::ResidencyError;
+use crate::error::{ResidencyError, StoreError};
 use crate::geometry::OwnedChunkGeometry;
 use crate::priority::{LoadOrder, Request};
 use crate::read::Store;
@@ -78,6 +79,9 @@ pub struct ResidencyStats {
     pub budget_stalls: u64,
     /// Loads that failed (corrupt segments); such chunks are not retried.
     pub failures: u64,
+    /// Loads that failed for I/O (a server gone, a network down): the chunk
+    /// stays absent and is loaded again later ([`Residency::outage`]).
+    pub fetch_errors: u64,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -122,6 +126,9 @@ struct State {
     shutdown: bool,
     stats: ResidencyStats,
     first_error: Option<String>,
+    /// While loads fail for I/O: the last such error, and when loading may
+    /// be tried again (after [`RETRY_FIRST`], doubling to [`RETRY_MOST`]).
+    outage: Option<Outage>,
     /// Chunks evicted since [`Residency::take_evicted`] last ran.
     evicted: Vec<ChunkId>,
 }
@@ -136,6 +143,19 @@ struct Shared {
     /// [`Residency::load_granted`] waits here for the loaders to go idle.
     idle: Condvar,
 }
+
+/// Loads failing for I/O (see [`State::outage`]).
+#[derive(Debug)]
+struct Outage {
+    error: String,
+    retry_at: Instant,
+    wait: Duration,
+}
+
+/// How long loading pauses after the first load that failed for I/O.
+pub const RETRY_FIRST: Duration = Duration::from_millis(250);
+/// The longest pause between tries while loads keep failing for I/O.
+pub const RETRY_MOST: Duration = Duration::from_secs(4);
 
 /// A load taken by a loader: memory reserved, disk grant spent.
 struct Job {
@@ -195,6 +215,7 @@ impl Residency {
                 shutdown: false,
                 stats: ResidencyStats::default(),
                 first_error: None,
+                outage: None,
                 evicted: Vec::new(),
             }),
             work: Condvar::new(),
@@ -325,6 +346,16 @@ impl Residency {
         std::mem::take(&mut lock(&self.shared.state).evicted)
     }
 
+    /// While loads fail for I/O (an object store gone away): the last such
+    /// error. Chunks that failed so stay absent (drawn as stand-ins) and are
+    /// loaded again when tries succeed; `None` once one does.
+    pub fn outage(&self) -> Option<String> {
+        lock(&self.shared.state)
+            .outage
+            .as_ref()
+            .map(|o| o.error.clone())
+    }
+
     /// The first load error (a corrupt chunk segment), if any.
     pub fn first_error(&self) -> Option<String> {
         lock(&self.shared.state).first_error.clone()
@@ -399,10 +430,7 @@ fn loader(shared: &Shared) {
             continue;
         };
         drop(st);
-        let result = shared
-            .store
-            .chunk_geometry(ChunkId(job.chunk))
-            .map_err(|e| format!("{e:#}"));
+        let result = shared.store.chunk_geometry(ChunkId(job.chunk));
         st = lock(&shared.state);
         st.complete(&job, result);
         shared.idle.notify_all();
@@ -439,7 +467,11 @@ impl State {
     }
 
     fn has_work(&self, options: &ResidencyOptions) -> bool {
-        let allowed = options.pacing == Pacing::Free || self.grant > 0;
+        let allowed = (options.pacing == Pacing::Free || self.grant > 0)
+            && self
+                .outage
+                .as_ref()
+                .is_none_or(|o| Instant::now() >= o.retry_at);
         let pending = || {
             self.queue[self.cursor.min(self.queue.len())..]
                 .iter()
@@ -536,7 +568,7 @@ impl State {
         true
     }
 
-    fn complete(&mut self, job: &Job, result: Result<OwnedChunkGeometry, String>) {
+    fn complete(&mut self, job: &Job, result: Result<OwnedChunkGeometry, StoreError>) {
         self.in_flight -= 1;
         self.stats.reserved_bytes -= job.bytes;
         let slot = &mut self.slots[job.chunk as usize];
@@ -551,11 +583,25 @@ impl State {
                 self.stats.loads += 1;
                 self.stats.loaded_file_bytes += job.file_bytes;
                 self.stats.loaded_resident_bytes += job.bytes;
+                self.outage = None;
+            }
+            Err(e @ StoreError::Io { .. }) => {
+                slot.state = SlotState::Absent;
+                self.stats.fetch_errors += 1;
+                let wait = self
+                    .outage
+                    .as_ref()
+                    .map_or(RETRY_FIRST, |o| (o.wait * 2).min(RETRY_MOST));
+                self.outage = Some(Outage {
+                    error: format!("{e:#}"),
+                    retry_at: Instant::now() + wait,
+                    wait,
+                });
             }
             Err(e) => {
                 slot.state = SlotState::Failed;
                 self.stats.failures += 1;
-                self.first_error.get_or_insert(e);
+                self.first_error.get_or_insert(format!("{e:#}"));
             }
         }
     }

@@ -152,7 +152,7 @@ impl<'a> BlobWriter<'a> {
 /// (a version-3 store's chunks with their levels added, computed in
 /// parallel): what every rewrite of a store starts with.
 fn with_geometry_of(store: &Store, replaced: Option<BlobSet>) -> Result<StoreWriter, StoreError> {
-    let mut writer = StoreWriter::create(store.path(), WriteOptions::default())?;
+    let mut writer = StoreWriter::replacing(store)?;
     let chunks = store.skeleton().chunks();
     for batch in batches(chunks.iter().map(|c| c.triangle_count() as usize)) {
         let segments: Vec<Vec<u8>> = batch

@@ -140,6 +140,9 @@ pub struct WalkTotals {
     pub prefetch_rebuilds: u64,
     /// Chunk loads that failed (corrupt segments), the opening's included.
     pub failed_loads: u64,
+    /// Chunk loads that failed for I/O (a server away) and were tried again
+    /// later, the opening's included.
+    pub fetch_errors: u64,
     /// Wall time of the walk, the opening's included, milliseconds.
     pub wall_ms: f64,
 }
@@ -157,6 +160,9 @@ pub struct WalkReport {
     pub total: WalkTotals,
     /// The first load error, if any.
     pub first_error: Option<String>,
+    /// For a store on object storage: requests made, bytes fetched, cache
+    /// hits, retries and timeouts.
+    pub remote: Option<crate::remote::RemoteStats>,
 }
 
 /// What drawing one frame found.
@@ -359,6 +365,7 @@ pub fn walk_with(
             / frames.len().max(1) as f64,
         prefetch_rebuilds: streamer.prefetch_rebuilds(),
         failed_loads: stats.failures,
+        fetch_errors: stats.fetch_errors,
         wall_ms: start.elapsed().as_secs_f64() * 1e3,
     };
     Ok(WalkReport {
@@ -367,5 +374,6 @@ pub fn walk_with(
         frames,
         total,
         first_error: residency.first_error(),
+        remote: store.remote_stats(),
     })
 }

@@ -17,6 +17,8 @@ use crate::format::{
     ALIGN, BlobSet, HEADER_LEN, Header, KIND_CHUNK, KIND_PROPERTIES, KIND_SKELETON, TocEntry,
 };
 use crate::geometry::{self, resident_bytes};
+use crate::read::Store;
+use crate::remote::{RemoteOptions, is_remote, spool_path, upload};
 use crate::skeleton;
 
 /// Triangles of the chunks encoded together, in parallel (simplifying their
@@ -74,6 +76,8 @@ pub struct StoreSummary {
 pub struct StoreWriter {
     target: PathBuf,
     temp: AtomicFile,
+    /// Where the store goes when the target is on object storage.
+    remote: Option<RemoteTarget>,
     file: BufWriter<File>,
     offset: u64,
     toc: Vec<TocEntry>,
@@ -96,23 +100,49 @@ pub struct StoreWriter {
 #[derive(Debug)]
 pub struct PendingStore {
     temp: AtomicFile,
+    remote: Option<RemoteTarget>,
     summary: StoreSummary,
 }
 
+/// A store written locally for object storage: `temp` is uploaded to `url`
+/// at commit, over `version` only when it is given; the temporary file's
+/// target is where it is kept when the upload is refused for a conflict.
+#[derive(Debug)]
+struct RemoteTarget {
+    url: String,
+    options: RemoteOptions,
+    version: Option<String>,
+}
+
 impl StoreWriter {
-    /// Starts a store that will replace `path` when committed; an address on
-    /// object storage is refused ([`StoreError::RemoteWrite`]).
+    /// Starts a store that will replace `path` when committed. An address
+    /// on object storage (`s3://bucket/key`, reached as
+    /// [`RemoteOptions::from_env`] says) is written to a local file first
+    /// and put there at commit ([`crate::remote`]).
     pub fn create(path: &Path, options: WriteOptions) -> Result<Self, StoreError> {
-        if crate::remote::is_remote(path) {
-            return Err(StoreError::RemoteWrite {
-                path: path.to_owned(),
-            });
-        }
+        Self::create_with(path, options, &RemoteOptions::from_env())
+    }
+
+    /// [`StoreWriter::create`], reaching object storage as `remote` says.
+    pub fn create_with(
+        path: &Path,
+        options: WriteOptions,
+        remote: &RemoteOptions,
+    ) -> Result<Self, StoreError> {
         let io = |source| StoreError::Io {
             path: path.to_owned(),
             source,
         };
-        let mut temp = AtomicFile::create(path).map_err(io)?;
+        let remote = is_remote(path).then(|| RemoteTarget {
+            url: path.to_string_lossy().into_owned(),
+            options: remote.clone(),
+            version: None,
+        });
+        let local = match &remote {
+            Some(r) => spool_path(&r.url, &r.options).map_err(io)?,
+            None => path.to_owned(),
+        };
+        let mut temp = AtomicFile::create(&local).map_err(io)?;
         let file = temp.file().try_clone().map_err(io)?;
         let mut file = BufWriter::with_capacity(1 << 20, file);
         // The header is written last, when the table's place is known.
@@ -120,6 +150,7 @@ impl StoreWriter {
         Ok(Self {
             target: path.to_owned(),
             temp,
+            remote,
             file,
             offset: HEADER_LEN,
             toc: Vec::new(),
@@ -266,6 +297,21 @@ impl StoreWriter {
         Ok(number)
     }
 
+    /// Starts the rewrite of `store` at its path: on object storage, reached
+    /// as `store` was, and conditional on the version it was read at, so a
+    /// save over someone else's is refused ([`StoreError::RemoteConflict`]).
+    pub(crate) fn replacing(store: &Store) -> Result<Self, StoreError> {
+        let remote = store
+            .remote_options()
+            .cloned()
+            .unwrap_or_else(RemoteOptions::from_env);
+        let mut writer = Self::create_with(store.path(), WriteOptions::default(), &remote)?;
+        if let Some(remote) = &mut writer.remote {
+            remote.version = store.remote_version().map(str::to_owned);
+        }
+        Ok(writer)
+    }
+
     /// Chunks given so far (written, or held to be encoded with the next).
     pub fn chunks_written(&self) -> usize {
         self.shapes.len() + self.pending.iter().map(|m| m.chunks.len()).sum::<usize>()
@@ -349,6 +395,7 @@ impl StoreWriter {
         self.summary.file_bytes = toc_offset + std::mem::size_of_val(toc.as_slice()) as u64;
         Ok(PendingStore {
             temp: self.temp,
+            remote: self.remote,
             summary: self.summary,
         })
     }
@@ -361,14 +408,36 @@ impl PendingStore {
     }
 
     /// Renames the store into place (atomic on one file system) and syncs the
-    /// directory so the rename survives a power cut.
+    /// directory so the rename survives a power cut. A store for object
+    /// storage is uploaded instead; when that meets a conflict
+    /// ([`StoreError::RemoteConflict`]) it is kept in a local file.
     pub fn commit(self) -> Result<StoreSummary, StoreError> {
-        let target = self.temp.target().to_owned();
-        self.temp.commit().map_err(|source| StoreError::Io {
-            path: target,
-            source,
-        })?;
-        Ok(self.summary)
+        let Some(remote) = self.remote else {
+            let target = self.temp.target().to_owned();
+            self.temp.commit().map_err(|source| StoreError::Io {
+                path: target,
+                source,
+            })?;
+            return Ok(self.summary);
+        };
+        let path = self.summary.path.clone();
+        match upload::upload(
+            &remote.url,
+            &remote.options,
+            self.temp.temp_path(),
+            remote.version.as_deref(),
+        ) {
+            Ok(()) => Ok(self.summary),
+            Err(upload::UploadError::Conflict) => {
+                let kept = self.temp.target().to_owned();
+                self.temp.commit().map_err(|source| StoreError::Io {
+                    path: kept.clone(),
+                    source,
+                })?;
+                Err(StoreError::RemoteConflict { path, kept })
+            }
+            Err(upload::UploadError::Failed(source)) => Err(StoreError::Io { path, source }),
+        }
     }
 }
 

@@ -184,7 +184,7 @@ fn eviction_is_least_recently_used_and_spares_held_chunks() {
 }
 
 /// A straight walk down the plant, 200 frames.
-fn path(store: &Store) -> Vec<CameraFrame> {
+pub(crate) fn path(store: &Store) -> Vec<CameraFrame> {
     let b = store.skeleton().world_bounds();
     let (lo, hi) = (b.min, b.max);
     let z = lo.z + 1_700.0;
@@ -202,7 +202,7 @@ fn path(store: &Store) -> Vec<CameraFrame> {
         .collect()
 }
 
-fn options(budget: u64, order: LoadOrder) -> WalkOptions {
+pub(crate) fn options(budget: u64, order: LoadOrder) -> WalkOptions {
     WalkOptions {
         order,
         budget_bytes: budget,

@@ -24,6 +24,8 @@ use std::path::{Path, PathBuf};
 
 #[cfg(feature = "gpu")]
 mod gpu;
+#[cfg(feature = "weed")]
+pub mod weed;
 #[cfg(feature = "gpu")]
 pub use gpu::{Adapter, Gpu, GpuTest, gpu, with_gpu};
 

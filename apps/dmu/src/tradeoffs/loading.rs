@@ -115,6 +115,7 @@ pub fn run_predicted(bench: &Bench<'_>) -> anyhow::Result<Vec<Knob>> {
                     predict_scale: 1.0,
                     progress: false,
                     proxy_bytes: 0,
+                    started: std::time::Instant::now(),
                 },
             )?;
             let r = &report["render"];
