@@ -117,11 +117,12 @@ impl Streaming {
         viewport: Viewport,
         min_pixels: f64,
     ) -> Streamer {
+        let loader_threads = store.loader_threads();
         Streamer::new(
             store,
             ResidencyOptions {
                 budget_bytes,
-                loader_threads: 2,
+                loader_threads,
                 order: LoadOrder::Visibility,
                 pacing: Pacing::Free,
             },

@@ -1,11 +1,14 @@
 //! `dmu farfield build`: far fields (textured depth meshes) of a store's
 //! viewpoint cells, written into the store.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use anyhow::Context as _;
-use dmu_app::farfield::{BuildOptions, all_cells, build, cells_along, max_cells};
+use dmu_app::farfield::{
+    BuildOptions, FarFieldIndex, IndexCell, all_cells, build, build_cell, cells_along, max_cells,
+    new_index, write,
+};
 use dmu_app::units::number_in;
 use dmu_render::{FAR_FIELD_RESOLUTIONS, FarFieldOptions, Renderer, RendererOptions};
 use dmu_store::Store;
@@ -70,15 +73,119 @@ struct BuildArgs {
     /// Frames per second of the built-in path.
     #[arg(long, default_value_t = 60.0, value_parser = number_in(0.01, 1000.0))]
     fps: f64,
+    /// Build only every N-th cell from the K-th (`K/N`, K from 0) and
+    /// write each into --cells-out instead of the store: one worker's share
+    /// of a build spread over machines (examples/ray_farfield.py).
+    #[arg(long, value_parser = parse_shard, requires = "cells_out")]
+    shard: Option<(usize, usize)>,
+    /// With --shard: the folder each built cell goes to (`cell-I.bin`, its
+    /// bytes, and `cell-I.json`, its index entry).
+    #[arg(long, requires = "shard")]
+    cells_out: Option<PathBuf>,
+    /// Build nothing: write the cells the shards left in this folder into
+    /// the store (every cell of the same options must be there).
+    #[arg(long, conflicts_with = "shard")]
+    cells_from: Option<PathBuf>,
     /// Print a JSON report.
     #[arg(long)]
     json: bool,
+}
+
+/// `K/N` with K < N.
+fn parse_shard(s: &str) -> anyhow::Result<(usize, usize)> {
+    let (k, n) = s
+        .split_once('/')
+        .with_context(|| format!("{s:?}: give K/N, e.g. 0/4"))?;
+    let (k, n): (usize, usize) = (k.trim().parse()?, n.trim().parse()?);
+    anyhow::ensure!(k < n, "{s:?}: K must be below N (K counts from 0)");
+    Ok((k, n))
+}
+
+/// The cell size and the cells a build of `args` lists over `tree`.
+fn cells_of(args: &BuildArgs, tree: &Tree) -> anyhow::Result<(f64, Vec<[i64; 3]>)> {
+    let cell_size = args
+        .cell_size
+        .unwrap_or(tree.bounds().extent().max_element() / 24.0);
+    let cells = if args.along_walk {
+        let path = crate::cmd_walk::camera_path(args.path.as_deref(), args.fps, args.range, tree)?;
+        cells_along(tree, cell_size, path.iter().map(|f| f.eye))
+    } else {
+        // Where the kernel does not say, 4 GiB is taken to be there.
+        let memory = dmu_app::progress::available_memory_bytes().unwrap_or(4 << 30);
+        all_cells(tree, cell_size, max_cells(memory, args.resolution))?
+    };
+    Ok((cell_size, cells))
+}
+
+fn build_options(args: &BuildArgs, cell_size: f64) -> BuildOptions {
+    BuildOptions {
+        cell_size,
+        triangle_budget: args.triangle_budget,
+        capture: FarFieldOptions {
+            resolution: args.resolution,
+            grid_step: args.grid_step,
+            mesh_error_px: args.mesh_error_px,
+            skins: !args.no_skins,
+            ..FarFieldOptions::default()
+        },
+    }
+}
+
+/// `cell-I.bin` and `cell-I.json` in `dir`.
+fn cell_files(dir: &Path, i: usize) -> (PathBuf, PathBuf) {
+    (
+        dir.join(format!("cell-{i}.bin")),
+        dir.join(format!("cell-{i}.json")),
+    )
+}
+
+/// `--cells-from`: the shards' cells, checked against the cells these
+/// options list, written into the store.
+fn assemble(args: &BuildArgs, store: &Store, dir: &Path) -> anyhow::Result<FarFieldIndex> {
+    let scene = store.skeleton();
+    let tree = Tree::build(scene, TreeOptions::default());
+    let (cell_size, cells) = cells_of(args, &tree)?;
+    let mut index = new_index(scene, &tree, &build_options(args, cell_size));
+    for (i, &g) in cells.iter().enumerate() {
+        let (_, json) = cell_files(dir, i);
+        let entry: IndexCell = serde_json::from_slice(
+            &std::fs::read(&json)
+                .with_context(|| format!("{}: cell {i} is missing", json.display()))?,
+        )
+        .with_context(|| format!("{}: not a cell's index entry", json.display()))?;
+        anyhow::ensure!(
+            entry.grid == g && entry.segment as usize == i,
+            "{}: cell {i} of another build (grid {:?}, this build's is {g:?})",
+            json.display(),
+            entry.grid
+        );
+        index.cells.push(entry);
+    }
+    let blobs = index.cells.iter().enumerate().map(|(i, entry)| {
+        let (bin, _) = cell_files(dir, i);
+        let bytes = std::fs::read(&bin).with_context(|| format!("{}: cell {i}", bin.display()))?;
+        anyhow::ensure!(
+            bytes.len() as u64 == entry.bytes,
+            "{}: {} bytes, its entry says {}",
+            bin.display(),
+            bytes.len(),
+            entry.bytes
+        );
+        Ok(bytes)
+    });
+    write(store, &index, blobs)?;
+    Ok(index)
 }
 
 pub fn run(args: &Args) -> anyhow::Result<()> {
     let Sub::Build(args) = &args.command;
     let start = std::time::Instant::now();
     let store = Arc::new(Store::open(&args.file)?);
+    if let Some(dir) = &args.cells_from {
+        let index = assemble(args, &store, dir)?;
+        let listed = index.cells.len();
+        return report(args, &index, listed, None, start);
+    }
     let scene = store
         .load_scene()
         .with_context(|| format!("loading {}", args.file.display()))?;
@@ -88,17 +195,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         "build far fields of",
     )?;
     let tree = Tree::build(&scene, TreeOptions::default());
-    let cell_size = args
-        .cell_size
-        .unwrap_or(tree.bounds().extent().max_element() / 24.0);
-    let cells = if args.along_walk {
-        let path = crate::cmd_walk::camera_path(args.path.as_deref(), args.fps, args.range, &tree)?;
-        cells_along(&tree, cell_size, path.iter().map(|f| f.eye))
-    } else {
-        // Where the kernel does not say, 4 GiB is taken to be there.
-        let memory = dmu_app::progress::available_memory_bytes().unwrap_or(4 << 30);
-        all_cells(&tree, cell_size, max_cells(memory, args.resolution))?
-    };
+    let (cell_size, cells) = cells_of(args, &tree)?;
     let (device, queue, adapter) = dmu_render::headless_device().context("opening a GPU device")?;
     let mut renderer = Renderer::new(
         &device,
@@ -110,17 +207,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             ..Default::default()
         },
     );
-    let options = BuildOptions {
-        cell_size,
-        triangle_budget: args.triangle_budget,
-        capture: FarFieldOptions {
-            resolution: args.resolution,
-            grid_step: args.grid_step,
-            mesh_error_px: args.mesh_error_px,
-            skins: !args.no_skins,
-            ..FarFieldOptions::default()
-        },
-    };
+    let options = build_options(args, cell_size);
     let bar = indicatif::ProgressBar::new(cells.len() as u64);
     bar.set_style(
         indicatif::ProgressStyle::with_template(
@@ -128,23 +215,57 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         )
         .expect("template"),
     );
-    let index = build(
-        &store,
-        &scene,
-        &tree,
-        &mut renderer,
-        &cells,
-        &options,
-        &mut |_| bar.inc(1),
-    )?;
+    let index = match (args.shard, &args.cells_out) {
+        (Some((k, n)), Some(dir)) => {
+            std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
+            let mut index = new_index(&scene, &tree, &options);
+            for (i, &g) in cells.iter().enumerate().skip(k).step_by(n) {
+                let segment = u32::try_from(i).context("over 4G cells")?;
+                let (entry, bytes) =
+                    build_cell(&scene, &tree, &mut renderer, &index, g, segment, &options)?;
+                let (bin, json) = cell_files(dir, i);
+                dmu_scene::write_file_atomically(&bin, &bytes)
+                    .with_context(|| format!("{}", bin.display()))?;
+                dmu_scene::write_file_atomically(&json, &serde_json::to_vec(&entry)?)
+                    .with_context(|| format!("{}", json.display()))?;
+                bar.inc(1);
+                index.cells.push(entry);
+            }
+            index
+        }
+        _ => build(
+            &store,
+            &scene,
+            &tree,
+            &mut renderer,
+            &cells,
+            &options,
+            &mut |_| bar.inc(1),
+        )?,
+    };
     bar.finish_and_clear();
+    report(args, &index, cells.len(), Some(&adapter.name), start)
+}
+
+/// Prints what was built (or, with --cells-from, written): `index`'s
+/// cells of the `listed` these options list.
+fn report(
+    args: &BuildArgs,
+    index: &FarFieldIndex,
+    listed: usize,
+    adapter: Option<&str>,
+    start: std::time::Instant,
+) -> anyhow::Result<()> {
+    let cell_size = index.cell_size;
     let n = index.cells.len().max(1) as f64;
     let bytes: u64 = index.cells.iter().map(|c| c.bytes).sum();
     let build_ms: f64 = index.cells.iter().map(|c| c.build_ms).sum();
     let report = serde_json::json!({
         "file": args.file.display().to_string(),
-        "adapter": adapter.name,
+        "adapter": adapter,
+        "shard": args.shard.map(|(k, n)| format!("{k}/{n}")),
         "cells": index.cells.len(),
+        "cells_listed": listed,
         "cell_size": cell_size,
         "triangle_budget": args.triangle_budget,
         "resolution": args.resolution,

@@ -50,9 +50,10 @@ pub struct Args {
     /// Frames per second of the path (0.01 to 1000).
     #[arg(long, default_value_t = 60.0, value_parser = number_in(0.01, 1000.0))]
     fps: f64,
-    /// Loader threads.
-    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=64))]
-    loader_threads: u32,
+    /// Loader threads [default: 2 for a file, 8 for a store on object
+    /// storage, where each waits on the network].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=64))]
+    loader_threads: Option<u32>,
     /// Viewport width in pixels (16 to 16384).
     #[arg(long, default_value_t = 1920, value_parser = clap::value_parser!(u32).range(16..=16384))]
     width: u32,
@@ -246,7 +247,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             Order::Fifo => LoadOrder::Fifo,
         },
         budget_bytes: budget_bytes - proxy_bytes,
-        loader_threads: args.loader_threads as usize,
+        loader_threads: args
+            .loader_threads
+            .map_or_else(|| store.loader_threads(), |n| n as usize),
         disk_bytes_per_frame: (!args.real_time).then_some(args.disk_per_frame),
         frame_rate_hz: args.fps,
         viewport,

@@ -572,9 +572,75 @@ fn grid(tree: &Tree, cell_size: f64) -> FarFieldIndex {
     }
 }
 
-/// Builds the far fields of `cells` and writes them into the store at
-/// `path` (replacing any it had; temp file, fsync, rename), calling
-/// `progress` after each cell. Returns the index.
+/// The index of a build with `options` of `scene` (whose tree is `tree`),
+/// with no cell yet.
+pub fn new_index(scene: &Scene, tree: &Tree, options: &BuildOptions) -> FarFieldIndex {
+    let mut index = grid(tree, options.cell_size);
+    index.triangle_budget = options.triangle_budget;
+    index.resolution = options.capture.resolution;
+    index.mesh_error_px = options.capture.mesh_error_px;
+    index.grid_step = options.capture.grid_step;
+    index.skins = options.capture.skins;
+    index.model_signature = scene.pose_hash();
+    index
+}
+
+/// Builds the far field of the cell at grid coordinates `g` of `index`:
+/// its entry (as segment `segment`) and its bytes. The bytes depend on the
+/// model and the options alone (the build time is in the entry), so a cell
+/// built on any machine is the same cell.
+pub fn build_cell(
+    scene: &Scene,
+    tree: &Tree,
+    renderer: &mut dmu_render::Renderer,
+    index: &FarFieldIndex,
+    g: [i64; 3],
+    segment: u32,
+    options: &BuildOptions,
+) -> anyhow::Result<(IndexCell, Vec<u8>)> {
+    let cell = index.cell_box(g);
+    let near_box = cull_box(tree, &cell, options.triangle_budget);
+    let (mut field, build) = renderer.capture_far_field(
+        scene,
+        tree,
+        scene,
+        FarFieldRegion {
+            cell,
+            near_box,
+            excluded: &BTreeSet::new(),
+        },
+        &options.capture,
+    )?;
+    let build_ms = std::mem::take(&mut field.build_ms);
+    let bytes = field.encode();
+    let entry = IndexCell {
+        grid: g,
+        segment,
+        near_box: [near_box.min.to_array(), near_box.max.to_array()],
+        near_triangles: triangles_touching(tree, &near_box),
+        far_triangles: build.triangles,
+        bytes: bytes.len() as u64,
+        build_ms,
+    };
+    Ok((entry, bytes))
+}
+
+/// Writes `index` and its cells' bytes (`blobs`, in the index's order) into
+/// `store`, replacing any far fields it had (temp file, fsync, rename; on
+/// object storage, a put conditional on the version read).
+pub fn write(
+    store: &Store,
+    index: &FarFieldIndex,
+    blobs: impl IntoIterator<Item = anyhow::Result<Vec<u8>>>,
+) -> anyhow::Result<()> {
+    let index_bytes = serde_json::to_vec(index)?;
+    dmu_store::write_far_fields(store, &index_bytes, blobs.into_iter().map(|b| b.map(Some)))?
+        .commit()?;
+    Ok(())
+}
+
+/// Builds the far fields of `cells` and writes them into `store` (replacing
+/// any it had), calling `progress` after each cell. Returns the index.
 pub fn build(
     store: &Store,
     scene: &Scene,
@@ -584,49 +650,15 @@ pub fn build(
     options: &BuildOptions,
     progress: &mut dyn FnMut(&IndexCell),
 ) -> anyhow::Result<FarFieldIndex> {
-    let mut index = grid(tree, options.cell_size);
-    index.triangle_budget = options.triangle_budget;
-    index.resolution = options.capture.resolution;
-    index.mesh_error_px = options.capture.mesh_error_px;
-    index.grid_step = options.capture.grid_step;
-    index.skins = options.capture.skins;
-    index.model_signature = scene.pose_hash();
+    let mut index = new_index(scene, tree, options);
     let mut encoded = Vec::with_capacity(cells.len());
-    for &g in cells {
-        let cell = index.cell_box(g);
-        let near_box = cull_box(tree, &cell, options.triangle_budget);
-        let (field, build) = renderer.capture_far_field(
-            scene,
-            tree,
-            scene,
-            FarFieldRegion {
-                cell,
-                near_box,
-                excluded: &BTreeSet::new(),
-            },
-            &options.capture,
-        )?;
-        let bytes = field.encode();
-        let entry = IndexCell {
-            grid: g,
-            segment: index.cells.len() as u32,
-            near_box: [near_box.min.to_array(), near_box.max.to_array()],
-            near_triangles: triangles_touching(tree, &near_box),
-            far_triangles: build.triangles,
-            bytes: bytes.len() as u64,
-            build_ms: field.build_ms,
-        };
+    for (segment, &g) in (0u32..).zip(cells) {
+        let (entry, bytes) = build_cell(scene, tree, renderer, &index, g, segment, options)?;
         progress(&entry);
         index.cells.push(entry);
         encoded.push(bytes);
     }
-    let index_bytes = serde_json::to_vec(&index)?;
-    dmu_store::write_far_fields::<dmu_store::StoreError>(
-        store,
-        &index_bytes,
-        encoded.into_iter().map(|b| Ok(Some(b))),
-    )?
-    .commit()?;
+    write(store, &index, encoded.into_iter().map(Ok))?;
     Ok(index)
 }
 

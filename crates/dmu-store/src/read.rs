@@ -65,6 +65,9 @@ impl ReadAt for Source {
     }
 }
 
+/// Loader threads for a store on object storage ([`Store::loader_threads`]).
+pub const REMOTE_LOADERS: usize = 8;
+
 /// Sizes of an open store.
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct StoreInfo {
@@ -139,6 +142,17 @@ impl Store {
             layout,
             skeleton,
         })
+    }
+
+    /// How many loader threads suit this store: 2 for a file (decoding is
+    /// most of a load, and two keep a disk busy), [`REMOTE_LOADERS`] for
+    /// a store on object storage, where each load mostly waits on the
+    /// network (at 20 ms a request, 8 keep 100 Mbit/s full).
+    pub fn loader_threads(&self) -> usize {
+        match &self.file {
+            Source::Local(_) => 2,
+            Source::Remote(_) => REMOTE_LOADERS,
+        }
     }
 
     /// For a store on object storage or a web server: what reading it has
