@@ -499,7 +499,7 @@ impl Review {
                 path.display()
             );
         }
-        let format = dmu_store::save_scene(&self.scene, self.source.as_deref(), path)?;
+        let format = dmu_store::save_scene(&mut self.scene, self.source.as_deref(), path)?;
         Ok(Saved {
             path: path.to_owned(),
             format,

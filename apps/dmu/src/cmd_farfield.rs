@@ -139,13 +139,42 @@ fn cell_files(dir: &Path, i: usize) -> (PathBuf, PathBuf) {
     )
 }
 
+/// What a shard's cells were built from: the index's options and the
+/// model's signature (no cells), and the store's version on object storage.
+fn shard_source(index: &FarFieldIndex, store: &Store) -> serde_json::Value {
+    serde_json::json!({ "index": index, "version": store.remote_version() })
+}
+
 /// `--cells-from`: the shards' cells, checked against the cells these
-/// options list, written into the store.
+/// options list and the store as it is now (the same options, model and
+/// version as every shard read), written into the store.
 fn assemble(args: &BuildArgs, store: &Store, dir: &Path) -> anyhow::Result<FarFieldIndex> {
     let scene = store.skeleton();
     let tree = Tree::build(scene, TreeOptions::default());
     let (cell_size, cells) = cells_of(args, &tree)?;
     let mut index = new_index(scene, &tree, &build_options(args, cell_size));
+    let now = shard_source(&index, store);
+    let mut shards = 0;
+    for entry in std::fs::read_dir(dir).with_context(|| format!("{}", dir.display()))? {
+        let path = entry?.path();
+        let name = path.file_name().unwrap_or_default().to_string_lossy();
+        if name.starts_with("shard-") && name.ends_with(".json") {
+            let from: serde_json::Value = serde_json::from_slice(&std::fs::read(&path)?)
+                .with_context(|| format!("{}: not a shard's record", path.display()))?;
+            anyhow::ensure!(
+                from == now,
+                "{}: its cells were built from another version of {} or with other options; build them again",
+                path.display(),
+                args.file.display()
+            );
+            shards += 1;
+        }
+    }
+    anyhow::ensure!(
+        shards > 0,
+        "{}: no shard-K.json (is it a --cells-out folder?)",
+        dir.display()
+    );
     for (i, &g) in cells.iter().enumerate() {
         let (_, json) = cell_files(dir, i);
         let entry: IndexCell = serde_json::from_slice(
@@ -219,6 +248,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         (Some((k, n)), Some(dir)) => {
             std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
             let mut index = new_index(&scene, &tree, &options);
+            // What the cells were built from, for --cells-from to check.
+            let from = shard_source(&index, &store);
+            let path = dir.join(format!("shard-{k}.json"));
+            dmu_scene::write_file_atomically(&path, &serde_json::to_vec(&from)?)
+                .with_context(|| format!("{}", path.display()))?;
             for (i, &g) in cells.iter().enumerate().skip(k).step_by(n) {
                 let segment = u32::try_from(i).context("over 4G cells")?;
                 let (entry, bytes) =

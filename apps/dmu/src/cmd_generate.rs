@@ -57,7 +57,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         );
     }
     let start = Instant::now();
-    let scene = match args.model {
+    let mut scene = match args.model {
         Model::Plant => {
             let mut options = PlantOptions {
                 triangles: args.triangles,
@@ -79,7 +79,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     };
     let generate_ms = start.elapsed().as_secs_f64() * 1e3;
     let start = Instant::now();
-    dmu_store::save_scene(&scene, None, &args.output)?;
+    dmu_store::save_scene(&mut scene, None, &args.output)?;
     let write_ms = start.elapsed().as_secs_f64() * 1e3;
     let bytes = std::fs::metadata(&args.output)
         .map(|m| m.len())

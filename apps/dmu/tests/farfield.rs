@@ -189,3 +189,64 @@ fn far_fields_are_built_into_the_store_and_drawn_by_a_walk() {
         assert_eq!(with, [false, false, false, true, true, true]);
     });
 }
+
+/// Cells built by shards (`--shard K/N --cells-out`) are written by
+/// `--cells-from` only into the model they were built from: after a part
+/// moved, the folder is refused in one line naming the shard's record; a
+/// missing cell likewise.
+#[test]
+fn shard_cells_of_another_model_version_are_refused() {
+    dmu_testkit::with_gpu(|_| {
+        let dir = tempfile::tempdir().unwrap();
+        let store = generated_plant(dir.path(), "200k");
+        let cells = dir.path().join("cells").to_string_lossy().into_owned();
+        let options = [
+            "--along-walk",
+            "--range",
+            "300..306",
+            "--cell-size",
+            "4000",
+            "--triangle-budget",
+            "20k",
+            "--resolution",
+            "64",
+        ];
+        let run = |extra: &[&str]| {
+            let mut args = vec!["build", store.as_str()];
+            args.extend(options);
+            args.extend(extra);
+            on_gpu("farfield", &args)
+        };
+        let out = run(&["--shard", "0/1", "--cells-out", &cells]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+
+        let out = super::dmu(&[
+            "move",
+            &store,
+            "--part",
+            "#0",
+            "--translate",
+            "10,0,0",
+            "-o",
+            &store,
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let out = run(&["--cells-from", &cells]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success()
+                && err.contains("shard-0.json")
+                && err.contains("another version")
+                && err.lines().count() == 1,
+            "{err}"
+        );
+    });
+}

@@ -456,7 +456,7 @@ impl Model {
     /// writes the edits only.
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let source = self.source.as_deref();
-        self.reading(py, |st| dmu_store::save_scene(&st.scene, source, &path))
+        self.writing(py, |st| dmu_store::save_scene(&mut st.scene, source, &path))
             .map(|_| ())
             .map_err(dmu_error)
     }

@@ -256,9 +256,24 @@ pub struct Scene {
     meshes: Vec<Mesh>,
     chunks: Vec<Chunk>,
     materials: Vec<Material>,
+    /// For a scene read from object storage: the version (ETag) of the
+    /// object it was read from, on which a save into it is conditional.
+    source_version: Option<String>,
 }
 
 impl Scene {
+    /// For a scene read from object storage: the version (ETag) of the
+    /// object it was read from (or last saved into).
+    pub fn source_version(&self) -> Option<&str> {
+        self.source_version.as_deref()
+    }
+
+    /// Records the version of the object this scene was read from or saved
+    /// into ([`Scene::source_version`]).
+    pub fn set_source_version(&mut self, version: Option<String>) {
+        self.source_version = version;
+    }
+
     /// The scene's name (the root node's name).
     pub fn name(&self) -> &str {
         self.node_name(NodeId(0))
@@ -826,6 +841,7 @@ impl SceneBuilder {
                 meshes: Vec::new(),
                 chunks: Vec::new(),
                 materials: Vec::new(),
+                source_version: None,
             },
             chunk_triangles,
             last_child: vec![NO_NODE],

@@ -100,7 +100,10 @@ pub use prefetch::{PrefetchOptions, Prefetcher};
 pub use priority::{Class, LoadOrder, Request};
 pub use read::{REMOTE_LOADERS, Store, StoreInfo};
 pub use residency::{Pacing, RETRY_FIRST, RETRY_MOST, Residency, ResidencyOptions, ResidencyStats};
-pub use save::{BlobWriter, SavedFormat, prepare_save, save_edits, save_scene, write_far_fields};
+pub use save::{
+    BlobWriter, SavedFormat, prepare_save, save_edits, save_scene, save_scene_with,
+    write_far_fields,
+};
 pub use streamer::{KEEP_VISIBLE_FRAMES, Streamer};
 pub use view::{CameraFrame, LodCut, View, Viewport, Wanted, wanted};
 pub use walk::{

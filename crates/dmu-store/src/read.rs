@@ -125,9 +125,12 @@ impl Store {
             skeleton.properties = Properties::from_bytes(&bytes, skeleton.nodes.len())
                 .map_err(|e| corrupt(format!("the properties: {e}")))?;
         }
-        let skeleton = skeleton
+        let mut skeleton = skeleton
             .into_scene()
             .map_err(|e| corrupt(format!("the skeleton: {e}")))?;
+        if let Source::Remote(o) = &file {
+            skeleton.set_source_version(o.version().map(str::to_owned));
+        }
         if skeleton.chunks().len() != layout.chunks.len() {
             return Err(corrupt(format!(
                 "the skeleton has {} chunks, the table of contents {}",
@@ -398,7 +401,9 @@ impl Store {
     /// The whole scene with its geometry (every segment verified and decoded, in
     /// parallel).
     pub fn load_scene(&self) -> Result<Scene, StoreError> {
-        skeleton::with_geometry(&self.skeleton, &|mesh| self.mesh_geometry(mesh))
+        let mut scene = skeleton::with_geometry(&self.skeleton, &|mesh| self.mesh_geometry(mesh))?;
+        scene.set_source_version(self.remote_version().map(str::to_owned));
+        Ok(scene)
     }
 }
 

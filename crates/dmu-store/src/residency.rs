@@ -144,6 +144,18 @@ struct Shared {
     idle: Condvar,
 }
 
+/// An error and its causes on one line (`StoreError`'s own message names
+/// the file, its causes say why).
+fn one_line(e: &dyn std::error::Error) -> String {
+    let mut line = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        line += &format!(": {c}");
+        cause = c.source();
+    }
+    line
+}
+
 /// Loads failing for I/O (see [`State::outage`]).
 #[derive(Debug)]
 struct Outage {
@@ -325,6 +337,9 @@ impl Residency {
         st.grant = st.grant.min(0) + i64::try_from(disk_bytes).unwrap_or(i64::MAX);
         shared.work.notify_all();
         while st.in_flight > 0 || st.has_work(&shared.options) {
+            // The work may have appeared by the clock (an outage's pause
+            // ending) after every loader went to sleep: wake them each time.
+            shared.work.notify_all();
             st = shared.idle.wait(st).unwrap_or_else(PoisonError::into_inner);
         }
         // What is left is not kept: loaders stay idle until the next grant, so
@@ -426,13 +441,30 @@ fn loader(shared: &Shared) {
         }
         let Some(job) = st.next_job(shared) else {
             shared.idle.notify_all();
-            st = shared.work.wait(st).unwrap_or_else(PoisonError::into_inner);
+            // While loads pause for an outage, wake when the pause ends:
+            // loading resumes even when nothing else calls.
+            st = match st.outage.as_ref().map(|o| o.retry_at) {
+                Some(at) => {
+                    let wait = at.saturating_duration_since(Instant::now());
+                    shared
+                        .work
+                        .wait_timeout(st, wait.max(Duration::from_millis(1)))
+                        .unwrap_or_else(PoisonError::into_inner)
+                        .0
+                }
+                None => shared.work.wait(st).unwrap_or_else(PoisonError::into_inner),
+            };
             continue;
         };
         drop(st);
         let result = shared.store.chunk_geometry(ChunkId(job.chunk));
         st = lock(&shared.state);
+        let was_out = st.outage.is_some();
         st.complete(&job, result);
+        if was_out && st.outage.is_none() {
+            // Back: every loader may take work again.
+            shared.work.notify_all();
+        }
         shared.idle.notify_all();
     }
 }
@@ -593,7 +625,7 @@ impl State {
                     .as_ref()
                     .map_or(RETRY_FIRST, |o| (o.wait * 2).min(RETRY_MOST));
                 self.outage = Some(Outage {
-                    error: format!("{e:#}"),
+                    error: one_line(&e),
                     retry_at: Instant::now() + wait,
                     wait,
                 });
@@ -601,7 +633,7 @@ impl State {
             Err(e) => {
                 slot.state = SlotState::Failed;
                 self.stats.failures += 1;
-                self.first_error.get_or_insert(format!("{e:#}"));
+                self.first_error.get_or_insert(one_line(&e));
             }
         }
     }

@@ -9,6 +9,7 @@ use rayon::prelude::*;
 use crate::error::StoreError;
 use crate::format::BlobSet;
 use crate::read::Store;
+use crate::remote::RemoteOptions;
 use crate::skeleton::structure_difference;
 use crate::write::{PendingStore, StoreSummary, StoreWriter, WriteOptions, batches};
 
@@ -38,7 +39,10 @@ pub fn prepare_save(store: &Store, scene: &Scene) -> Result<PendingStore, StoreE
             what,
         });
     }
-    with_geometry_of(store, None)?.finish(&Structure::of(scene))
+    // On object storage, conditional on the version the scene was read at
+    // (the store may have been opened again since).
+    let version = scene.source_version().or(store.remote_version());
+    with_geometry_of(store, None, version)?.finish(&Structure::of(scene))
 }
 
 /// Replaces the far fields of `store` (an index and one blob per cell, opaque
@@ -120,7 +124,7 @@ impl<'a> BlobWriter<'a> {
         Ok(Self {
             store,
             set,
-            writer: with_geometry_of(store, Some(set))?,
+            writer: with_geometry_of(store, Some(set), store.remote_version())?,
         })
     }
 
@@ -150,9 +154,14 @@ impl<'a> BlobWriter<'a> {
 /// A writer for a new file at `store`'s path holding `store`'s chunk
 /// segments and its blob sets but `replaced`, copied verified byte for byte
 /// (a version-3 store's chunks with their levels added, computed in
-/// parallel): what every rewrite of a store starts with.
-fn with_geometry_of(store: &Store, replaced: Option<BlobSet>) -> Result<StoreWriter, StoreError> {
-    let mut writer = StoreWriter::replacing(store)?;
+/// parallel): what every rewrite of a store starts with. On object storage
+/// its upload is conditional on `version`.
+fn with_geometry_of(
+    store: &Store,
+    replaced: Option<BlobSet>,
+    version: Option<&str>,
+) -> Result<StoreWriter, StoreError> {
+    let mut writer = StoreWriter::replacing(store, version)?;
     let chunks = store.skeleton().chunks();
     for batch in batches(chunks.iter().map(|c| c.triangle_count() as usize)) {
         let segments: Vec<Vec<u8>> = batch
@@ -213,22 +222,37 @@ impl std::fmt::Display for SavedFormat {
 /// `.dmu` a store, `.glb`/`.gltf` glTF; any other extension is refused, so an
 /// output is never written in a format its name does not say. When `path` is
 /// `source` (the store the scene was read from), the edits are saved into it
-/// ([`save_edits`]). Every format goes through a temporary file renamed over
+/// ([`save_edits`]; on object storage, conditional on the version the scene
+/// was read at, which the save then advances). Every format goes through a temporary file renamed over
 /// `path`: a failure leaves the previous file as it was.
 ///
 /// # Panics
 /// When the scene's geometry is not loaded.
 pub fn save_scene(
-    scene: &Scene,
+    scene: &mut Scene,
     source: Option<&Path>,
     path: &Path,
+) -> Result<SavedFormat, StoreError> {
+    save_scene_with(scene, source, path, &RemoteOptions::from_env())
+}
+
+/// [`save_scene`], reaching object storage as `remote` says.
+pub fn save_scene_with(
+    scene: &mut Scene,
+    source: Option<&Path>,
+    path: &Path,
+    remote: &RemoteOptions,
 ) -> Result<SavedFormat, StoreError> {
     let ext = path
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase());
     match ext.as_deref() {
         Some("dmu") if source.is_some_and(|s| same_file(s, path)) => {
-            save_edits(&Store::open(path)?, scene)?;
+            let saved = save_edits(&Store::open_with(path, remote)?, scene)?;
+            // The next save is conditional on this one.
+            if saved.version.is_some() {
+                scene.set_source_version(saved.version);
+            }
             Ok(SavedFormat::Edits)
         }
         Some("dmu") => {

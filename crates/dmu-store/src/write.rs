@@ -68,6 +68,8 @@ pub struct StoreSummary {
     pub geometry_resident_bytes: u64,
     /// Bytes of the skeleton segment.
     pub skeleton_bytes: u64,
+    /// Written to object storage: the new object's version (its ETag).
+    pub version: Option<String>,
 }
 
 /// Writes a store segment by segment: chunk geometry as it is produced (and can
@@ -298,16 +300,16 @@ impl StoreWriter {
     }
 
     /// Starts the rewrite of `store` at its path: on object storage, reached
-    /// as `store` was, and conditional on the version it was read at, so a
+    /// as `store` was, and conditional on `version` (the one read), so a
     /// save over someone else's is refused ([`StoreError::RemoteConflict`]).
-    pub(crate) fn replacing(store: &Store) -> Result<Self, StoreError> {
+    pub(crate) fn replacing(store: &Store, version: Option<&str>) -> Result<Self, StoreError> {
         let remote = store
             .remote_options()
             .cloned()
             .unwrap_or_else(RemoteOptions::from_env);
         let mut writer = Self::create_with(store.path(), WriteOptions::default(), &remote)?;
         if let Some(remote) = &mut writer.remote {
-            remote.version = store.remote_version().map(str::to_owned);
+            remote.version = version.map(str::to_owned);
         }
         Ok(writer)
     }
@@ -427,7 +429,10 @@ impl PendingStore {
             self.temp.temp_path(),
             remote.version.as_deref(),
         ) {
-            Ok(()) => Ok(self.summary),
+            Ok(version) => Ok(StoreSummary {
+                version,
+                ..self.summary
+            }),
             Err(upload::UploadError::Conflict) => {
                 let kept = self.temp.target().to_owned();
                 self.temp.commit().map_err(|source| StoreError::Io {

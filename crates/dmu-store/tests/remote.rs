@@ -254,12 +254,35 @@ fn two_editors_saving_one_store_on_s3_one_wins_the_other_keeps_its_edit() {
         assert_same_geometry(&now, &kept_store);
         // A save from the version now on the server goes through.
         save_edits(&now, &moved(&now, 10.0)).unwrap();
-        // No upload left unfinished, no spooled file left behind.
+
+        // As the viewer and `dmu move` save (the store opened again at save
+        // time): conditional on the version each scene was read at, and a
+        // scene's second save on the version its first one made.
+        let url = Path::new("s3://models/plant/shared.dmu");
+        let read = || {
+            let mut scene = open("plant/shared.dmu", &options)
+                .unwrap()
+                .load_scene()
+                .unwrap();
+            let p = PartId(9);
+            scene.set_part_world(
+                p,
+                DAffine3::from_translation(DVec3::Y) * scene.part_world(p),
+            );
+            scene
+        };
+        let (mut c, mut d) = (read(), read());
+        assert!(c.source_version().is_some());
+        dmu_store::save_scene_with(&mut c, Some(url), url, &options).unwrap();
+        let err = dmu_store::save_scene_with(&mut d, Some(url), url, &options).unwrap_err();
+        assert!(matches!(err, StoreError::RemoteConflict { .. }), "{err}");
+        dmu_store::save_scene_with(&mut c, Some(url), url, &options).unwrap();
+        // No spooled file left behind: only the two conflicts' kept saves.
         assert_eq!(
             std::fs::read_dir(weed.cache.path().join("kept"))
                 .unwrap()
                 .count(),
-            1
+            2
         );
         assert!(!weed.get("plant/shared.dmu").is_empty());
     });

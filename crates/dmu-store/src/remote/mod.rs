@@ -20,7 +20,7 @@
 //! error is retried [`RETRIES`] times; every request, retry and timeout is
 //! counted ([`RemoteStats`]).
 //!
-//! **Writing** (`s3://` only, [`upload`]): the store is written to a local
+//! **Writing** (`s3://` only, `remote/upload.rs`): the store is written to a local
 //! file first, then put whole or in
 //! parts of [`PART_BYTES`]. A rewrite of a store read from object storage (a save of edits,
 //! new far fields) is a conditional put on the version it read: when
@@ -64,6 +64,13 @@ pub const BLOCK_BYTES: u64 = 64 << 10;
 pub const MAX_REQUEST_BYTES: u64 = 8 << 20;
 /// Range requests one read makes at once.
 pub const IN_FLIGHT: usize = 4;
+/// The most one read asks for: past the largest segment a store holds (a
+/// 500M plant's skeleton is about 140 MB), so that an object whose server
+/// claims an absurd length cannot make dmu allocate it.
+pub const MAX_READ_BYTES: u64 = 4 << 30;
+/// How long one request may take in all, however slowly its bytes trickle
+/// (8 MiB at 1 Mbit/s takes 67 s).
+const REQUEST_TIMEOUT: Duration = Duration::from_secs(300);
 /// The cache's default size on disk.
 pub const DEFAULT_CACHE_BUDGET: u64 = 4 << 30;
 
@@ -143,7 +150,8 @@ pub fn is_remote(path: &Path) -> bool {
 
 /// Where a store bound for object storage is written first (and kept when
 /// its upload meets a conflict): `kept/` in the cache folder, else in the
-/// temporary folder; named after the object, the time and the process.
+/// temporary folder; named after the object, the time, the process and a
+/// count.
 pub fn spool_path(url: &str, options: &RemoteOptions) -> std::io::Result<PathBuf> {
     let dir = options
         .cache_dir
@@ -162,17 +170,21 @@ pub fn spool_path(url: &str, options: &RemoteOptions) -> std::io::Result<PathBuf
     let secs = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_secs());
-    Ok(dir.join(format!("{stem}-{secs}-{}.dmu", std::process::id())))
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    Ok(dir.join(format!("{stem}-{secs}-{}-{n}.dmu", std::process::id())))
 }
 
 /// Puts the local store `file` as the object `url` (`s3://` only), whole
 /// or in parts, overwriting what is there: e.g. `dmu import`'s result,
 /// built locally (see [`spool_path`]) and put once whole.
 pub fn upload_file(file: &Path, url: &str, options: &RemoteOptions) -> std::io::Result<()> {
-    upload::upload(url, options, file, None).map_err(|e| match e {
-        upload::UploadError::Failed(e) => e,
-        upload::UploadError::Conflict => Error::other("the server refused the write (412)"),
-    })
+    upload::upload(url, options, file, None)
+        .map(drop)
+        .map_err(|e| match e {
+            upload::UploadError::Failed(e) => e,
+            upload::UploadError::Conflict => Error::other("the server refused the write (412)"),
+        })
 }
 
 /// What reading an object cost: requests made, bytes fetched, and what the
@@ -284,6 +296,7 @@ fn agent() -> ureq::Agent {
     ureq::AgentBuilder::new()
         .timeout_connect(CONNECT_TIMEOUT)
         .timeout_read(READ_TIMEOUT)
+        .timeout(REQUEST_TIMEOUT)
         .build()
 }
 
@@ -293,8 +306,9 @@ pub(crate) struct RemoteObject {
     agent: ureq::Agent,
     locator: Locator,
     len: u64,
-    /// The version read: the ETag (else Last-Modified) the server gave.
-    version: Option<String>,
+    /// The version read: the ETag the server gave (every range request and
+    /// a conditional put ask for it).
+    etag: Option<String>,
     cache: Option<BlockCache>,
     counters: Counters,
     /// How it was reached: a rewrite of the store goes the same way.
@@ -308,7 +322,7 @@ impl RemoteObject {
             agent: agent(),
             locator: Locator::parse(url, options)?,
             len: 0,
-            version: None,
+            etag: None,
             cache: None,
             counters: Counters::default(),
             options: options.clone(),
@@ -318,13 +332,16 @@ impl RemoteObject {
             .header("content-length")
             .and_then(|v| v.parse().ok())
             .ok_or_else(|| Error::other("the server gave no length for the object"))?;
-        object.version = head
-            .header("etag")
+        object.etag = head.header("etag").map(str::to_owned);
+        // The cache's key names the version: without one there is no telling
+        // a replaced object from the one cached, and such an object is not
+        // cached.
+        let version = object
+            .etag
+            .as_deref()
             .or_else(|| head.header("last-modified"))
             .map(str::to_owned);
-        // Without a version there is no telling a replaced object from the
-        // one cached: such an object is not cached.
-        if let (Some(dir), Some(version)) = (&options.cache_dir, &object.version)
+        if let (Some(dir), Some(version)) = (&options.cache_dir, version)
             && options.cache_budget > 0
         {
             object.cache = Some(BlockCache::open(
@@ -343,7 +360,7 @@ impl RemoteObject {
 
     /// The version read (the ETag), for a conditional put over it.
     pub fn version(&self) -> Option<&str> {
-        self.version.as_deref()
+        self.etag.as_deref()
     }
 
     /// The counters so far.
@@ -371,29 +388,71 @@ impl RemoteObject {
         if len == 0 {
             return Ok(Vec::new());
         }
-        let range = format!("bytes={offset}-{}", offset + len - 1);
-        let response = self.call(|| {
-            self.agent
-                .get(&self.locator.url(false))
-                .set("Range", &range)
-        })?;
+        // A body cut short (the server gone mid-answer) is tried again as a
+        // failed request is; what is left after the tries is a network
+        // error (`ConnectionAborted`), never a short file.
+        let mut tries = 0;
+        loop {
+            match self.fetch_once(offset, len) {
+                Err(Fetch::Cut(_)) if tries < RETRIES => {
+                    add(&self.counters.retries, 1);
+                    std::thread::sleep(Duration::from_millis(100 << (2 * tries)));
+                    tries += 1;
+                }
+                Err(Fetch::Cut(why)) => {
+                    add(&self.counters.failed_requests, 1);
+                    return Err(Error::new(ErrorKind::ConnectionAborted, why));
+                }
+                Err(Fetch::Failed(e)) => return Err(e),
+                Ok(bytes) => return Ok(bytes),
+            }
+        }
+    }
+
+    /// One range request for `offset..offset + len`, checked: a 206 for
+    /// that range of this version of the object, and exactly `len` bytes.
+    fn fetch_once(&self, offset: u64, len: u64) -> Result<Vec<u8>, Fetch> {
+        let last = offset + len - 1;
+        let range = format!("bytes={offset}-{last}");
+        let response = self
+            .call(|| {
+                let get = self
+                    .agent
+                    .get(&self.locator.url(false))
+                    .set("Range", &range);
+                // Bytes of another version of the object never come back.
+                match &self.etag {
+                    Some(etag) => get.set("If-Match", etag),
+                    None => get,
+                }
+            })
+            .map_err(Fetch::Failed)?;
         if response.status() != 206 {
-            return Err(Error::other(format!(
+            return Err(Fetch::Failed(Error::other(format!(
                 "the server answered a range request with status {} (not 206)",
                 response.status()
-            )));
+            ))));
         }
-        let mut bytes = Vec::with_capacity(usize::try_from(len).map_err(Error::other)?);
+        let answered = response.header("content-range").unwrap_or_default();
+        if !answered.starts_with(&format!("bytes {offset}-{last}/")) {
+            return Err(Fetch::Failed(Error::other(format!(
+                "asked for bytes {offset}-{last}, the server answered {answered:?}"
+            ))));
+        }
+        let mut bytes = Vec::new();
         let read = response.into_reader().take(len + 1).read_to_end(&mut bytes);
         add(&self.counters.bytes_fetched, bytes.len() as u64);
-        read?;
-        if bytes.len() as u64 != len {
-            return Err(Error::new(
-                ErrorKind::UnexpectedEof,
-                format!("asked for {len} bytes at {offset}, got {}", bytes.len()),
-            ));
+        match read {
+            Err(e) => Err(Fetch::Cut(format!(
+                "the answer broke off after {} of {len} bytes at {offset}: {e}",
+                bytes.len()
+            ))),
+            Ok(_) if bytes.len() as u64 != len => Err(Fetch::Cut(format!(
+                "asked for {len} bytes at {offset}, got {}",
+                bytes.len()
+            ))),
+            Ok(_) => Ok(bytes),
         }
-        Ok(bytes)
     }
 
     /// Bytes `offset..offset + len` (within the object): from the cache's
@@ -469,7 +528,7 @@ impl RemoteObject {
                 }
             }
         }
-        let mut out = Vec::with_capacity(usize::try_from(len).map_err(Error::other)?);
+        let mut out = Vec::new();
         let mut at = offset;
         for (i, block) in blocks.into_iter().enumerate() {
             let block = block.ok_or_else(|| Error::other("a block was not fetched"))?;
@@ -520,6 +579,14 @@ fn boxed(r: Result<ureq::Response, ureq::Error>) -> Result<ureq::Response, Box<u
     r.map_err(Box::new)
 }
 
+/// Why a range request gave no bytes.
+enum Fetch {
+    /// The answer broke off or came short: worth another try.
+    Cut(String),
+    /// Anything else (its retries, if any, made).
+    Failed(Error),
+}
+
 /// Whether a transport error is a timeout.
 fn is_timeout(t: &ureq::Transport) -> bool {
     std::error::Error::source(t)
@@ -533,6 +600,9 @@ fn is_timeout(t: &ureq::Transport) -> bool {
 fn http_error(e: ureq::Error) -> Error {
     match e {
         ureq::Error::Status(404, _) => Error::new(ErrorKind::NotFound, "no such object (404)"),
+        ureq::Error::Status(412, _) => Error::other(
+            "the object changed since it was opened (412): open it again to read the new version",
+        ),
         ureq::Error::Status(code, r) => {
             let status = r.status_text().to_owned();
             // S3 says why in its XML body: <Code> and <Message>.
@@ -548,7 +618,15 @@ fn http_error(e: ureq::Error) -> Error {
                 _ => Error::other(format!("the server answered {code} {status}")),
             }
         }
-        ureq::Error::Transport(t) => Error::other(t.to_string()),
+        // Its Display names the URL, signature and all: kind and cause only.
+        ureq::Error::Transport(t) => {
+            let cause = std::error::Error::source(&t).map(ToString::to_string);
+            let message = t.message().map(str::to_owned).or(cause);
+            Error::other(match message {
+                Some(m) => format!("{}: {m}", t.kind()),
+                None => t.kind().to_string(),
+            })
+        }
     }
 }
 
@@ -558,6 +636,13 @@ impl ReadAt for RemoteObject {
     }
 
     fn read_exact_at(&self, offset: u64, len: u64) -> std::io::Result<Vec<u8>> {
+        if len > MAX_READ_BYTES {
+            // The length is the server's word: no allocation on it alone.
+            return Err(Error::new(
+                ErrorKind::InvalidData,
+                format!("a read of {len} bytes, more than the {MAX_READ_BYTES} one read takes"),
+            ));
+        }
         if offset.checked_add(len).is_none_or(|end| end > self.len) {
             return Err(Error::new(
                 ErrorKind::UnexpectedEof,
@@ -568,7 +653,10 @@ impl ReadAt for RemoteObject {
     }
 
     fn read_at_most(&self, offset: u64, len: u64) -> std::io::Result<Vec<u8>> {
-        self.read(offset, len.min(self.len.saturating_sub(offset)))
+        if offset >= self.len {
+            return Ok(Vec::new());
+        }
+        self.read_exact_at(offset, len.min(self.len - offset))
     }
 
     fn read_into(&self, offset: u64, buf: &mut [u8]) -> std::io::Result<()> {

@@ -9,7 +9,9 @@ use std::os::unix::fs::FileExt as _;
 use std::path::Path;
 
 use rusty_s3::S3Action;
-use rusty_s3::actions::{CompleteMultipartUpload, CreateMultipartUpload};
+use rusty_s3::actions::{
+    CompleteMultipartUpload, CompleteMultipartUploadResponse, CreateMultipartUpload,
+};
 
 use super::{Counters, Locator, REQUEST_TTL, RemoteOptions, agent, boxed, http_error, retrying};
 
@@ -44,13 +46,14 @@ fn refused(e: Box<ureq::Error>) -> UploadError {
 
 /// Puts `file` as the object `url` (`s3://` only), over `version` when it
 /// is given (`If-Match`: refused as [`UploadError::Conflict`] when the
-/// object has changed since).
+/// object has changed since); the new object's version (ETag), when the
+/// server says.
 pub(crate) fn upload(
     url: &str,
     options: &RemoteOptions,
     file: &Path,
     version: Option<&str>,
-) -> Result<(), UploadError> {
+) -> Result<Option<String>, UploadError> {
     let Locator::S3 {
         bucket,
         key,
@@ -84,11 +87,11 @@ pub(crate) fn upload(
     if len <= part_bytes {
         let body = read(0, len)?;
         let put = bucket.put_object(credentials, &key).sign(REQUEST_TTL);
-        retrying(&counters, || {
+        let answer = retrying(&counters, || {
             boxed(with_condition(agent.put(put.as_str())).send_bytes(&body))
         })
         .map_err(refused)?;
-        return Ok(());
+        return Ok(answer.header("etag").map(str::to_owned));
     }
     // Before hundreds of megabytes go up: has someone saved since?
     if let Some(v) = version {
@@ -163,25 +166,26 @@ pub(crate) fn upload(
         .map_err(refused)?
         .into_string()?;
         // S3 may answer 200 and still have failed: the body says.
-        if answer.contains("<Error>") {
-            return Err(if answer.contains("PreconditionFailed") {
-                UploadError::Conflict
-            } else {
-                Error::other(format!(
-                    "the server did not complete the upload: {}",
-                    answer.lines().next().unwrap_or_default()
-                ))
-                .into()
-            });
+        if !answer.contains("<Error>") {
+            let done = CompleteMultipartUploadResponse::parse(&answer).ok();
+            return Ok(done.map(|d| d.etag().to_owned()));
         }
-        Ok(())
+        Err(if answer.contains("PreconditionFailed") {
+            UploadError::Conflict
+        } else {
+            Error::other(format!(
+                "the server did not complete the upload: {}",
+                answer.lines().next().unwrap_or_default()
+            ))
+            .into()
+        })
     })();
     if result.is_err() {
         // Parts left behind cost storage; a failed abort changes nothing.
         let abort = bucket
             .abort_multipart_upload(credentials, &key, id)
             .sign(REQUEST_TTL);
-        let _ = agent.delete(abort.as_str()).call();
+        let _ = retrying(&counters, || boxed(agent.delete(abort.as_str()).call()));
     }
     result
 }
