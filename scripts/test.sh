@@ -56,6 +56,8 @@ if [ -z "${DMU_WEED:-}" ] && ! command -v weed >/dev/null 2>&1; then
         echo "warning: could not install SeaweedFS; the object-storage test will print SKIPPED" >&2
     fi
 fi
+# Each step's start time in the log: where CI's minutes go.
+export PS4='+ [$(date +%T)] '
 set -x
 cargo fmt --all --check
 cargo clippy --workspace --all-targets --locked -- -D warnings
