@@ -202,3 +202,15 @@ pub enum WalkError {
     #[error(transparent)]
     Residency(#[from] ResidencyError),
 }
+
+/// An error and its causes on one line, as the command line prints them
+/// (`StoreError`'s own message names the file, its causes say why).
+pub fn one_line(e: &dyn std::error::Error) -> String {
+    let mut line = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        line += &format!(": {c}");
+        cause = c.source();
+    }
+    line
+}

@@ -91,7 +91,7 @@ mod view;
 mod walk;
 mod write;
 
-pub use error::{ResidencyError, StoreError, WalkError};
+pub use error::{ResidencyError, StoreError, WalkError, one_line};
 pub use format::{BlobSet, FORMAT_VERSION, OLDEST_READABLE_VERSION, reseal};
 pub use geometry::OwnedChunkGeometry;
 pub use import::{ImportOptions, ImportSummary, import_file, import_gltf};

@@ -23,7 +23,7 @@ use std::time::{Duration, Instant};
 
 use dmu_scene::ChunkId;
 
-use crate::error::{ResidencyError, StoreError};
+use crate::error::{ResidencyError, StoreError, one_line};
 use crate::geometry::OwnedChunkGeometry;
 use crate::priority::{LoadOrder, Request};
 use crate::read::Store;
@@ -142,18 +142,6 @@ struct Shared {
     work: Condvar,
     /// [`Residency::load_granted`] waits here for the loaders to go idle.
     idle: Condvar,
-}
-
-/// An error and its causes on one line (`StoreError`'s own message names
-/// the file, its causes say why).
-fn one_line(e: &dyn std::error::Error) -> String {
-    let mut line = e.to_string();
-    let mut cause = e.source();
-    while let Some(c) = cause {
-        line += &format!(": {c}");
-        cause = c.source();
-    }
-    line
 }
 
 /// Loads failing for I/O (see [`State::outage`]).

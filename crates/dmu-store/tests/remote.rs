@@ -8,24 +8,13 @@ use std::time::{Duration, Instant};
 
 use dmu_scene::{ChunkId, PartId};
 use dmu_store::remote::RemoteOptions;
-use dmu_store::{Store, StoreError, WriteOptions, save_edits};
+use dmu_store::{Store, StoreError, WriteOptions, one_line, save_edits};
 use dmu_testkit::require;
 use dmu_testkit::weed::Weed;
 use glam::{DAffine3, DVec3};
 
 use crate::residency::{options as walk_options, path as walk_path};
 use crate::support::{KIND_CHUNK, assert_same_scene, entry, small_plant, stored};
-
-/// An error and its causes on one line, as the command line prints them.
-fn chain(e: &dyn std::error::Error) -> String {
-    let mut line = e.to_string();
-    let mut cause = e.source();
-    while let Some(c) = cause {
-        line += &format!(": {c}");
-        cause = c.source();
-    }
-    line
-}
 
 /// Reaching a [`Weed`] from the store.
 trait Reach {
@@ -103,10 +92,11 @@ fn a_store_on_s3_reads_as_its_file_and_refuses_damage_and_a_dead_server() {
             ("plant/cut.dmu", "s3://models/plant/cut.dmu"),
             ("plant/none.dmu", "no such object"),
         ] {
-            let err = chain(&remote(key).unwrap_err());
+            let err = one_line(&remote(key).unwrap_err());
             assert!(err.contains(says) && !err.contains('\n'), "{key}: {err}");
         }
-        let err = chain(&Store::open_with(Path::new("s3://models"), &weed.options()).unwrap_err());
+        let err =
+            one_line(&Store::open_with(Path::new("s3://models"), &weed.options()).unwrap_err());
         assert!(err.contains("s3://bucket/key"), "{err}");
 
         // The server gone: an error after bounded retries, not a hang.
