@@ -152,36 +152,35 @@ impl Store {
     /// a store on object storage, where each load mostly waits on the
     /// network (at 20 ms a request, 8 keep 100 Mbit/s full).
     pub fn loader_threads(&self) -> usize {
+        match self.remote() {
+            None => 2,
+            Some(_) => REMOTE_LOADERS,
+        }
+    }
+
+    /// The object it reads, for a store on object storage or a web server.
+    fn remote(&self) -> Option<&RemoteObject> {
         match &self.file {
-            Source::Local(_) => 2,
-            Source::Remote(_) => REMOTE_LOADERS,
+            Source::Local(_) => None,
+            Source::Remote(o) => Some(o),
         }
     }
 
     /// For a store on object storage or a web server: what reading it has
     /// cost so far (requests, bytes fetched, cache hits, retries).
     pub fn remote_stats(&self) -> Option<RemoteStats> {
-        match &self.file {
-            Source::Local(_) => None,
-            Source::Remote(o) => Some(o.stats()),
-        }
+        self.remote().map(RemoteObject::stats)
     }
 
     /// For a store on object storage: the version it was read at (the
     /// object's ETag).
     pub fn remote_version(&self) -> Option<&str> {
-        match &self.file {
-            Source::Local(_) => None,
-            Source::Remote(o) => o.version(),
-        }
+        self.remote().and_then(RemoteObject::version)
     }
 
     /// For a store on object storage: how it was reached.
     pub fn remote_options(&self) -> Option<&RemoteOptions> {
-        match &self.file {
-            Source::Local(_) => None,
-            Source::Remote(o) => Some(o.options()),
-        }
+        self.remote().map(RemoteObject::options)
     }
 
     /// The file it was opened from.

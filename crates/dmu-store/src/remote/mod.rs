@@ -89,8 +89,8 @@ pub struct RemoteOptions {
     /// The most bytes the cache keeps on disk (least recently used blocks
     /// go first); 0: no cache.
     pub cache_budget: u64,
-    /// The parts of a multipart upload (`None`: [`PART_BYTES`]);
-    /// stores over four parts go up in parts.
+    /// The parts of a multipart upload (`None`: [`PART_BYTES`]; at least
+    /// 5 MiB); a store over one part goes up in parts.
     pub part_bytes: Option<u64>,
 }
 
@@ -391,22 +391,14 @@ impl RemoteObject {
         // A body cut short (the server gone mid-answer) is tried again as a
         // failed request is; what is left after the tries is a network
         // error (`ConnectionAborted`), never a short file.
-        let mut tries = 0;
-        loop {
-            match self.fetch_once(offset, len) {
-                Err(Fetch::Cut(_)) if tries < RETRIES => {
-                    add(&self.counters.retries, 1);
-                    std::thread::sleep(Duration::from_millis(100 << (2 * tries)));
-                    tries += 1;
-                }
-                Err(Fetch::Cut(why)) => {
-                    add(&self.counters.failed_requests, 1);
-                    return Err(Error::new(ErrorKind::ConnectionAborted, why));
-                }
-                Err(Fetch::Failed(e)) => return Err(e),
-                Ok(bytes) => return Ok(bytes),
+        let cut = |e: &Fetch| matches!(e, Fetch::Cut(_));
+        with_retries(&self.counters, || self.fetch_once(offset, len), cut).map_err(|e| match e {
+            Fetch::Cut(why) => {
+                add(&self.counters.failed_requests, 1);
+                Error::new(ErrorKind::ConnectionAborted, why)
             }
-        }
+            Fetch::Failed(e) => e,
+        })
     }
 
     /// One range request for `offset..offset + len`, checked: a 206 for
@@ -499,35 +491,18 @@ impl RemoteObject {
             }
             requests.push((start, b));
         }
-        for batch in requests.chunks(IN_FLIGHT) {
-            let fetched: Vec<std::io::Result<Vec<u8>>> = std::thread::scope(|s| {
-                let handles: Vec<_> = batch
-                    .iter()
-                    .map(|&(a, b)| {
-                        s.spawn(move || {
-                            let from = a * BLOCK_BYTES;
-                            let to = (b * BLOCK_BYTES).min(self.len);
-                            self.fetch(from, to - from)
-                        })
-                    })
-                    .collect();
-                handles
-                    .into_iter()
-                    .map(|h| {
-                        h.join()
-                            .unwrap_or_else(|_| Err(Error::other("a fetch panicked")))
-                    })
-                    .collect()
-            });
-            for (&(a, _), bytes) in batch.iter().zip(fetched) {
-                let bytes = bytes?;
-                for (i, block) in bytes.chunks(BLOCK_BYTES as usize).enumerate() {
-                    let index = a + i as u64;
-                    cache.put(index, block);
-                    blocks[(index - first) as usize] = Some(block.to_vec());
-                }
+        let fetch = |&(a, b): &(u64, u64)| {
+            let from = a * BLOCK_BYTES;
+            self.fetch(from, (b * BLOCK_BYTES).min(self.len) - from)
+        };
+        in_flight(&requests, fetch, |&(a, _), bytes: Vec<u8>| {
+            for (i, block) in bytes.chunks(BLOCK_BYTES as usize).enumerate() {
+                let index = a + i as u64;
+                cache.put(index, block);
+                blocks[(index - first) as usize] = Some(block.to_vec());
             }
-        }
+            Ok::<_, Error>(())
+        })?;
         let mut out = Vec::new();
         let mut at = offset;
         for (i, block) in blocks.into_iter().enumerate() {
@@ -542,36 +517,74 @@ impl RemoteObject {
     }
 }
 
+/// Runs `attempt`, and again [`RETRIES`] times at most (after 0.1 s, then
+/// 0.4 s) while its error is one `again` says is worth another try, each
+/// retry counted.
+fn with_retries<T, E>(
+    c: &Counters,
+    attempt: impl Fn() -> Result<T, E>,
+    again: impl Fn(&E) -> bool,
+) -> Result<T, E> {
+    let mut tries = 0;
+    loop {
+        match attempt() {
+            Err(e) if again(&e) && tries < RETRIES => {
+                add(&c.retries, 1);
+                std::thread::sleep(Duration::from_millis(100 << (2 * tries)));
+                tries += 1;
+            }
+            result => return result,
+        }
+    }
+}
+
 /// Makes a request by `attempt`, retrying failures of the network and of
 /// the server (5xx, 429) [`RETRIES`] times, counting each try.
 fn retrying(
     c: &Counters,
     attempt: impl Fn() -> Result<ureq::Response, Box<ureq::Error>>,
 ) -> Result<ureq::Response, Box<ureq::Error>> {
-    let mut tries = 0;
-    loop {
+    let request = || {
         add(&c.requests, 1);
-        let error = match attempt() {
-            Ok(response) => return Ok(response),
-            Err(e) => e,
-        };
-        let retryable = match &*error {
-            ureq::Error::Status(code, _) => *code >= 500 || *code == 429,
-            ureq::Error::Transport(t) => {
-                if is_timeout(t) {
-                    add(&c.timeouts, 1);
-                }
-                true
+        attempt()
+    };
+    let retryable = |error: &ureq::Error| match error {
+        ureq::Error::Status(code, _) => *code >= 500 || *code == 429,
+        ureq::Error::Transport(t) => {
+            if is_timeout(t) {
+                add(&c.timeouts, 1);
             }
-        };
-        if !retryable || tries == RETRIES {
-            add(&c.failed_requests, 1);
-            return Err(error);
+            true
         }
-        add(&c.retries, 1);
-        std::thread::sleep(Duration::from_millis(100 << (2 * tries)));
-        tries += 1;
+    };
+    with_retries(c, request, |e| retryable(e)).inspect_err(|_| add(&c.failed_requests, 1))
+}
+
+/// Runs `work` on every item, [`IN_FLIGHT`] at once on threads of their
+/// own (the work waits on the network, not on a core), and hands each
+/// result to `done` in the items' order, a batch at a time: the first error
+/// ends it after its batch.
+fn in_flight<T: Sync, R: Send, E: Send + From<Error>>(
+    items: &[T],
+    work: impl Fn(&T) -> Result<R, E> + Sync,
+    mut done: impl FnMut(&T, R) -> Result<(), E>,
+) -> Result<(), E> {
+    for batch in items.chunks(IN_FLIGHT) {
+        let results: Vec<Result<R, E>> = std::thread::scope(|s| {
+            let handles: Vec<_> = batch.iter().map(|item| s.spawn(|| work(item))).collect();
+            handles
+                .into_iter()
+                .map(|h| {
+                    h.join()
+                        .unwrap_or_else(|_| Err(Error::other("a request's thread panicked").into()))
+                })
+                .collect()
+        });
+        for (item, result) in batch.iter().zip(results) {
+            done(item, result?)?;
+        }
     }
+    Ok(())
 }
 
 /// A request's result with its (large) error boxed.

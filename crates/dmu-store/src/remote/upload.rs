@@ -13,7 +13,9 @@ use rusty_s3::actions::{
     CompleteMultipartUpload, CompleteMultipartUploadResponse, CreateMultipartUpload,
 };
 
-use super::{Counters, Locator, REQUEST_TTL, RemoteOptions, agent, boxed, http_error, retrying};
+use super::{
+    Counters, Locator, REQUEST_TTL, RemoteOptions, agent, boxed, http_error, in_flight, retrying,
+};
 
 /// The size of each part by default ([`RemoteOptions::part_bytes`]); a
 /// store of one part is put whole.
@@ -131,24 +133,14 @@ pub(crate) fn upload(
     let result = (|| {
         let mut etags = Vec::new();
         let numbers: Vec<u64> = (1..=parts).collect();
-        for batch in numbers.chunks(super::IN_FLIGHT) {
-            let done: Vec<Result<String, UploadError>> = std::thread::scope(|s| {
-                let handles: Vec<_> = batch
-                    .iter()
-                    .map(|&p| s.spawn(move || put_part(p)))
-                    .collect();
-                handles
-                    .into_iter()
-                    .map(|h| {
-                        h.join()
-                            .unwrap_or_else(|_| Err(Error::other("an upload panicked").into()))
-                    })
-                    .collect()
-            });
-            for etag in done {
-                etags.push(etag?);
-            }
-        }
+        in_flight(
+            &numbers,
+            |&p| put_part(p),
+            |_, etag| {
+                etags.push(etag);
+                Ok(())
+            },
+        )?;
         let complete = || {
             CompleteMultipartUpload::new(
                 &bucket,
