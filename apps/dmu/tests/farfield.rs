@@ -6,6 +6,20 @@ use serde_json::Value;
 
 use super::{generated_plant, on_gpu};
 
+/// `dmu farfield build`'s options in these tests: the cells along frames
+/// 300..306 of the built-in walk, small cells, small cull boxes and captures.
+const BUILD: [&str; 9] = [
+    "--along-walk",
+    "--range",
+    "300..306",
+    "--cell-size",
+    "4000",
+    "--triangle-budget",
+    "20k",
+    "--resolution",
+    "128",
+];
+
 /// Far fields built along a stretch of the built-in walk are stored (the
 /// store still opens, with its far fields counted), a walk over that
 /// stretch draws them in every frame with fewer chunk triangles than
@@ -38,20 +52,9 @@ fn far_fields_are_built_into_the_store_and_drawn_by_a_walk() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains("dmu farfield build"), "{err}");
 
-        let build = [
-            "build",
-            store.as_str(),
-            "--along-walk",
-            "--range",
-            "300..306",
-            "--cell-size",
-            "4000",
-            "--triangle-budget",
-            "20k",
-            "--resolution",
-            "128",
-            "--json",
-        ];
+        let mut build = vec!["build", store.as_str()];
+        build.extend(BUILD);
+        build.push("--json");
         let out = on_gpu("farfield", &build);
         assert!(
             out.status.success(),
@@ -192,28 +195,16 @@ fn far_fields_are_built_into_the_store_and_drawn_by_a_walk() {
 
 /// Cells built by shards (`--shard K/N --cells-out`) are written by
 /// `--cells-from` only into the model they were built from: after a part
-/// moved, the folder is refused in one line naming the shard's record; a
-/// missing cell likewise.
+/// moved, the folder is refused in one line naming the shard's record.
 #[test]
 fn shard_cells_of_another_model_version_are_refused() {
     dmu_testkit::with_gpu(|_| {
         let dir = tempfile::tempdir().unwrap();
         let store = generated_plant(dir.path(), "200k");
         let cells = dir.path().join("cells").to_string_lossy().into_owned();
-        let options = [
-            "--along-walk",
-            "--range",
-            "300..306",
-            "--cell-size",
-            "4000",
-            "--triangle-budget",
-            "20k",
-            "--resolution",
-            "64",
-        ];
         let run = |extra: &[&str]| {
             let mut args = vec!["build", store.as_str()];
-            args.extend(options);
+            args.extend(BUILD);
             args.extend(extra);
             on_gpu("farfield", &args)
         };
